@@ -1,0 +1,1 @@
+"""align package of sins."""
