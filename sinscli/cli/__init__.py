@@ -1,0 +1,4 @@
+"""Command-line wiring: each command lives in its own module and registers on ``main``."""
+from .base import main  # noqa: F401
+
+# One import per command module (each adds its command to ``main``).

@@ -1,0 +1,344 @@
+"""Rotation kernels: DCM, quaternion, rotation vector, Euler angles.
+
+Conventions (``FORMATS.md``): ``Cbn`` turns a body vector into ENU; the
+quaternion ``q_b^n`` is scalar first and means the same rotation; Euler angles
+are physical (heading clockwise from north, pitch nose up, roll right side
+down) whatever the body convention.  Body conventions are coded as integers:
+``FLU = 0``, ``RFU = 1``, ``FRD = 2``.
+
+All kernels are numba ``njit(cache=True)`` functions over plain float64
+arrays, with no I/O.  Trigonometric coefficients near zero angle use the
+Taylor series of Savage (seed 004) eqs 26 and 60, so they are exact to double
+precision for every angle.
+"""
+import numpy as np
+from numba import njit
+
+FLU, RFU, FRD = 0, 1, 2
+BODY_CONVENTIONS = {"flu": FLU, "rfu": RFU, "frd": FRD}
+
+# C_{conv}^{flu}: turns a vector given in the named body axes into FLU axes.
+_CONV_TO_FLU = np.array([
+    [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],      # FLU
+    [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],     # RFU: F = y, L = -x, U = z
+    [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],    # FRD: F = x, L = -y, U = -z
+])
+
+
+@njit(cache=True)
+def conv_to_flu(conv):
+    """``C_{conv}^{FLU}`` for body convention code ``conv`` (3x3)."""
+    return _CONV_TO_FLU[conv].copy()
+
+
+@njit(cache=True)
+def mm3(a, b):
+    """3x3 matrix product ``a b`` (unrolled; no BLAS)."""
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+    return out
+
+
+@njit(cache=True)
+def mv3(a, v):
+    """3x3 matrix times 3-vector ``a v``."""
+    out = np.empty(3)
+    for i in range(3):
+        out[i] = a[i, 0] * v[0] + a[i, 1] * v[1] + a[i, 2] * v[2]
+    return out
+
+
+@njit(cache=True)
+def mtv3(a, v):
+    """Transposed 3x3 matrix times 3-vector ``a^T v``."""
+    out = np.empty(3)
+    for i in range(3):
+        out[i] = a[0, i] * v[0] + a[1, i] * v[1] + a[2, i] * v[2]
+    return out
+
+
+@njit(cache=True)
+def skew(v):
+    """``[v x]``: the matrix with ``skew(v) @ u == cross(v, u)``."""
+    m = np.zeros((3, 3))
+    m[0, 1] = -v[2]
+    m[0, 2] = v[1]
+    m[1, 0] = v[2]
+    m[1, 2] = -v[0]
+    m[2, 0] = -v[1]
+    m[2, 1] = v[0]
+    return m
+
+
+@njit(cache=True)
+def cross(a, b):
+    """Cross product of two 3-vectors."""
+    out = np.empty(3)
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+    return out
+
+
+@njit(cache=True)
+def rotvec_coeffs(phi2):
+    """``(sin p / p, (1 - cos p) / p^2)`` for ``p^2 = phi2`` (Savage eq 26).
+
+    The series are used below p = 1e-2, where 6 terms reach 1 ulp.
+    """
+    if phi2 < 1e-4:
+        a = 1.0 - phi2 / 6.0 * (1.0 - phi2 / 20.0 * (1.0 - phi2 / 42.0 * (1.0 - phi2 / 72.0)))
+        b = 0.5 * (1.0 - phi2 / 12.0 * (1.0 - phi2 / 30.0 * (1.0 - phi2 / 56.0 * (1.0 - phi2 / 90.0))))
+        return a, b
+    p = np.sqrt(phi2)
+    return np.sin(p) / p, (1.0 - np.cos(p)) / phi2
+
+
+@njit(cache=True)
+def rotvec_to_dcm(phi):
+    """``C = I + (sin p/p)[phi x] + ((1-cos p)/p^2)[phi x]^2`` (Savage eq 26, seed 000 eq 8)."""
+    phi2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
+    a, b = rotvec_coeffs(phi2)
+    s = skew(phi)
+    return np.eye(3) + a * s + b * mm3(s, s)
+
+
+@njit(cache=True)
+def rotvec_to_quat(phi):
+    """``q = [cos(p/2), (sin(p/2)/p) phi]`` (Savage eq 60, seed 000 eq 3)."""
+    phi2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
+    q = np.empty(4)
+    if phi2 < 1e-4:
+        h2 = 0.25 * phi2
+        q[0] = 1.0 - h2 / 2.0 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0 * (1.0 - h2 / 56.0)))
+        s = 0.5 * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0 * (1.0 - h2 / 72.0))))
+    else:
+        p = np.sqrt(phi2)
+        q[0] = np.cos(0.5 * p)
+        s = np.sin(0.5 * p) / p
+    q[1] = s * phi[0]
+    q[2] = s * phi[1]
+    q[3] = s * phi[2]
+    return q
+
+
+@njit(cache=True)
+def quat_mul(p, q):
+    """Hamilton product ``p o q`` (seed 000 eq 3 in matrix form)."""
+    r = np.empty(4)
+    r[0] = p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3]
+    r[1] = p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2]
+    r[2] = p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1]
+    r[3] = p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0]
+    return r
+
+
+@njit(cache=True)
+def quat_normalize(q):
+    """``q / |q|`` (Savage 4.2.3, seed 000 eq 4); sign chosen with ``q0 >= 0``."""
+    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    if q[0] < 0.0:
+        n = -n
+    return q / n
+
+
+@njit(cache=True)
+def quat_to_dcm(q):
+    """``Cbn`` from ``q_b^n`` (seed 000 eq 1)."""
+    q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
+    c = np.empty((3, 3))
+    c[0, 0] = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
+    c[0, 1] = 2.0 * (q1 * q2 - q0 * q3)
+    c[0, 2] = 2.0 * (q1 * q3 + q0 * q2)
+    c[1, 0] = 2.0 * (q1 * q2 + q0 * q3)
+    c[1, 1] = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
+    c[1, 2] = 2.0 * (q2 * q3 - q0 * q1)
+    c[2, 0] = 2.0 * (q1 * q3 - q0 * q2)
+    c[2, 1] = 2.0 * (q2 * q3 + q0 * q1)
+    c[2, 2] = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    return c
+
+
+@njit(cache=True)
+def dcm_to_quat(c):
+    """``q_b^n`` from ``Cbn`` (Shepperd's method, largest pivot), ``q0 >= 0``."""
+    tr = c[0, 0] + c[1, 1] + c[2, 2]
+    q = np.empty(4)
+    if tr >= c[0, 0] and tr >= c[1, 1] and tr >= c[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + tr)
+        q[0] = 0.25 * s
+        q[1] = (c[2, 1] - c[1, 2]) / s
+        q[2] = (c[0, 2] - c[2, 0]) / s
+        q[3] = (c[1, 0] - c[0, 1]) / s
+    elif c[0, 0] >= c[1, 1] and c[0, 0] >= c[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + c[0, 0] - c[1, 1] - c[2, 2])
+        q[0] = (c[2, 1] - c[1, 2]) / s
+        q[1] = 0.25 * s
+        q[2] = (c[0, 1] + c[1, 0]) / s
+        q[3] = (c[0, 2] + c[2, 0]) / s
+    elif c[1, 1] >= c[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + c[1, 1] - c[0, 0] - c[2, 2])
+        q[0] = (c[0, 2] - c[2, 0]) / s
+        q[1] = (c[0, 1] + c[1, 0]) / s
+        q[2] = 0.25 * s
+        q[3] = (c[1, 2] + c[2, 1]) / s
+    else:
+        s = 2.0 * np.sqrt(1.0 + c[2, 2] - c[0, 0] - c[1, 1])
+        q[0] = (c[1, 0] - c[0, 1]) / s
+        q[1] = (c[0, 2] + c[2, 0]) / s
+        q[2] = (c[1, 2] + c[2, 1]) / s
+        q[3] = 0.25 * s
+    return quat_normalize(q)
+
+
+@njit(cache=True)
+def dcm_to_rotvec(c):
+    """Rotation vector of a DCM (inverse of eq 26), accurate at every angle."""
+    q = dcm_to_quat(c)
+    sn = np.sqrt(q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    ang = 2.0 * np.arctan2(sn, q[0])
+    out = np.empty(3)
+    if sn < 1e-300:
+        out[:] = 0.0
+        return out
+    k = ang / sn
+    out[0] = k * q[1]
+    out[1] = k * q[2]
+    out[2] = k * q[3]
+    return out
+
+
+@njit(cache=True)
+def orthonormalize(c):
+    """Orthonormalize a DCM (Savage 4.1.3): ``C <- C (C^T C)^(-1/2)``.
+
+    Uses the symmetric correction ``C - 0.5 C (C^T C - I)`` twice, which is
+    exact to second order in the orthogonality error and so to the last bit
+    for the errors that a step's rounding leaves.
+    """
+    out = c.copy()
+    for _ in range(2):
+        e = mm3(out.T.copy(), out) - np.eye(3)
+        out = out - 0.5 * mm3(out, e)
+    return out
+
+
+@njit(cache=True)
+def _rx(a):
+    ca, sa = np.cos(a), np.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]])
+
+
+@njit(cache=True)
+def _ry(a):
+    ca, sa = np.cos(a), np.sin(a)
+    return np.array([[ca, 0.0, sa], [0.0, 1.0, 0.0], [-sa, 0.0, ca]])
+
+
+@njit(cache=True)
+def _rz(a):
+    ca, sa = np.cos(a), np.sin(a)
+    return np.array([[ca, -sa, 0.0], [sa, ca, 0.0], [0.0, 0.0, 1.0]])
+
+
+@njit(cache=True)
+def euler_to_dcm(roll, pitch, heading, conv):
+    """``Cbn`` from physical Euler angles in radians (FORMATS.md).
+
+    For RFU axes ``Cbn = Rz(-heading) Rx(pitch) Ry(roll)``; other conventions
+    follow through ``C_{conv}^{RFU}``.
+    """
+    c_rfu = mm3(mm3(_rz(-heading), _rx(pitch)), _ry(roll))
+    # C_conv^RFU = C_FLU^RFU C_conv^FLU, and C_FLU^RFU = (C_RFU^FLU)^T.
+    return mm3(c_rfu, mm3(_CONV_TO_FLU[RFU].T.copy(), _CONV_TO_FLU[conv]))
+
+
+@njit(cache=True)
+def dcm_to_euler(cbn, conv):
+    """Physical ``(roll, pitch, heading)`` in radians from ``Cbn``.
+
+    heading in [0, 2 pi), pitch in [-pi/2, pi/2], roll in (-pi, pi].  At
+    pitch +-90 deg (gimbal lock) roll is set to 0 and heading takes the whole
+    rotation about the vertical.
+    """
+    c = mm3(cbn, mm3(_CONV_TO_FLU[conv].T.copy(), _CONV_TO_FLU[RFU]))  # C_RFU^n
+    s_pitch = c[2, 1]
+    if s_pitch > 1.0:
+        s_pitch = 1.0
+    elif s_pitch < -1.0:
+        s_pitch = -1.0
+    horiz = np.sqrt(c[0, 1] * c[0, 1] + c[1, 1] * c[1, 1])
+    pitch = np.arctan2(s_pitch, horiz)
+    if horiz > 1e-12:
+        roll = np.arctan2(-c[2, 0], c[2, 2])
+        yaw = np.arctan2(-c[0, 1], c[1, 1])
+    else:
+        roll = 0.0
+        yaw = np.arctan2(c[1, 0], c[0, 0])
+    if roll <= -np.pi:
+        roll += 2.0 * np.pi
+    heading = -yaw
+    if heading < 0.0:
+        heading += 2.0 * np.pi
+    if heading >= 2.0 * np.pi:
+        heading -= 2.0 * np.pi
+    return roll, pitch, heading
+
+
+@njit(cache=True)
+def euler_to_dcm_many(roll, pitch, heading, conv):
+    """Vectorized :func:`euler_to_dcm` over arrays of angles (radians) -> (N, 3, 3)."""
+    n = roll.shape[0]
+    out = np.empty((n, 3, 3))
+    for k in range(n):
+        out[k] = euler_to_dcm(roll[k], pitch[k], heading[k], conv)
+    return out
+
+
+@njit(cache=True)
+def dcm_to_euler_many(cbn, conv):
+    """Vectorized :func:`dcm_to_euler` over (N, 3, 3) -> (N, 3) roll, pitch, heading (radians)."""
+    n = cbn.shape[0]
+    out = np.empty((n, 3))
+    for k in range(n):
+        r, p, h = dcm_to_euler(cbn[k], conv)
+        out[k, 0] = r
+        out[k, 1] = p
+        out[k, 2] = h
+    return out
+
+
+@njit(cache=True)
+def dcm_to_quat_many(cbn):
+    """Vectorized :func:`dcm_to_quat` over (N, 3, 3) -> (N, 4)."""
+    n = cbn.shape[0]
+    out = np.empty((n, 4))
+    for k in range(n):
+        out[k] = dcm_to_quat(cbn[k])
+    return out
+
+
+@njit(cache=True)
+def quat_to_dcm_many(q):
+    """Vectorized :func:`quat_to_dcm` over (N, 4) -> (N, 3, 3)."""
+    n = q.shape[0]
+    out = np.empty((n, 3, 3))
+    for k in range(n):
+        out[k] = quat_to_dcm(q[k])
+    return out
+
+
+@njit(cache=True)
+def attitude_error_many(cbn_true, cbn_est):
+    """Small-angle attitude error vectors in the navigation frame, radians, (N, 3).
+
+    ``phi`` with ``Cbn_true = exp([phi x]) Cbn_est``: computed from the DCM
+    difference ``Cbn_true Cbn_est^T``, never from Euler differences.
+    """
+    n = cbn_true.shape[0]
+    out = np.empty((n, 3))
+    for k in range(n):
+        out[k] = dcm_to_rotvec(mm3(cbn_true[k], cbn_est[k].T.copy()))
+    return out

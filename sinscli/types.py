@@ -1,0 +1,73 @@
+"""Plain data containers passed between readers, pipeline stages and writers.
+
+They hold numpy arrays only (no per-sample Python objects); kernels receive
+the arrays, never these objects.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class ImuLog:
+    """IMU increments in the body frame (after units, axes and mounting are applied).
+
+    ``time[k]`` is the end of interval k; interval 0 starts at ``t0`` (the time
+    of the first rate sample for rate logs, or the initial state's time for
+    increment logs, FORMATS.md).  ``t0`` is None when not yet known.
+    """
+    time: np.ndarray            # (N,) s
+    dtheta_b: np.ndarray        # (N, 3) rad, integral of w_ib^b over the interval
+    dvel_b: np.ndarray          # (N, 3) m/s, integral of f^b over the interval
+    t0: float | None = None     # start of the first interval, s
+    source: str = "<memory>"    # file (and topic) name for messages
+    kind: str = "increments"    # "increments" or "rates" (what the file held)
+
+    def __len__(self) -> int:
+        return int(self.time.shape[0])
+
+
+@dataclass
+class GnssLog:
+    """GNSS fixes: position, optional ENU velocity and 1-sigma."""
+    time: np.ndarray                    # (N,) s
+    lat: np.ndarray                     # (N,) deg
+    lon: np.ndarray                     # (N,) deg
+    height: np.ndarray                  # (N,) m
+    vel_n: np.ndarray | None = None     # (N, 3) m/s ENU
+    std_pos: np.ndarray | None = None   # (N, 3) m ENU
+    std_vel: np.ndarray | None = None   # (N, 3) m/s ENU
+    source: str = "<memory>"
+
+    def __len__(self) -> int:
+        return int(self.time.shape[0])
+
+
+@dataclass
+class NavState:
+    """One navigation state: position, ENU velocity and attitude ``Cbn``."""
+    time: float            # s
+    lat: float             # rad
+    lon: float             # rad
+    height: float          # m
+    vel_n: np.ndarray      # (3,) m/s ENU
+    Cbn: np.ndarray        # (3, 3) body -> ENU
+    extra: dict = field(default_factory=dict)   # e.g. sigmas and biases from alignment
+
+
+@dataclass
+class Trajectory:
+    """A trajectory as arrays (FORMATS.md trajectory CSV columns)."""
+    time: np.ndarray       # (N,)
+    lat: np.ndarray        # (N,) rad
+    lon: np.ndarray        # (N,) rad
+    height: np.ndarray     # (N,) m
+    vel_n: np.ndarray      # (N, 3) m/s
+    Cbn: np.ndarray        # (N, 3, 3)
+    extra: dict = field(default_factory=dict)   # extra columns name -> (N,) array
+    source: str = "<memory>"
+
+    def __len__(self) -> int:
+        return int(self.time.shape[0])
