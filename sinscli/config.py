@@ -1,0 +1,213 @@
+"""Navigation config: YAML, every key documented in ``configs/navigation.yaml``, validated on load.
+
+Errors name the file and the offending key, e.g.
+``nav.yaml: navigation.coning: expected one of 1, 2, 3, 4, got 5``.
+Command-line options override the config (the CLI passes them to :func:`merge`).
+"""
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .errors import SinsError
+
+GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
+ACCEL_UNITS = {"m/s^2": 1.0, "g": 9.80665, "mg": 9.80665e-3}
+ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
+VEL_UNITS = {"m/s": 1.0}
+IMU_NAMES = ["time", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z",
+             "dtheta_x", "dtheta_y", "dtheta_z", "dvel_x", "dvel_y", "dvel_z"]
+GNSS_NAMES = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u",
+              "std_e", "std_n", "std_u", "std_vel_e", "std_vel_n", "std_vel_u"]
+
+DEFAULTS = {
+    "imu": {
+        "columns": {},            # FORMATS name -> column name in the file
+        "ignore_columns": [],     # extra file columns to ignore
+        "units": {"gyro": "rad/s", "accel": "m/s^2", "dtheta": "rad", "dvel": "m/s"},
+        "body": "flu",            # flu | rfu | frd: the body axes after mounting
+        "mounting": None,         # sensor -> body: {roll, pitch, yaw} deg, or a 3x3 matrix
+        "static_start": False,    # the log starts at rest (enables the specific-force check)
+    },
+    "gnss": {
+        "columns": {},
+        "ignore_columns": [],
+        "lever_arm": [0.0, 0.0, 0.0],   # antenna position in body axes, m
+    },
+    "navigation": {
+        "attitude": "quat",       # dcm | quat | krylov | euler
+        "dcm_variant": "exact",   # exact (Savage eq 26) | seed000 (seed 000 eqs 12-14)
+        "coning": 2,              # 1 | 2 | 3 | 4
+        "subsamples": 1,          # fast IMU samples per attitude update
+        "every": 1,               # write every K-th state
+        "frame": "enu",           # enu | launch-inertial
+        "allow_gaps": False,      # bridge gaps > 5 nominal intervals with a warning
+        "euler_integrator": "rk4",          # euler | rk4 (3-angle baseline)
+        "singularity_threshold": 0.01,      # |cos psi| under which the 3-angle method warns
+        "on_singularity": "continue",       # continue | stop
+        "launch": None,           # {lat, lon, height, azimuth} deg/m for launch-inertial
+    },
+    "ros": {
+        "imu_topic": None,
+        "gnss_topic": None,
+        "vel_topic": None,
+        "time": "header",         # header | log
+    },
+}
+
+CHOICES = {
+    ("imu", "body"): ["flu", "rfu", "frd"],
+    ("navigation", "attitude"): ["dcm", "quat", "krylov", "euler"],
+    ("navigation", "dcm_variant"): ["exact", "seed000"],
+    ("navigation", "coning"): [1, 2, 3, 4],
+    ("navigation", "frame"): ["enu", "launch-inertial"],
+    ("navigation", "euler_integrator"): ["euler", "rk4"],
+    ("navigation", "on_singularity"): ["continue", "stop"],
+    ("ros", "time"): ["header", "log"],
+}
+UNIT_CHOICES = {"gyro": GYRO_UNITS, "accel": ACCEL_UNITS, "dtheta": ANGLE_UNITS, "dvel": VEL_UNITS}
+
+
+def load_config(path=None) -> dict:
+    """Load and validate a config YAML (or the defaults when ``path`` is None)."""
+    cfg = copy.deepcopy(DEFAULTS)
+    if path is None:
+        return cfg
+    path = Path(path)
+    if not path.exists():
+        raise SinsError(f"{path}: config file not found")
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" line {mark.line + 1}" if mark else ""
+        raise SinsError(f"{path}:{where} is not valid YAML") from None
+    if not isinstance(data, dict):
+        raise SinsError(f"{path}: expected a mapping of sections {sorted(DEFAULTS)}")
+    for section, values in data.items():
+        if section not in DEFAULTS:
+            raise SinsError(f"{path}: {section}: unknown section; expected one of {', '.join(sorted(DEFAULTS))}")
+        if values is None:
+            continue
+        if not isinstance(values, dict):
+            raise SinsError(f"{path}: {section}: expected a mapping of keys")
+        for key, value in values.items():
+            if key not in DEFAULTS[section]:
+                raise SinsError(f"{path}: {section}.{key}: unknown key; expected one of "
+                                f"{', '.join(sorted(DEFAULTS[section]))}")
+            cfg[section][key] = value
+    validate(cfg, str(path))
+    return cfg
+
+
+def merge(cfg: dict, section: str, **overrides) -> dict:
+    """Command-line options (not None) override config keys; validated again."""
+    out = copy.deepcopy(cfg)
+    for key, value in overrides.items():
+        if value is not None:
+            out[section][key] = value
+    validate(out, "command line")
+    return out
+
+
+def _fail(src, key, msg):
+    raise SinsError(f"{src}: {key}: {msg}")
+
+
+def validate(cfg: dict, src: str) -> None:
+    """Check every key's type and range; raise SinsError naming the key."""
+    for (section, key), choices in CHOICES.items():
+        v = cfg[section][key]
+        if isinstance(v, str):
+            v = v.lower()
+            cfg[section][key] = v
+        if v not in choices:
+            _fail(src, f"{section}.{key}", f"expected one of {', '.join(map(str, choices))}, got {v!r}")
+    nav = cfg["navigation"]
+    for key in ("subsamples", "every"):
+        v = nav[key]
+        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+            _fail(src, f"navigation.{key}", f"expected a whole number >= 1, got {v!r}")
+    if not isinstance(nav["allow_gaps"], bool):
+        _fail(src, "navigation.allow_gaps", f"expected true or false, got {nav['allow_gaps']!r}")
+    thr = nav["singularity_threshold"]
+    if not isinstance(thr, (int, float)) or not 0 < thr < 1:
+        _fail(src, "navigation.singularity_threshold", f"expected a number in (0, 1), got {thr!r}")
+    if nav["launch"] is not None:
+        launch = nav["launch"]
+        if not isinstance(launch, dict) or set(launch) - {"lat", "lon", "height", "azimuth"}:
+            _fail(src, "navigation.launch", "expected a mapping with keys lat, lon, height, azimuth")
+        for k, v in launch.items():
+            if not isinstance(v, (int, float)):
+                _fail(src, f"navigation.launch.{k}", f"expected a number, got {v!r}")
+    imu = cfg["imu"]
+    units = imu["units"]
+    if not isinstance(units, dict):
+        _fail(src, "imu.units", "expected a mapping like {gyro: deg/s, accel: g}")
+    for k, v in units.items():
+        if k not in UNIT_CHOICES:
+            _fail(src, f"imu.units.{k}", f"unknown quantity; expected one of {', '.join(UNIT_CHOICES)}")
+        if v not in UNIT_CHOICES[k]:
+            _fail(src, f"imu.units.{k}", f"expected one of {', '.join(UNIT_CHOICES[k])}, got {v!r}")
+    for k, v in DEFAULTS["imu"]["units"].items():
+        units.setdefault(k, v)
+    for section, names in (("imu", IMU_NAMES), ("gnss", GNSS_NAMES)):
+        cols = cfg[section]["columns"]
+        if not isinstance(cols, dict):
+            _fail(src, f"{section}.columns", "expected a mapping {FORMATS name: file column}")
+        for k, v in cols.items():
+            if k not in names:
+                _fail(src, f"{section}.columns.{k}", f"unknown column name; expected one of {', '.join(names)}")
+            if not isinstance(v, str):
+                _fail(src, f"{section}.columns.{k}", f"expected a column name, got {v!r}")
+        ign = cfg[section]["ignore_columns"]
+        if not isinstance(ign, list) or not all(isinstance(x, str) for x in ign):
+            _fail(src, f"{section}.ignore_columns", "expected a list of column names")
+    if not isinstance(imu["static_start"], bool):
+        _fail(src, "imu.static_start", f"expected true or false, got {imu['static_start']!r}")
+    mounting_matrix(imu["mounting"], src)
+    arm = cfg["gnss"]["lever_arm"]
+    if (not isinstance(arm, (list, tuple)) or len(arm) != 3
+            or not all(isinstance(x, (int, float)) for x in arm)):
+        _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres, got {arm!r}")
+
+
+def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
+    """``C_sensor^body`` from the config's ``imu.mounting`` (None -> identity).
+
+    ``{roll, pitch, yaw}`` in degrees means ``C = Rz(yaw) Ry(pitch) Rx(roll)``
+    (body-fixed x-y-z... applied to sensor vectors: v_body = C v_sensor); a 3x3
+    list is taken as the matrix itself and must be a rotation.
+    """
+    if mounting is None:
+        return np.eye(3)
+    if isinstance(mounting, dict):
+        bad = set(mounting) - {"roll", "pitch", "yaw"}
+        if bad:
+            _fail(src, f"imu.mounting.{sorted(bad)[0]}", "unknown key; expected roll, pitch, yaw (degrees)")
+        ang = {}
+        for k in ("roll", "pitch", "yaw"):
+            v = mounting.get(k, 0.0)
+            if not isinstance(v, (int, float)) or isinstance(v, bool):
+                _fail(src, f"imu.mounting.{k}", f"expected a number of degrees, got {v!r}")
+            ang[k] = math.radians(v)
+        cr, sr = math.cos(ang["roll"]), math.sin(ang["roll"])
+        cp, sp = math.cos(ang["pitch"]), math.sin(ang["pitch"])
+        cy, sy = math.cos(ang["yaw"]), math.sin(ang["yaw"])
+        rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+        ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+        rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+        return rz @ ry @ rx
+    try:
+        m = np.array(mounting, dtype=float)
+    except (TypeError, ValueError):
+        m = None
+    if m is None or m.shape != (3, 3):
+        _fail(src, "imu.mounting", "expected {roll, pitch, yaw} in degrees or a 3x3 rotation matrix")
+    if np.abs(m @ m.T - np.eye(3)).max() > 1e-6 or np.linalg.det(m) < 0:
+        _fail(src, "imu.mounting", "the 3x3 matrix is not a rotation (orthonormal, det +1) within 1e-6")
+    return m

@@ -1,0 +1,190 @@
+"""IMU CSV reader and writer (FORMATS.md ``imu.csv``), plus the checks every IMU log gets.
+
+Two forms are read: rates (``gyro_*`` rad/s, ``accel_*`` m/s^2 at ``time``)
+and increments (``dtheta_*`` rad, ``dvel_*`` m/s over (previous time, time]).
+Rates are turned into increments by the trapezoidal rule between consecutive
+samples (:func:`rates_to_increments`); the first rate sample's time starts the
+first interval.  Other column names and units come from the config.
+"""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from ..config import ACCEL_UNITS, ANGLE_UNITS, GYRO_UNITS, IMU_NAMES, VEL_UNITS, mounting_matrix
+from ..errors import SinsError
+from ..types import ImuLog
+from .atomic import atomic_path
+from .csvcore import read_header, read_numeric_columns, write_table_csv
+
+log = logging.getLogger("sins")
+
+RATE_COLS = ["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"]
+INC_COLS = ["dtheta_x", "dtheta_y", "dtheta_z", "dvel_x", "dvel_y", "dvel_z"]
+GAP_FACTOR = 5.0
+
+
+def rates_to_increments(time, gyro, accel):
+    """Trapezoidal increments between rate samples.
+
+    ``dtheta_k = (w_{k-1} + w_k)/2 (t_k - t_{k-1})`` and likewise for ``dvel``;
+    returns ``(time[1:], dtheta, dvel, t0 = time[0])``.
+    """
+    time = np.asarray(time, dtype=float)
+    if time.shape[0] < 2:
+        raise SinsError("rate log has fewer than 2 samples; cannot form increments")
+    dt = np.diff(time)[:, None]
+    dtheta = 0.5 * (gyro[1:] + gyro[:-1]) * dt
+    dvel = 0.5 * (accel[1:] + accel[:-1]) * dt
+    return time[1:].copy(), dtheta, dvel, float(time[0])
+
+
+def _resolve_columns(path, header, cfg_imu):
+    """Map FORMATS names to file columns; decide the form; reject unknown columns."""
+    mapping = dict(cfg_imu.get("columns") or {})
+    inverse = {v: k for k, v in mapping.items()}
+    known = {inverse.get(c, c) for c in header}
+    ignored = set(cfg_imu.get("ignore_columns") or [])
+    unknown = [c for c in header if inverse.get(c, c) not in IMU_NAMES and c not in ignored]
+    if unknown:
+        raise SinsError(f"{path}: unknown column(s) {', '.join(repr(c) for c in unknown)}; expected time with "
+                        f"gyro_x..accel_z (rates) or dtheta_x..dvel_z (increments); map other names with the "
+                        f"config's imu.columns or list them in imu.ignore_columns")
+    has_rates = any(c in known for c in RATE_COLS)
+    has_incs = any(c in known for c in INC_COLS)
+    if has_rates and has_incs:
+        raise SinsError(f"{path}: holds both rate and increment columns; expected one form")
+    form_cols = INC_COLS if has_incs else RATE_COLS
+    missing = [c for c in ["time"] + form_cols if c not in known]
+    if missing:
+        raise SinsError(f"{path}: missing column(s) {', '.join(missing)}; expected time, "
+                        f"{', '.join(form_cols)}" + (" (or their config imu.columns mapping)" if mapping else ""))
+    cols = {c: mapping.get(c, c) for c in ["time"] + form_cols}
+    return ("increments" if has_incs else "rates"), cols
+
+
+def check_time(path, time, allow_gaps=False, what="time"):
+    """Strictly increasing time; gaps over 5 nominal intervals refused unless allowed.
+
+    Row numbers in messages are file line numbers (header = line 1).
+    """
+    dt = np.diff(time)
+    if dt.size == 0:
+        return
+    bad = dt <= 0
+    if bad.any():
+        k = int(np.argmax(bad))
+        how = "repeats" if dt[k] == 0 else "goes backwards"
+        raise SinsError(f"{path}: line {k + 3}, column '{what}': time {time[k + 1]!r} {how} "
+                        f"(previous row {time[k]!r}); time must strictly increase")
+    nominal = float(np.median(dt))
+    gaps = np.nonzero(dt > GAP_FACTOR * nominal)[0]
+    if gaps.size:
+        k = int(gaps[0])
+        if not allow_gaps:
+            raise SinsError(f"{path}: line {k + 3}: gap of {dt[k]:.6g} s before time {time[k + 1]!r} "
+                            f"({dt[k] / nominal:.1f} nominal intervals of {nominal:.6g} s; at most "
+                            f"{GAP_FACTOR:g} allowed); use --allow-gaps to bridge it")
+        for k in gaps:
+            log.warning("%s: bridging a gap of %.6g s from time %r to %r (%.1f nominal intervals)",
+                        path, dt[k], time[k], time[k + 1], dt[k] / nominal)
+
+
+def read_imu_csv(path, cfg=None, allow_gaps=False) -> ImuLog:
+    """Read an IMU CSV (either form) into increments in the sensor axes, SI units.
+
+    ``cfg`` is the config's ``imu`` section (column mapping, units, mounting).
+    """
+    from ..config import DEFAULTS
+    cfg_imu = cfg if cfg is not None else DEFAULTS["imu"]
+    path = Path(path)
+    header = read_header(path)
+    form, cols = _resolve_columns(path, header, cfg_imu)
+    data = read_numeric_columns(path, cols)
+    units = {**DEFAULTS["imu"]["units"], **(cfg_imu.get("units") or {})}
+    time = data["time"]
+    check_time(path, time, allow_gaps, what=cols["time"])
+    if form == "rates":
+        gyro = np.column_stack([data[c] for c in RATE_COLS[:3]]) * GYRO_UNITS[units["gyro"]]
+        accel = np.column_stack([data[c] for c in RATE_COLS[3:]]) * ACCEL_UNITS[units["accel"]]
+        check_rate_units(path, gyro, units["gyro"])
+        tend, dtheta, dvel, t0 = rates_to_increments(time, gyro, accel)
+        imu = ImuLog(tend, dtheta, dvel, t0=t0, source=str(path), kind="rates")
+    else:
+        dtheta = np.column_stack([data[c] for c in INC_COLS[:3]]) * ANGLE_UNITS[units["dtheta"]]
+        dvel = np.column_stack([data[c] for c in INC_COLS[3:]]) * VEL_UNITS[units["dvel"]]
+        imu = ImuLog(time, dtheta, dvel, t0=None, source=str(path), kind="increments")
+    return apply_mounting(imu, mounting_matrix(cfg_imu.get("mounting")))
+
+
+def apply_mounting(imu: ImuLog, c_sb: np.ndarray) -> ImuLog:
+    """Rotate increments from sensor to body axes: ``x_b = C_s^b x_s`` (exact for a fixed mount)."""
+    if np.array_equal(c_sb, np.eye(3)):
+        return imu
+    imu.dtheta_b = imu.dtheta_b @ c_sb.T
+    imu.dvel_b = imu.dvel_b @ c_sb.T
+    return imu
+
+
+def check_rate_units(path, gyro_rad_s, unit):
+    """Warn when gyro values look like deg/s although the file is read as rad/s."""
+    if unit != "rad/s" or gyro_rad_s.shape[0] < 10:
+        return
+    p99 = float(np.percentile(np.abs(gyro_rad_s), 99))
+    if p99 > 2 * np.pi:
+        log.warning("%s: gyro rates reach %.3g rad/s (99th percentile): the file probably holds deg/s; "
+                    "set imu.units.gyro: deg/s in the config", path, p99)
+
+
+def check_static_start(imu: ImuLog, g_local: float, conv: int = 0, seconds: float = 1.0):
+    """Warn when the mean specific force over the first seconds is far from g (said to be static).
+
+    Names the likely mistake: units of g or mg, or an axis pointing down or
+    sideways (wrong body convention or a missing mounting rotation).
+    """
+    t_first = imu.time[0] - (imu.time[1] - imu.time[0]) if len(imu) > 1 else imu.time[0]
+    sel = imu.time <= t_first + seconds
+    if sel.sum() < 1:
+        return None
+    span = imu.time[sel][-1] - t_first
+    f = imu.dvel_b[sel].sum(axis=0) / span
+    mag = float(np.linalg.norm(f))
+    if abs(mag - g_local) <= 0.05 * g_local:
+        up_sign = -1.0 if conv == 2 else 1.0        # FRD: z down
+        k = int(np.argmax(np.abs(f)))
+        if k == 2 and f[2] * up_sign > 0:
+            return None
+        axis = "xyz"[k]
+        sign = "+" if f[k] > 0 else "-"
+        expect = "-z (FRD)" if conv == 2 else "+z (FLU/RFU)"
+        if k == 2:
+            hint = "set imu.body: flu" if conv == 2 else "FRD axes? set imu.body: frd"
+        else:
+            hint = "set imu.mounting (sensor axes are rotated against the body)"
+        msg = (f"{imu.source}: at rest the specific force should point along {expect}, "
+               f"but it is along {sign}{axis} ({f[0]:.3f}, {f[1]:.3f}, {f[2]:.3f}) m/s^2: {hint}")
+        log.warning(msg)
+        return msg
+    if abs(mag * ACCEL_UNITS["g"] - g_local) < 0.05 * g_local:
+        hint = "the file probably holds g; set imu.units.accel: g"
+    elif abs(mag * ACCEL_UNITS["mg"] - g_local) < 0.05 * g_local:
+        hint = "the file probably holds mg; set imu.units.accel: mg"
+    else:
+        hint = "check the accelerometer units and scale"
+    msg = (f"{imu.source}: mean specific force over the first {seconds:g} s is {mag:.4g} m/s^2, "
+           f"far from local gravity {g_local:.4f} m/s^2 although the start is said to be static: {hint}")
+    log.warning(msg)
+    return msg
+
+
+def write_imu_csv(path, imu: ImuLog) -> None:
+    """Write increments (FORMATS.md increment form), atomically, exact floats."""
+    data = {"time": imu.time}
+    for i, ax in enumerate("xyz"):
+        data[f"dtheta_{ax}"] = imu.dtheta_b[:, i]
+    for i, ax in enumerate("xyz"):
+        data[f"dvel_{ax}"] = imu.dvel_b[:, i]
+    with atomic_path(path) as tmp:
+        write_table_csv(tmp, data, ["time"] + INC_COLS)

@@ -1,0 +1,107 @@
+"""Initial state: an init YAML (FORMATS.md keys) or a row of a trajectory file."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..errors import SinsError
+from ..nav.rotation import dcm_to_euler, euler_to_dcm
+from ..types import NavState
+from .atomic import atomic_path
+
+INIT_KEYS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading"]
+
+
+def read_init(path, t_start: float | None = None, conv: int = 0) -> NavState:
+    """Read the initial state.
+
+    A YAML file must hold every key of FORMATS.md (extra keys from ``sins
+    align`` are kept in ``extra``).  A trajectory CSV/Parquet gives the row at
+    the IMU start ``t_start``: the last row at or before it.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise SinsError(f"{path}: init file not found")
+    if path.suffix.lower() in (".yaml", ".yml"):
+        return _read_init_yaml(path, conv)
+    from .trajectory import read_trajectory
+    traj = read_trajectory(path)
+    if t_start is None:
+        k = 0
+    else:
+        idx = np.nonzero(traj.time <= t_start + 1e-9 * max(1.0, abs(t_start)))[0]
+        if idx.size == 0:
+            raise SinsError(f"{path}: no row at or before the IMU start time {t_start!r} "
+                            f"(the trajectory starts at {traj.time[0]!r})")
+        k = int(idx[-1])
+    _check_lat(path, math.degrees(traj.lat[k]), f"row {k + 1}, column 'lat'")
+    return NavState(float(traj.time[k]), float(traj.lat[k]), float(traj.lon[k]), float(traj.height[k]),
+                    traj.vel_n[k].copy(), traj.Cbn[k].copy())
+
+
+def _check_lat(path, lat_deg, where):
+    if not -90.0 <= lat_deg <= 90.0:
+        raise SinsError(f"{path}: {where}: latitude {lat_deg!r} deg is outside [-90, 90]")
+    if abs(lat_deg) > 89.99:
+        raise SinsError(f"{path}: {where}: latitude {lat_deg!r} deg is within 0.01 deg of a pole, where the "
+                        f"ENU frame is undefined; use --frame launch-inertial")
+
+
+def _read_init_yaml(path: Path, conv: int) -> NavState:
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError:
+        raise SinsError(f"{path}: is not valid YAML") from None
+    if not isinstance(data, dict):
+        raise SinsError(f"{path}: expected a mapping with keys {', '.join(INIT_KEYS)}")
+    missing = [k for k in INIT_KEYS if k not in data]
+    if missing:
+        raise SinsError(f"{path}: missing key(s) {', '.join(missing)}; an init file needs "
+                        f"{', '.join(INIT_KEYS)}")
+    vals = {}
+    for k in INIT_KEYS:
+        v = data[k]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise SinsError(f"{path}: {k}: expected a finite number, got {v!r}")
+        vals[k] = float(v)
+    _check_lat(path, vals["lat"], "lat")
+    if not -90.0 <= vals["pitch"] <= 90.0:
+        raise SinsError(f"{path}: pitch: {vals['pitch']!r} deg is outside [-90, 90]")
+    r = math.radians
+    cbn = euler_to_dcm(r(vals["roll"]), r(vals["pitch"]), r(vals["heading"]), conv)
+    extra = {k: v for k, v in data.items() if k not in INIT_KEYS}
+    return NavState(vals["time"], r(vals["lat"]), r(vals["lon"]), vals["height"],
+                    np.array([vals["vel_e"], vals["vel_n"], vals["vel_u"]]), cbn, extra)
+
+
+def init_dict(state: NavState, conv: int = 0) -> dict:
+    """FORMATS.md init keys of a state (degrees), as plain floats (exact round trip)."""
+    roll, pitch, heading = dcm_to_euler(np.ascontiguousarray(state.Cbn), conv)
+    d = math.degrees
+    return {"time": float(state.time), "lat": d(state.lat), "lon": d(state.lon), "height": float(state.height),
+            "vel_e": float(state.vel_n[0]), "vel_n": float(state.vel_n[1]), "vel_u": float(state.vel_n[2]),
+            "roll": d(roll), "pitch": d(pitch), "heading": d(heading)}
+
+
+def write_init_yaml(path, state: NavState, conv: int = 0, extra: dict | None = None) -> None:
+    """Write an init YAML (FORMATS.md keys first, then ``extra``), atomically."""
+    data = init_dict(state, conv)
+    for k, v in {**state.extra, **(extra or {})}.items():
+        data[k] = _plain(v)
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(yaml.safe_dump(data, sort_keys=False, default_flow_style=False))
+
+
+def _plain(v):
+    if isinstance(v, np.ndarray):
+        return [_plain(x) for x in v.tolist()]
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v
