@@ -1,0 +1,255 @@
+"""Navigation errors against a truth trajectory: time matching and the seed-000 error quantities.
+
+Pure numerical code (numpy, one numba kernel), no I/O.  Every error is
+*truth minus navigation*, as in Tables 1-2 of seed 000:
+
+- ``dC = Cbn_true - Cbn_nav`` (the nine ``C11 ... C33`` rows);
+- position in metres east, north, up: ``(lon_t - lon_n)(RN + h_t) cos L_t``,
+  ``(lat_t - lat_n)(RM + h_t)``, ``h_t - h_n`` with the WGS-84 radii at the
+  truth point (:func:`sinscli.nav.earth.radii_py`);
+- velocity east, north, up in m/s;
+- attitude from the DCM difference, never from Euler differences: the
+  small-angle vector ``phi_n`` with ``Cbn_true = exp([phi_n x]) Cbn_nav``
+  (:func:`sinscli.nav.rotation.attitude_error_many`), its angle ``|phi_n|``,
+  and its components about the *truth body* axes, signed like physical Euler
+  angle errors (truth minus navigation): ``roll`` about the forward axis,
+  ``pitch`` about the right axis (nose up positive), ``heading`` about the down
+  axis (clockwise positive).  Near level attitude they equal the differences of
+  the physical Euler angles to first order; unlike those they have no
+  singularity at pitch +-90 deg (a vertical launch).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..errors import SinsError
+from ..nav.earth import radii_py
+from ..nav.rotation import attitude_error_many, conv_to_flu, dcm_to_rotvec, mm3, rotvec_to_dcm
+from ..types import Trajectory
+
+REL_TIME_TOL = 1e-9     # epochs match when |t_truth - t_nav| <= 1e-9 max(1 s, |t|) ...
+STEP_TIME_TOL = 1e-3    # ... and at most 1e-3 of the shortest sample interval of either file
+
+DCM_ROWS = [f"C{i}{j}" for i in range(1, 4) for j in range(1, 4)]
+#: Row keys of the error table (errors.csv), in the order of seed 000 Tables 1-2, then the maxima.
+ROWS = (DCM_ROWS
+        + ["pos_E", "pos_N", "pos_U", "vel_E", "vel_N", "vel_U",
+           "max_pos_E", "max_pos_N", "max_pos_U", "max_vel_E", "max_vel_N", "max_vel_U",
+           "max_att_deg"])
+ROW_UNITS = dict({k: "1" for k in DCM_ROWS},
+                 pos_E="m", pos_N="m", pos_U="m", vel_E="m/s", vel_N="m/s", vel_U="m/s",
+                 max_pos_E="m", max_pos_N="m", max_pos_U="m",
+                 max_vel_E="m/s", max_vel_N="m/s", max_vel_U="m/s", max_att_deg="deg")
+
+
+@dataclass
+class ErrorSeries:
+    """Errors (truth minus navigation) at the matched epochs of one navigation run."""
+    time: np.ndarray          # (N,) s, the navigation epochs that matched the truth
+    dC: np.ndarray            # (N, 3, 3) Cbn_true - Cbn_nav
+    pos_enu_m: np.ndarray     # (N, 3) position error E, N, U, m
+    vel_enu_mps: np.ndarray   # (N, 3) velocity error E, N, U, m/s
+    att_n_rad: np.ndarray     # (N, 3) small-angle vector phi_n in ENU axes, rad
+    att_rph_rad: np.ndarray   # (N, 3) phi about truth body forward / right / down: roll, pitch, heading, rad
+    angle_rad: np.ndarray     # (N,) attitude error angle |phi_n|, rad
+
+    def __len__(self) -> int:
+        return int(self.time.shape[0])
+
+
+# --------------------------------------------------------------------------- time matching
+
+def time_tolerance(t_truth: np.ndarray, t_nav: np.ndarray) -> float:
+    """Matching tolerance in seconds: ``1e-9 max(1, |t|)``, capped at 1e-3 of the shortest step."""
+    tmax = max(1.0, float(np.max(np.abs(t_truth))), float(np.max(np.abs(t_nav))))
+    tol = REL_TIME_TOL * tmax
+    steps = [np.min(np.diff(t)) for t in (t_truth, t_nav) if t.shape[0] > 1]
+    if steps:
+        tol = min(tol, STEP_TIME_TOL * float(min(steps)))
+    return tol
+
+
+def _time_base(t0: float) -> str:
+    if abs(t0) >= 1e8:
+        return "absolute seconds (UNIX or GPS time)"
+    return "seconds from a start or of a GPS week"
+
+
+def explain_no_common_epochs(t_truth, t_nav, truth_name: str, nav_name: str, tol: float) -> str:
+    """The one-line message for a navigation file with no epoch in common with the truth."""
+    a, b = float(t_truth[0]), float(t_truth[-1])
+    c, d = float(t_nav[0]), float(t_nav[-1])
+    spans = f"truth {truth_name} spans {a:.17g} .. {b:.17g} s, navigation spans {c:.17g} .. {d:.17g} s"
+    if c > b or d < a:
+        gap = max(c - b, a - d)
+        longest = max(b - a, d - c, 1.0)
+        if gap > 10.0 * longest or (abs(a) >= 1e8) != (abs(c) >= 1e8):
+            return (f"{nav_name}: no common epochs with the truth: different time bases "
+                    f"(truth in {_time_base(a)}, navigation in {_time_base(c)}; {spans}); "
+                    "write both files with the same time origin")
+        return f"{nav_name}: no common epochs with the truth: the time spans do not overlap ({spans})"
+    return (f"{nav_name}: no common epochs with the truth within {tol:.3g} s although the spans overlap "
+            f"({spans}); the samples fall between truth epochs: pass --interpolate to interpolate the truth")
+
+
+def match_epochs(t_truth: np.ndarray, t_nav: np.ndarray, truth_name: str = "truth",
+                 nav_name: str = "navigation") -> tuple[np.ndarray, np.ndarray]:
+    """Indices ``(i_truth, i_nav)`` of the epochs present in both (within :func:`time_tolerance`).
+
+    Raises :class:`SinsError` naming the navigation file when none match,
+    saying whether the time bases differ or the spans do not overlap.
+    """
+    tol = time_tolerance(t_truth, t_nav)
+    j = np.searchsorted(t_truth, t_nav)
+    lo = np.clip(j - 1, 0, t_truth.shape[0] - 1)
+    hi = np.clip(j, 0, t_truth.shape[0] - 1)
+    nearest = np.where(np.abs(t_truth[lo] - t_nav) <= np.abs(t_truth[hi] - t_nav), lo, hi)
+    ok = np.abs(t_truth[nearest] - t_nav) <= tol
+    if not ok.any():
+        raise SinsError(explain_no_common_epochs(t_truth, t_nav, truth_name, nav_name, tol))
+    return nearest[ok], np.nonzero(ok)[0]
+
+
+@njit(cache=True)
+def interp_dcm_many(c0, c1, s):
+    """``C0 exp(s log(C0^T C1))`` for each k: rotation along the geodesic, s in [0, 1]."""
+    n = c0.shape[0]
+    out = np.empty((n, 3, 3))
+    for k in range(n):
+        rel = mm3(c0[k].T.copy(), c1[k])
+        out[k] = mm3(c0[k], rotvec_to_dcm(s[k] * dcm_to_rotvec(rel)))
+    return out
+
+
+def interpolate_truth(truth: Trajectory, t: np.ndarray, truth_name: str = "truth",
+                      nav_name: str = "navigation") -> tuple[Trajectory, np.ndarray]:
+    """The truth at times ``t`` inside its span: linear in position and velocity, geodesic in attitude.
+
+    Returns the interpolated trajectory and the indices of ``t`` it covers.
+    """
+    tol = time_tolerance(truth.time, t)
+    inside = np.nonzero((t >= truth.time[0] - tol) & (t <= truth.time[-1] + tol))[0]
+    if inside.shape[0] == 0:
+        raise SinsError(explain_no_common_epochs(truth.time, t, truth_name, nav_name, tol))
+    tq = np.clip(t[inside], truth.time[0], truth.time[-1])
+    n = truth.time.shape[0]
+    j = np.clip(np.searchsorted(truth.time, tq, side="right") - 1, 0, max(n - 2, 0))
+    j1 = np.minimum(j + 1, n - 1)
+    dt = truth.time[j1] - truth.time[j]
+    s = np.where(dt > 0, (tq - truth.time[j]) / np.where(dt > 0, dt, 1.0), 0.0)
+
+    def lin(x):
+        sw = s.reshape((-1,) + (1,) * (x.ndim - 1))
+        return x[j] + sw * (x[j1] - x[j])
+
+    dlon = np.angle(np.exp(1j * (truth.lon[j1] - truth.lon[j])))   # across the antimeridian
+    out = Trajectory(time=tq, lat=lin(truth.lat), lon=truth.lon[j] + s * dlon, height=lin(truth.height),
+                     vel_n=lin(truth.vel_n), Cbn=interp_dcm_many(truth.Cbn[j], truth.Cbn[j1], s),
+                     source=truth.source)
+    return out, inside
+
+
+def _subset(traj: Trajectory, idx: np.ndarray) -> Trajectory:
+    return Trajectory(time=traj.time[idx], lat=traj.lat[idx], lon=traj.lon[idx], height=traj.height[idx],
+                      vel_n=traj.vel_n[idx], Cbn=traj.Cbn[idx], source=traj.source)
+
+
+# --------------------------------------------------------------------------- error quantities
+
+def position_error_enu(lat_t, lon_t, h_t, lat_n, lon_n, h_n) -> np.ndarray:
+    """Truth minus navigation position in metres E, N, U, with the radii at the truth point (rad, m)."""
+    rm, rn = radii_py(np.sin(lat_t))
+    dlon = np.angle(np.exp(1j * (lon_t - lon_n)))
+    return np.stack([dlon * (rn + h_t) * np.cos(lat_t), (lat_t - lat_n) * (rm + h_t), h_t - h_n], axis=-1)
+
+
+def body_components(cbn_true: np.ndarray, att_n: np.ndarray, conv: int = 0) -> np.ndarray:
+    """``phi_n`` about the truth body forward / right / down axes: (roll, pitch, heading) errors, rad.
+
+    ``phi_b = Cbn_true^T phi_n`` in the file's body axes (convention code
+    ``conv``), turned into FLU axes; then roll = +F, pitch = -L, heading = -U.
+    """
+    phi_b = np.einsum("nji,nj->ni", cbn_true, att_n)
+    phi_flu = phi_b @ conv_to_flu(conv).T
+    return np.stack([phi_flu[:, 0], -phi_flu[:, 1], -phi_flu[:, 2]], axis=-1)
+
+
+def error_series(truth: Trajectory, nav: Trajectory, conv: int = 0) -> ErrorSeries:
+    """Errors of ``nav`` against ``truth`` given at the same epochs (already matched)."""
+    att_n = attitude_error_many(np.ascontiguousarray(truth.Cbn), np.ascontiguousarray(nav.Cbn))
+    return ErrorSeries(
+        time=nav.time.copy(),
+        dC=truth.Cbn - nav.Cbn,
+        pos_enu_m=position_error_enu(truth.lat, truth.lon, truth.height, nav.lat, nav.lon, nav.height),
+        vel_enu_mps=truth.vel_n - nav.vel_n,
+        att_n_rad=att_n,
+        att_rph_rad=body_components(truth.Cbn, att_n, conv),
+        angle_rad=np.sqrt(np.sum(att_n * att_n, axis=1)),
+    )
+
+
+def compare_trajectories(truth: Trajectory, nav: Trajectory, conv: int = 0, interpolate: bool = False,
+                         truth_name: str | None = None, nav_name: str | None = None) -> ErrorSeries:
+    """Match ``nav`` to ``truth`` by time (exactly, or interpolating the truth) and compute the errors."""
+    truth_name = truth_name or truth.source
+    nav_name = nav_name or nav.source
+    if interpolate:
+        truth_m, i_nav = interpolate_truth(truth, nav.time, truth_name, nav_name)
+    else:
+        i_truth, i_nav = match_epochs(truth.time, nav.time, truth_name, nav_name)
+        truth_m = _subset(truth, i_truth)
+    return error_series(truth_m, _subset(nav, i_nav), conv)
+
+
+# --------------------------------------------------------------------------- the table
+
+@dataclass
+class ErrorTable:
+    """Seed-000 error table: ``values[r, m]`` is row ``ROWS[r]`` of method ``methods[m]``."""
+    epoch: float
+    methods: list[str]
+    values: np.ndarray        # (len(ROWS), len(methods))
+    rows: tuple = tuple(ROWS)
+
+
+def common_epoch(series: dict[str, ErrorSeries], epoch: float | None = None) -> float:
+    """The table epoch: ``epoch`` if every run has it, else (None) the last epoch common to all runs."""
+    items = list(series.items())
+    times = [s.time for _, s in items]
+    tol = min(time_tolerance(times[0], t) for t in times)
+    if epoch is not None:
+        for name, s in items:
+            if np.min(np.abs(s.time - epoch)) > tol:
+                raise SinsError(f"--epoch {epoch!r}: not an epoch of method '{name}' "
+                                f"(its common epochs with the truth span {s.time[0]:.17g} .. {s.time[-1]:.17g} s)")
+        return float(epoch)
+    common = times[0]
+    for t in times[1:]:
+        j = np.clip(np.searchsorted(t, common), 0, t.shape[0] - 1)
+        j0 = np.clip(j - 1, 0, t.shape[0] - 1)
+        keep = (np.abs(t[j] - common) <= tol) | (np.abs(t[j0] - common) <= tol)
+        common = common[keep]
+    if common.shape[0] == 0:
+        raise SinsError("the navigation files have no epoch in common with each other and the truth; "
+                        "pass --epoch or compare them separately")
+    return float(common[-1])
+
+
+def error_column(s: ErrorSeries, epoch: float) -> np.ndarray:
+    """One table column: the errors at ``epoch`` (nearest matched epoch) and the maxima over the run."""
+    k = int(np.argmin(np.abs(s.time - epoch)))
+    return np.concatenate([
+        s.dC[k].reshape(9), s.pos_enu_m[k], s.vel_enu_mps[k],
+        np.max(np.abs(s.pos_enu_m), axis=0), np.max(np.abs(s.vel_enu_mps), axis=0),
+        [np.degrees(np.max(s.angle_rad))],
+    ])
+
+
+def build_table(series: dict[str, ErrorSeries], epoch: float | None = None) -> ErrorTable:
+    """The error table of several runs at a common epoch (default the last common one)."""
+    t = common_epoch(series, epoch)
+    values = np.stack([error_column(s, t) for s in series.values()], axis=1)
+    return ErrorTable(epoch=t, methods=list(series), values=values)

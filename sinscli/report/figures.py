@@ -1,0 +1,115 @@
+"""PNG figures of the errors against time (seed 000 Figs. 1-3, plus position and velocity).
+
+Matplotlib's object API with the Agg canvas (no pyplot, no global state, safe
+in worker processes and without a display).  Long runs are drawn as a min/max
+envelope per pixel column, so every peak stays visible.
+"""
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from ..io.atomic import atomic_path
+from .errors import ErrorSeries
+
+MAX_POINTS = 4000          # envelope bins per line
+_DEG = float(np.degrees(1.0))
+
+#: Attitude figures in the order of seed 000: Fig. 1 pitch, Fig. 2 yaw (heading), Fig. 3 roll.
+ATTITUDE_FIGURES = [
+    ("att_pitch.png", 1, "Pitch error (about the body right axis)"),
+    ("att_heading.png", 2, "Heading (yaw) error (about the body down axis)"),
+    ("att_roll.png", 0, "Roll error (about the body forward axis)"),
+]
+
+
+def envelope(t: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:
+    """Down-sample ``(t, y)`` to at most ``2 max_points`` points keeping each bin's min and max."""
+    n = t.shape[0]
+    if n <= 2 * max_points:
+        return t, y
+    per = int(np.ceil(n / max_points))
+    m = n // per
+    tb = t[: m * per].reshape(m, per)
+    yb = y[: m * per].reshape(m, per)
+    i_min, i_max = np.argmin(yb, axis=1), np.argmax(yb, axis=1)
+    first = np.minimum(i_min, i_max)
+    second = np.maximum(i_min, i_max)
+    rows = np.arange(m)
+    tt = np.stack([tb[rows, first], tb[rows, second]], axis=1).reshape(-1)
+    yy = np.stack([yb[rows, first], yb[rows, second]], axis=1).reshape(-1)
+    return np.concatenate([tt, t[m * per:]]), np.concatenate([yy, y[m * per:]])
+
+
+def _angle_unit(series: dict[str, ErrorSeries]) -> tuple[str, float]:
+    """Degrees, or arcseconds when every attitude error stays below 1 arcminute."""
+    peak = max((float(np.max(s.angle_rad)) for s in series.values() if len(s)), default=0.0)
+    return ("arcsec", _DEG * 3600.0) if peak * _DEG < 1.0 / 60.0 else ("deg", _DEG)
+
+
+def _save(fig: Figure, path) -> None:
+    FigureCanvasAgg(fig)
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+
+
+def _line_plot(ax, series: dict[str, ErrorSeries], values) -> None:
+    for name, s in series.items():
+        t, y = envelope(s.time, values(s))
+        ax.plot(t, y, lw=0.9, label=name)
+    ax.grid(True, alpha=0.3)
+    ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
+
+
+def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
+    """``att_pitch.png``, ``att_heading.png``, ``att_roll.png`` (Figs. 1-3) and ``att_angle.png``."""
+    unit, scale = _angle_unit(series)
+    names = []
+    for fname, col, label in ATTITUDE_FIGURES:
+        fig = Figure(figsize=(8, 4))
+        ax = fig.add_subplot()
+        _line_plot(ax, series, lambda s, c=col: s.att_rph_rad[:, c] * scale)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(f"truth - navigation ({unit})")
+        ax.set_title(f"{title}: {label}" if title else label, fontsize=10)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        _save(fig, outdir / fname)
+        names.append(fname)
+    fig = Figure(figsize=(8, 4))
+    ax = fig.add_subplot()
+    _line_plot(ax, series, lambda s: s.angle_rad * scale)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(f"angle ({unit})")
+    ax.set_title(f"{title}: attitude error angle |phi|" if title else "Attitude error angle |phi|", fontsize=10)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, outdir / "att_angle.png")
+    return names + ["att_angle.png"]
+
+
+def _three_panel(outdir, fname, series, attr, unit, what, title) -> str:
+    fig = Figure(figsize=(8, 7))
+    axes = fig.subplots(3, 1, sharex=True)
+    for c, (ax, axis) in enumerate(zip(axes, ("east", "north", "up"))):
+        _line_plot(ax, series, lambda s: getattr(s, attr)[:, c])
+        ax.set_ylabel(f"{axis} ({unit})")
+    axes[0].set_title(f"{title}: {what} error, truth - navigation" if title else f"{what} error, truth - navigation",
+                      fontsize=10)
+    axes[0].legend(fontsize=8)
+    axes[-1].set_xlabel("time (s)")
+    fig.tight_layout()
+    _save(fig, outdir / fname)
+    return fname
+
+
+def plot_position_velocity(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
+    """``pos_error.png`` and ``vel_error.png``: E, N, U panels, one line per method."""
+    return [_three_panel(outdir, "pos_error.png", series, "pos_enu_m", "m", "Position", title),
+            _three_panel(outdir, "vel_error.png", series, "vel_enu_mps", "m/s", "Velocity", title)]
+
+
+def plot_all(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
+    """Every figure of a report; returns the file names (relative to ``outdir``)."""
+    return plot_attitude(outdir, series, title) + plot_position_velocity(outdir, series, title)
