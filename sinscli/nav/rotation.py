@@ -31,37 +31,196 @@ def conv_to_flu(conv):
     return _CONV_TO_FLU[conv].copy()
 
 
+# ---------------------------------------------------------------------------
+# Tuple cores: the one implementation of each formula.  3-vectors are 3-tuples,
+# matrices 3-tuples of row 3-tuples, quaternions 4-tuples; they live on the
+# stack, so the navigation loop allocates nothing per sample.  The array
+# functions further down wrap them for non-hot callers.
+# ---------------------------------------------------------------------------
+
+@njit(cache=True, inline="always")
+def v_add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+@njit(cache=True, inline="always")
+def v_sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@njit(cache=True, inline="always")
+def v_scale(a, s):
+    return (a[0] * s, a[1] * s, a[2] * s)
+
+
+@njit(cache=True, inline="always")
+def v_dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True, inline="always")
+def v_cross(a, b):
+    """Cross product ``a x b``."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(cache=True, inline="always")
+def m_vec(m, v):
+    """``M v``."""
+    return (m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
+            m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
+            m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2])
+
+
+@njit(cache=True, inline="always")
+def m_tvec(m, v):
+    """``M^T v``."""
+    return (m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2],
+            m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
+            m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2])
+
+
+@njit(cache=True, inline="always")
+def m_mul(a, b):
+    """``A B``."""
+    return (m_tvec(b, a[0]), m_tvec(b, a[1]), m_tvec(b, a[2]))
+
+
+@njit(cache=True, inline="always")
+def m_trans(a):
+    return ((a[0][0], a[1][0], a[2][0]), (a[0][1], a[1][1], a[2][1]), (a[0][2], a[1][2], a[2][2]))
+
+
 @njit(cache=True)
-def mm3(a, b):
-    """3x3 matrix product ``a b`` (unrolled; no BLAS)."""
+def rotvec_coeffs(phi2):
+    """``(sin p / p, (1 - cos p) / p^2)`` for ``p^2 = phi2`` (Savage eq 26).
+
+    The series are used below p = 1e-2, where 5 terms reach 1 ulp.
+    """
+    if phi2 < 1e-4:
+        a = 1.0 - phi2 / 6.0 * (1.0 - phi2 / 20.0 * (1.0 - phi2 / 42.0 * (1.0 - phi2 / 72.0)))
+        b = 0.5 * (1.0 - phi2 / 12.0 * (1.0 - phi2 / 30.0 * (1.0 - phi2 / 56.0 * (1.0 - phi2 / 90.0))))
+        return a, b
+    p = np.sqrt(phi2)
+    return np.sin(p) / p, (1.0 - np.cos(p)) / phi2
+
+
+@njit(cache=True, inline="always")
+def exp_so3(phi, a, b):
+    """``I + a [phi x] + b [phi x]^2`` as a matrix tuple (the shared body of eqs 8, 13, 26)."""
+    x, y, z = phi[0], phi[1], phi[2]
+    xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
+    return ((1.0 - b * (yy + zz), -a * z + b * xy, a * y + b * xz),
+            (a * z + b * xy, 1.0 - b * (xx + zz), -a * x + b * yz),
+            (-a * y + b * xz, a * x + b * yz, 1.0 - b * (xx + yy)))
+
+
+@njit(cache=True)
+def rotvec_to_dcm_t(phi):
+    """``C = I + (sin p/p)[phi x] + ((1-cos p)/p^2)[phi x]^2`` (Savage eq 26, seed 000 eq 8)."""
+    a, b = rotvec_coeffs(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    return exp_so3(phi, a, b)
+
+
+@njit(cache=True)
+def rotvec_to_quat_t(phi):
+    """``q = [cos(p/2), (sin(p/2)/p) phi]`` (Savage eq 60, seed 000 eq 3)."""
+    phi2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
+    if phi2 < 1e-4:
+        h2 = 0.25 * phi2
+        c = 1.0 - h2 / 2.0 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0 * (1.0 - h2 / 56.0)))
+        s = 0.5 * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0 * (1.0 - h2 / 72.0))))
+    else:
+        p = np.sqrt(phi2)
+        c = np.cos(0.5 * p)
+        s = np.sin(0.5 * p) / p
+    return (c, s * phi[0], s * phi[1], s * phi[2])
+
+
+@njit(cache=True, inline="always")
+def quat_mul_t(p, q):
+    """Hamilton product ``p o q`` (seed 000 eq 3 in matrix form)."""
+    return (p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3],
+            p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2],
+            p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1],
+            p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0])
+
+
+@njit(cache=True, inline="always")
+def quat_normalize_t(q):
+    """``q / |q|`` (Savage 4.2.3, seed 000 eq 4), sign chosen with ``q0 >= 0``."""
+    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    if q[0] < 0.0:
+        n = -n
+    return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
+
+
+@njit(cache=True, inline="always")
+def quat_to_dcm_t(q):
+    """``Cbn`` from ``q_b^n`` (seed 000 eq 1)."""
+    q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
+    return ((q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3, 2.0 * (q1 * q2 - q0 * q3), 2.0 * (q1 * q3 + q0 * q2)),
+            (2.0 * (q1 * q2 + q0 * q3), q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3, 2.0 * (q2 * q3 - q0 * q1)),
+            (2.0 * (q1 * q3 - q0 * q2), 2.0 * (q2 * q3 + q0 * q1), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3))
+
+
+@njit(cache=True)
+def orthonormalize_t(c):
+    """Orthonormalize a DCM (Savage 4.1.3): twice ``C <- C - 0.5 C (C^T C - I)``.
+
+    Exact to second order in the orthogonality error, so to the last bit for the
+    errors one step's rounding leaves.
+    """
+    for _ in range(2):
+        e = m_mul(m_trans(c), c)
+        e = ((e[0][0] - 1.0, e[0][1], e[0][2]), (e[1][0], e[1][1] - 1.0, e[1][2]),
+             (e[2][0], e[2][1], e[2][2] - 1.0))
+        ce = m_mul(c, e)
+        c = ((c[0][0] - 0.5 * ce[0][0], c[0][1] - 0.5 * ce[0][1], c[0][2] - 0.5 * ce[0][2]),
+             (c[1][0] - 0.5 * ce[1][0], c[1][1] - 0.5 * ce[1][1], c[1][2] - 0.5 * ce[1][2]),
+             (c[2][0] - 0.5 * ce[2][0], c[2][1] - 0.5 * ce[2][1], c[2][2] - 0.5 * ce[2][2]))
+    return c
+
+
+@njit(cache=True, inline="always")
+def m_from_array(a):
+    return ((a[0, 0], a[0, 1], a[0, 2]), (a[1, 0], a[1, 1], a[1, 2]), (a[2, 0], a[2, 1], a[2, 2]))
+
+
+@njit(cache=True, inline="always")
+def m_to_array(m):
     out = np.empty((3, 3))
     for i in range(3):
         for j in range(3):
-            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+            out[i, j] = m[i][j]
     return out
+
+
+# ---------------------------------------------------------------------------
+# Array wrappers (for readers, writers, alignment and tests; not for hot loops).
+# ---------------------------------------------------------------------------
+
+@njit(cache=True)
+def mm3(a, b):
+    """3x3 matrix product ``a b`` (no BLAS)."""
+    return m_to_array(m_mul(m_from_array(a), m_from_array(b)))
 
 
 @njit(cache=True)
 def mv3(a, v):
     """3x3 matrix times 3-vector ``a v``."""
-    out = np.empty(3)
-    for i in range(3):
-        out[i] = a[i, 0] * v[0] + a[i, 1] * v[1] + a[i, 2] * v[2]
-    return out
+    return np.array(m_vec(m_from_array(a), (v[0], v[1], v[2])))
 
 
 @njit(cache=True)
 def mtv3(a, v):
     """Transposed 3x3 matrix times 3-vector ``a^T v``."""
-    out = np.empty(3)
-    for i in range(3):
-        out[i] = a[0, i] * v[0] + a[1, i] * v[1] + a[2, i] * v[2]
-    return out
+    return np.array(m_tvec(m_from_array(a), (v[0], v[1], v[2])))
 
 
 @njit(cache=True)
 def skew(v):
-    """``[v x]``: the matrix with ``skew(v) @ u == cross(v, u)``."""
+    """``[v x]``: the matrix with ``skew(v) u == cross(v, u)``."""
     m = np.zeros((3, 3))
     m[0, 1] = -v[2]
     m[0, 2] = v[1]
@@ -74,91 +233,38 @@ def skew(v):
 
 @njit(cache=True)
 def cross(a, b):
-    """Cross product of two 3-vectors."""
-    out = np.empty(3)
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-    return out
-
-
-@njit(cache=True)
-def rotvec_coeffs(phi2):
-    """``(sin p / p, (1 - cos p) / p^2)`` for ``p^2 = phi2`` (Savage eq 26).
-
-    The series are used below p = 1e-2, where 6 terms reach 1 ulp.
-    """
-    if phi2 < 1e-4:
-        a = 1.0 - phi2 / 6.0 * (1.0 - phi2 / 20.0 * (1.0 - phi2 / 42.0 * (1.0 - phi2 / 72.0)))
-        b = 0.5 * (1.0 - phi2 / 12.0 * (1.0 - phi2 / 30.0 * (1.0 - phi2 / 56.0 * (1.0 - phi2 / 90.0))))
-        return a, b
-    p = np.sqrt(phi2)
-    return np.sin(p) / p, (1.0 - np.cos(p)) / phi2
+    """Cross product of two 3-vectors (arrays)."""
+    return np.array(v_cross((a[0], a[1], a[2]), (b[0], b[1], b[2])))
 
 
 @njit(cache=True)
 def rotvec_to_dcm(phi):
-    """``C = I + (sin p/p)[phi x] + ((1-cos p)/p^2)[phi x]^2`` (Savage eq 26, seed 000 eq 8)."""
-    phi2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
-    a, b = rotvec_coeffs(phi2)
-    s = skew(phi)
-    return np.eye(3) + a * s + b * mm3(s, s)
+    """Array form of :func:`rotvec_to_dcm_t` (Savage eq 26)."""
+    return m_to_array(rotvec_to_dcm_t((phi[0], phi[1], phi[2])))
 
 
 @njit(cache=True)
 def rotvec_to_quat(phi):
-    """``q = [cos(p/2), (sin(p/2)/p) phi]`` (Savage eq 60, seed 000 eq 3)."""
-    phi2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
-    q = np.empty(4)
-    if phi2 < 1e-4:
-        h2 = 0.25 * phi2
-        q[0] = 1.0 - h2 / 2.0 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0 * (1.0 - h2 / 56.0)))
-        s = 0.5 * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0 * (1.0 - h2 / 72.0))))
-    else:
-        p = np.sqrt(phi2)
-        q[0] = np.cos(0.5 * p)
-        s = np.sin(0.5 * p) / p
-    q[1] = s * phi[0]
-    q[2] = s * phi[1]
-    q[3] = s * phi[2]
-    return q
+    """Array form of :func:`rotvec_to_quat_t` (Savage eq 60)."""
+    return np.array(rotvec_to_quat_t((phi[0], phi[1], phi[2])))
 
 
 @njit(cache=True)
 def quat_mul(p, q):
-    """Hamilton product ``p o q`` (seed 000 eq 3 in matrix form)."""
-    r = np.empty(4)
-    r[0] = p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3]
-    r[1] = p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2]
-    r[2] = p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1]
-    r[3] = p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0]
-    return r
+    """Array form of :func:`quat_mul_t`."""
+    return np.array(quat_mul_t((p[0], p[1], p[2], p[3]), (q[0], q[1], q[2], q[3])))
 
 
 @njit(cache=True)
 def quat_normalize(q):
-    """``q / |q|`` (Savage 4.2.3, seed 000 eq 4); sign chosen with ``q0 >= 0``."""
-    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    if q[0] < 0.0:
-        n = -n
-    return q / n
+    """Array form of :func:`quat_normalize_t`."""
+    return np.array(quat_normalize_t((q[0], q[1], q[2], q[3])))
 
 
 @njit(cache=True)
 def quat_to_dcm(q):
-    """``Cbn`` from ``q_b^n`` (seed 000 eq 1)."""
-    q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
-    c = np.empty((3, 3))
-    c[0, 0] = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
-    c[0, 1] = 2.0 * (q1 * q2 - q0 * q3)
-    c[0, 2] = 2.0 * (q1 * q3 + q0 * q2)
-    c[1, 0] = 2.0 * (q1 * q2 + q0 * q3)
-    c[1, 1] = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
-    c[1, 2] = 2.0 * (q2 * q3 - q0 * q1)
-    c[2, 0] = 2.0 * (q1 * q3 - q0 * q2)
-    c[2, 1] = 2.0 * (q2 * q3 + q0 * q1)
-    c[2, 2] = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
-    return c
+    """Array form of :func:`quat_to_dcm_t` (seed 000 eq 1)."""
+    return m_to_array(quat_to_dcm_t((q[0], q[1], q[2], q[3])))
 
 
 @njit(cache=True)
@@ -212,17 +318,8 @@ def dcm_to_rotvec(c):
 
 @njit(cache=True)
 def orthonormalize(c):
-    """Orthonormalize a DCM (Savage 4.1.3): ``C <- C (C^T C)^(-1/2)``.
-
-    Uses the symmetric correction ``C - 0.5 C (C^T C - I)`` twice, which is
-    exact to second order in the orthogonality error and so to the last bit
-    for the errors that a step's rounding leaves.
-    """
-    out = c.copy()
-    for _ in range(2):
-        e = mm3(out.T.copy(), out) - np.eye(3)
-        out = out - 0.5 * mm3(out, e)
-    return out
+    """Array form of :func:`orthonormalize_t` (Savage 4.1.3)."""
+    return m_to_array(orthonormalize_t(m_from_array(c)))
 
 
 @njit(cache=True)
