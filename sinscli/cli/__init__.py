@@ -2,3 +2,4 @@
 from .base import main  # noqa: F401
 
 # One import per command module (each adds its command to ``main``).
+from . import compare  # noqa: F401,E402

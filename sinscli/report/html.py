@@ -75,6 +75,8 @@ def simple_table_html(header: list[str], rows: list[list], failed: list[bool] | 
         for c in row:
             if isinstance(c, tuple):
                 cells.append(f"<td><a href=\"{_e(c[1])}\">{_e(c[0])}</a></td>")
+            elif c is None:
+                cells.append("<td></td>")
             elif isinstance(c, float):
                 cells.append(f"<td class=\"num\">{c:.5E}</td>")
             else:

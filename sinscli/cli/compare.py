@@ -1,0 +1,123 @@
+"""``sins compare``: navigation results against a truth (seed 000 Tables 1-2, Figs. 1-3), or a batch."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from ..errors import SinsError
+from .base import main, progress, quiet_option
+
+BODY = {"flu": 0, "rfu": 1, "frd": 2}
+
+
+def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
+    """Column names: ``--label`` values in order, else the file stems made unique."""
+    if given:
+        if len(given) != len(navs):
+            raise SinsError(f"--label given {len(given)} time(s) for {len(navs)} NAV file(s); give one per NAV file")
+        if len(set(given)) != len(given):
+            raise SinsError(f"--label values must differ, got {', '.join(given)}")
+        return list(given)
+    out = []
+    for p in navs:
+        name = p.stem
+        if name in out:
+            name = f"{p.parent.name}/{p.stem}"
+        k = 2
+        base = name
+        while name in out:
+            name = f"{base}-{k}"
+            k += 1
+        out.append(name)
+    return out
+
+
+@main.command("compare")
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--truth", type=click.Path(path_type=Path),
+              help="Truth trajectory (CSV or Parquet, FORMATS.md). Without it, INPUTS is one BATCH.yaml.")
+@click.option("-o", "--output", "outdir", required=True, type=click.Path(path_type=Path, file_okay=False),
+              help="Report directory (created; report files in it are replaced).")
+@click.option("--label", multiple=True, help="Column name of each NAV file, in order (default: file stems).")
+@click.option("--epoch", type=float, default=None,
+              help="Epoch (s) of the table rows (default: the last epoch common to all NAV files).")
+@click.option("--interpolate", is_flag=True,
+              help="Interpolate the truth at the navigation epochs (default: exact time match only).")
+@click.option("--body", type=click.Choice(sorted(BODY)), default="flu", show_default=True,
+              help="Body axes of the files' attitude, for the roll/pitch/heading error components.")
+@click.option("--timeseries-every", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Write every N-th epoch to timeseries.csv (tables and figures use all).")
+@click.option("--title", default=None, help="Report title.")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
+              help="Batch: worker processes (default: all cores).")
+@quiet_option
+@click.pass_context
+def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeseries_every, title, jobs, quiet):
+    """Compare navigation results with a truth: error tables, time series, figures, index.html.
+
+    \b
+      sins compare --truth truth.csv nav_quat.csv nav_dcm.csv -o report/
+      sins compare configs/batch/seed000.yaml -o seed000/ --jobs 2
+
+    Errors are truth minus navigation.  Exit status: 0 success; 2 bad input
+    (nothing written); in batch mode 1 when some jobs failed (the others are
+    still reported, the failures listed in summary.md and on stderr).
+    """
+    if truth is None:
+        if len(inputs) != 1 or inputs[0].suffix.lower() not in (".yaml", ".yml"):
+            raise SinsError("give --truth TRUTH with one or more NAV files, or a single BATCH.yaml")
+        for opt, val in (("--label", label), ("--epoch", epoch), ("--interpolate", interpolate),
+                         ("--title", title)):
+            if val:
+                raise SinsError(f"{opt}: not used with a batch file; set it in {inputs[0]}")
+        _batch(inputs[0], outdir, jobs, quiet)
+        return
+    if any(p.suffix.lower() in (".yaml", ".yml") for p in inputs):
+        raise SinsError(f"{next(p for p in inputs if p.suffix.lower() in ('.yaml', '.yml'))}: a batch file "
+                        "is given alone, without --truth")
+    _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body], timeseries_every, title, quiet)
+
+
+def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet):
+    from ..io.trajectory import read_trajectory
+    from ..report.errors import compare_trajectories
+    from ..report.report import write_report
+
+    names = _labels(navs, label)
+    truth = read_trajectory(truth_path)
+    series = {}
+    with progress(len(navs) + 1, "compare", quiet) as bar:
+        for name, path in zip(names, navs):
+            nav = read_trajectory(path)
+            series[name] = compare_trajectories(truth, nav, conv=conv, interpolate=interpolate,
+                                                 truth_name=str(truth_path), nav_name=str(path))
+            bar.update(1)
+        notes = [f"Truth: {truth_path}."] + [f"{n}: {p}" for n, p in zip(names, navs)]
+        if interpolate:
+            notes.append("The truth was interpolated at the navigation epochs.")
+        table = write_report(outdir, series, title or f"sins compare: {Path(truth_path).name}", epoch, every,
+                             notes)
+        bar.update(1)
+    click.echo(f"sins: compare: {len(navs)} method(s) at t = {table.epoch:.17g} s -> {outdir}/index.html",
+               err=True)
+
+
+def _batch(batch_path, outdir, jobs, quiet):
+    from ..report.batch import count_jobs, load_batch, run_batch
+
+    spec = load_batch(batch_path)
+    failures = []
+
+    def on_error(msg):
+        failures.append(msg)
+        click.echo(f"\nsins: error: {msg}", err=True)
+
+    with progress(count_jobs(spec), "batch", quiet) as bar:
+        result = run_batch(spec, outdir, jobs=jobs, on_progress=bar.update, on_error=on_error)
+    n_fail = len(result.failed) + len(result.report_errors)
+    click.echo(f"sins: compare: {len(result.jobs)} jobs, {len(result.failed)} failed; "
+               f"{len(result.reports)} report(s) -> {outdir}/index.html", err=True)
+    if n_fail:
+        sys.exit(1)
