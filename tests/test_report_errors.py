@@ -135,6 +135,9 @@ def test_no_common_epochs_messages():
     nav0 = make_truth(n=50, t0=0.0)
     with pytest.raises(SinsError, match=r"nav\.csv: no common epochs.*different time bases"):
         match_epochs(truth.time, nav0.time, "truth.csv", "nav.csv")
+    week = make_truth(n=50, t0=345600.0)                  # GPS seconds of week against seconds from start
+    with pytest.raises(SinsError, match="different time bases.*GPS week.*from the start"):
+        match_epochs(week.time, nav0.time, "truth.csv", "nav.csv")
     later = make_truth(n=50, t0=100.6)
     with pytest.raises(SinsError, match="do not overlap"):
         match_epochs(make_truth(n=50).time, later.time, "truth.csv", "nav.csv")

@@ -100,7 +100,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         table = write_report(outdir, series, title or f"sins compare: {Path(truth_path).name}", epoch, every,
                              notes)
         bar.update(1)
-    click.echo(f"sins: compare: {len(navs)} method(s) at t = {table.epoch:.17g} s -> {outdir}/index.html",
+    click.echo(f"sins: compare: {len(navs)} method(s) at t = {float(table.epoch)!r} s -> {outdir}/index.html",
                err=True)
 
 

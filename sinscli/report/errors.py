@@ -72,23 +72,26 @@ def time_tolerance(t_truth: np.ndarray, t_nav: np.ndarray) -> float:
     return tol
 
 
-def _time_base(t0: float) -> str:
+def _time_base(t0: float, t1: float) -> str:
     if abs(t0) >= 1e8:
         return "absolute seconds (UNIX or GPS time)"
-    return "seconds from a start or of a GPS week"
+    if abs(t0) <= 1.0 + (t1 - t0):
+        return "seconds from the start"
+    return "seconds of a GPS week or another origin"
 
 
 def explain_no_common_epochs(t_truth, t_nav, truth_name: str, nav_name: str, tol: float) -> str:
     """The one-line message for a navigation file with no epoch in common with the truth."""
     a, b = float(t_truth[0]), float(t_truth[-1])
     c, d = float(t_nav[0]), float(t_nav[-1])
-    spans = f"truth {truth_name} spans {a:.17g} .. {b:.17g} s, navigation spans {c:.17g} .. {d:.17g} s"
+    spans = f"truth {truth_name} spans {a!r} .. {b!r} s, navigation spans {c!r} .. {d!r} s"
     if c > b or d < a:
         gap = max(c - b, a - d)
         longest = max(b - a, d - c, 1.0)
-        if gap > 10.0 * longest or (abs(a) >= 1e8) != (abs(c) >= 1e8):
+        from_zero = (abs(a) <= 1.0 + (b - a), abs(c) <= 1.0 + (d - c))   # a file that counts from its start
+        if (abs(a) >= 1e8) != (abs(c) >= 1e8) or (from_zero[0] != from_zero[1] and gap > 10.0 * longest):
             return (f"{nav_name}: no common epochs with the truth: different time bases "
-                    f"(truth in {_time_base(a)}, navigation in {_time_base(c)}; {spans}); "
+                    f"(truth in {_time_base(a, b)}, navigation in {_time_base(c, d)}; {spans}); "
                     "write both files with the same time origin")
         return f"{nav_name}: no common epochs with the truth: the time spans do not overlap ({spans})"
     return (f"{nav_name}: no common epochs with the truth within {tol:.3g} s although the spans overlap "
@@ -224,8 +227,8 @@ def common_epoch(series: dict[str, ErrorSeries], epoch: float | None = None) -> 
         for name, s in items:
             if np.min(np.abs(s.time - epoch)) > tol:
                 raise SinsError(f"--epoch {epoch!r}: not an epoch of method '{name}' "
-                                f"(its common epochs with the truth span {s.time[0]:.17g} .. {s.time[-1]:.17g} s)")
-        return float(epoch)
+                                f"(its common epochs with the truth span {float(s.time[0])!r} .. {float(s.time[-1])!r} s)")
+        return float(times[0][np.argmin(np.abs(times[0] - epoch))])
     common = times[0]
     for t in times[1:]:
         j = np.clip(np.searchsorted(t, common), 0, t.shape[0] - 1)

@@ -49,7 +49,7 @@ def report_page(title: str, table: ErrorTable, figures: list[str], files: list[s
     """The HTML text of one report: notes, the table, links to the files, the figures."""
     body = [f"<h1>{_e(title)}</h1>"]
     body += [f"<p class=\"note\">{_e(n)}</p>" for n in notes]
-    body.append(f"<h2>Errors (truth minus navigation) at t = {table.epoch:.17g} s</h2>")
+    body.append(f"<h2>Errors (truth minus navigation) at t = {float(table.epoch)!r} s</h2>")
     body.append(error_table_html(table))
     body.append(extra_html)
     body.append("<p>Files: " + ", ".join(f"<a href=\"{_e(f)}\">{_e(f)}</a>" for f in files) + "</p>")

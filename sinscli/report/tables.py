@@ -57,7 +57,7 @@ def markdown_table(table: ErrorTable, title: str = "") -> str:
     lines = []
     if title:
         lines += [f"**{_md_cell(title)}**", ""]
-    lines.append(f"Errors truth minus navigation at t = {table.epoch:.17g} s; maxima over the whole run.")
+    lines.append(f"Errors truth minus navigation at t = {float(table.epoch)!r} s; maxima over the whole run.")
     lines.append("")
     lines.append("| No. | Quantity | Unit | " + " | ".join(_md_cell(m) for m in table.methods) + " |")
     lines.append("|---:|---|---|" + "---:|" * len(table.methods))
