@@ -255,8 +255,7 @@ def prepare_job(ds: DatasetSpec, seed: int | None, outdir: Path) -> Prepared:
         scenario = load_scenario(ds.scenario)
         result = simulate(scenario, seed=seed, perfect=ds.perfect)
         write_sim(result, data_dir(outdir, ds, seed))
-        conv = int(getattr(result, "conv", 0))
-        return Prepared(imu=result.imu, init=result.init, truth=result.truth, conv=conv)
+        return Prepared(imu=result.imu, init=result.init, truth=result.truth, conv=int(scenario.conv))
     from ..config import load_config
     from ..io.imu_csv import read_imu_csv
     from ..io.init_state import read_init
