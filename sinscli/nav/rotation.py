@@ -106,35 +106,55 @@ def rotvec_coeffs(phi2):
 
 
 @njit(cache=True, inline="always")
-def exp_so3(phi, a, b):
-    """``I + a [phi x] + b [phi x]^2`` as a matrix tuple (the shared body of eqs 8, 13, 26)."""
+def exp_so3_delta(phi, a, b):
+    """``a [phi x] + b [phi x]^2``: the rotation matrix minus I (the shared body of eqs 8, 13, 26).
+
+    Kept apart from I so that small rotations add to a state without rounding
+    the increment against O(1) elements first.
+    """
     x, y, z = phi[0], phi[1], phi[2]
     xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
-    return ((1.0 - b * (yy + zz), -a * z + b * xy, a * y + b * xz),
-            (a * z + b * xy, 1.0 - b * (xx + zz), -a * x + b * yz),
-            (-a * y + b * xz, a * x + b * yz, 1.0 - b * (xx + yy)))
+    return ((-b * (yy + zz), -a * z + b * xy, a * y + b * xz),
+            (a * z + b * xy, -b * (xx + zz), -a * x + b * yz),
+            (-a * y + b * xz, a * x + b * yz, -b * (xx + yy)))
+
+
+@njit(cache=True)
+def rotvec_to_dcm_delta_t(phi):
+    """``exp([phi x]) - I`` (Savage eq 26 without the identity)."""
+    a, b = rotvec_coeffs(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    return exp_so3_delta(phi, a, b)
 
 
 @njit(cache=True)
 def rotvec_to_dcm_t(phi):
     """``C = I + (sin p/p)[phi x] + ((1-cos p)/p^2)[phi x]^2`` (Savage eq 26, seed 000 eq 8)."""
-    a, b = rotvec_coeffs(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
-    return exp_so3(phi, a, b)
+    d = rotvec_to_dcm_delta_t(phi)
+    return ((1.0 + d[0][0], d[0][1], d[0][2]), (d[1][0], 1.0 + d[1][1], d[1][2]),
+            (d[2][0], d[2][1], 1.0 + d[2][2]))
+
+
+@njit(cache=True)
+def rotvec_to_quat_delta_t(phi):
+    """``q(phi) - (1, 0, 0, 0) = (cos(p/2) - 1, (sin(p/2)/p) phi)`` (Savage eq 60 without the unit)."""
+    phi2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
+    if phi2 < 1e-4:
+        h2 = 0.25 * phi2
+        cm1 = -h2 / 2.0 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0 * (1.0 - h2 / 56.0)))
+        s = 0.5 * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0 * (1.0 - h2 / 72.0))))
+    else:
+        p = np.sqrt(phi2)
+        sq = np.sin(0.25 * p)
+        cm1 = -2.0 * sq * sq
+        s = np.sin(0.5 * p) / p
+    return (cm1, s * phi[0], s * phi[1], s * phi[2])
 
 
 @njit(cache=True)
 def rotvec_to_quat_t(phi):
     """``q = [cos(p/2), (sin(p/2)/p) phi]`` (Savage eq 60, seed 000 eq 3)."""
-    phi2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]
-    if phi2 < 1e-4:
-        h2 = 0.25 * phi2
-        c = 1.0 - h2 / 2.0 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0 * (1.0 - h2 / 56.0)))
-        s = 0.5 * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0 * (1.0 - h2 / 72.0))))
-    else:
-        p = np.sqrt(phi2)
-        c = np.cos(0.5 * p)
-        s = np.sin(0.5 * p) / p
-    return (c, s * phi[0], s * phi[1], s * phi[2])
+    d = rotvec_to_quat_delta_t(phi)
+    return (1.0 + d[0], d[1], d[2], d[3])
 
 
 @njit(cache=True, inline="always")

@@ -1,0 +1,305 @@
+"""The strapdown navigation loop: a numba kernel over plain arrays (no I/O).
+
+:func:`run` consumes IMU increments sample by sample (the fast rate l), closes
+an attitude interval every N samples (the moderate rate m of Savage's
+two-speed design, seed 004), and writes every K-th state into output arrays.
+Its whole state lives in one float64 vector (:func:`new_state`), so a long log
+runs in chunks with identical results, and no per-sample Python objects exist.
+
+Attitude methods (``ATT_*``):
+  * ``ATT_DCM``: ``Cbn <- exp(-[zeta x]) Cbn exp([phi x])`` with the exact closed
+    form (Savage eq 26 for the body, eq 49 for the navigation frame), then
+    orthonormalization (4.1.3);
+  * ``ATT_DCM_SEED000``: the element recursion of seed 000 eqs 12-14 (series
+    a1, a2, a3 to theta^6) for the body update, no orthonormalization, as the
+    paper; the navigation-frame update as above;
+  * ``ATT_QUAT``: ``q <- q(-zeta) o q o q(phi)`` (seed 000 eqs 3-4, Savage eqs
+    57-62), normalized (4.2.3);
+  * ``ATT_KRYLOV`` / ``ATT_EULER``: the angle methods of seed 003 (see
+    :mod:`sinscli.nav.krylov`).
+"""
+import numpy as np
+from numba import njit
+
+from .coning import CONING_COEFFS, MAX_ORDER, body_increments, fast_step
+from .mechanization import (displacement, first_guess_displacement, frame_rotation, midpoint,
+                            position_update, velocity_update)
+from .rotation import (m_mul, m_trans, m_vec, quat_mul_t, quat_normalize_t, quat_to_dcm_t,
+                       rotvec_to_dcm_delta_t, rotvec_to_quat_delta_t, v_add, v_scale)
+
+ATT_DCM, ATT_DCM_SEED000, ATT_QUAT, ATT_KRYLOV, ATT_EULER = 0, 1, 2, 3, 4
+
+# --- state vector layout -----------------------------------------------------
+S_T, S_LAT, S_LON, S_H = 0, 1, 2, 3
+S_VEL = 4              # 3
+S_CBN = 7              # 9, row-major
+S_Q = 16               # 4
+S_PDTH = 20            # MAX_ORDER-1 previous dtheta, 3 each
+S_PDV = 29             # MAX_ORDER-1 previous dvel, 3 each
+S_NPREV = 38
+S_VMM2 = 39            # velocity at t_{m-2}
+S_TMM2 = 42
+S_HAVE_MM2 = 43
+S_ALPHA = 44
+S_UPS = 47
+S_BETA = 50
+S_SCUL = 53
+S_NSUB = 56            # fast samples in the current interval
+S_TSTART = 57          # start time of the current interval
+S_NOUT = 58            # attitude updates since the last output
+S_ANG = 59             # 4 angles (krylov / 3-angle methods)
+S_KSET = 63
+S_PHIB = 64
+S_PDTH_ATT = 65        # previous interval's body rotation (two-sample rate model), 3
+S_COSMIN = 68          # smallest |cos| of the 3-angle method so far
+S_TCOSMIN = 69
+S_NTRANSFER = 70
+S_QLO = 72             # 4: compensated-summation residues (see _acc)
+S_CLO = 76             # 9
+S_VLO = 85             # 3
+S_PLO = 88             # 3: lat, lon, h
+STATE_SIZE = 92
+
+
+def new_state(time, lat, lon, h, vel_n, cbn):
+    """A fresh state vector at the initial time (radians, metres, ENU)."""
+    st = np.zeros(STATE_SIZE)
+    st[S_T], st[S_LAT], st[S_LON], st[S_H] = time, lat, lon, h
+    st[S_VEL:S_VEL + 3] = vel_n
+    st[S_CBN:S_CBN + 9] = np.asarray(cbn, dtype=np.float64).ravel()
+    from .rotation import dcm_to_quat
+    st[S_Q:S_Q + 4] = dcm_to_quat(np.ascontiguousarray(cbn, dtype=np.float64))
+    st[S_TSTART] = time
+    st[S_COSMIN] = 1.0
+    return st
+
+
+@njit(cache=True, inline="always")
+def _vec(st, i):
+    return (st[i], st[i + 1], st[i + 2])
+
+
+@njit(cache=True, inline="always")
+def _set_vec(st, i, v):
+    st[i], st[i + 1], st[i + 2] = v[0], v[1], v[2]
+
+
+@njit(cache=True, inline="always")
+def _cbn(st):
+    return ((st[S_CBN], st[S_CBN + 1], st[S_CBN + 2]),
+            (st[S_CBN + 3], st[S_CBN + 4], st[S_CBN + 5]),
+            (st[S_CBN + 6], st[S_CBN + 7], st[S_CBN + 8]))
+
+
+@njit(cache=True, inline="always")
+def _set_cbn(st, c):
+    for i in range(3):
+        for j in range(3):
+            st[S_CBN + 3 * i + j] = c[i][j]
+
+
+@njit(cache=True, inline="always")
+def _seed000_row_delta(ci, th, a1m1, a2, a3):
+    b = ci[0] * th[0] + ci[1] * th[1] + ci[2] * th[2]
+    return (a1m1 * ci[0] + a2 * (ci[1] * th[2] - ci[2] * th[1]) + a3 * b * th[0],
+            a1m1 * ci[1] + a2 * (ci[2] * th[0] - ci[0] * th[2]) + a3 * b * th[1],
+            a1m1 * ci[2] + a2 * (ci[0] * th[1] - ci[1] * th[0]) + a3 * b * th[2])
+
+
+@njit(cache=True, inline="always")
+def _seed000_body_delta(c, th):
+    """Seed 000 eqs 12-14 as a change ``C' - C``:
+    ``C'_ij = a1 C_ij + a2 (C_i,j+1 th_j+2 - C_i,j+2 th_j+1) + a3 b_i th_j`` with
+    ``a2 = 1 - D/6 + D^2/120``, ``a3 = 1/2 - D/24 + D^2/720``, ``a1 = 1 - D a3``,
+    ``D = |th|^2``, ``b_i = sum_j C_ij th_j`` (so ``a1 - 1 = -D a3``).
+    """
+    d = th[0] * th[0] + th[1] * th[1] + th[2] * th[2]
+    a2 = 1.0 - d / 6.0 + d * d / 120.0
+    a3 = 0.5 - d / 24.0 + d * d / 720.0
+    a1m1 = -d * a3
+    return (_seed000_row_delta(c[0], th, a1m1, a2, a3), _seed000_row_delta(c[1], th, a1m1, a2, a3),
+            _seed000_row_delta(c[2], th, a1m1, a2, a3))
+
+
+@njit(cache=True, inline="always")
+def _acc(st, i, lo, x):
+    """``st[i] += x`` with a compensated (TwoSum) residue kept in ``st[lo]``.
+
+    Every integrated state accumulates this way: increments below half an ulp
+    of the state (time-stamp rounding, slow drifts) are carried instead of
+    being rounded away with a bias that would turn noise into drift.
+    """
+    a = st[i]
+    b = x + st[lo]
+    s = a + b
+    bb = s - a
+    st[lo] = (a - (s - bb)) + (b - bb)
+    st[i] = s
+
+
+@njit(cache=True, inline="always")
+def _m_add(a, b):
+    return ((a[0][0] + b[0][0], a[0][1] + b[0][1], a[0][2] + b[0][2]),
+            (a[1][0] + b[1][0], a[1][1] + b[1][1], a[1][2] + b[1][2]),
+            (a[2][0] + b[2][0], a[2][1] + b[2][1], a[2][2] + b[2][2]))
+
+
+@njit(cache=True, inline="always")
+def _q_add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3])
+
+
+@njit(cache=True, inline="always")
+def _attitude_update(st, method, phi, zeta):
+    """Body and navigation-frame attitude update of one interval; keeps Cbn and q in step.
+
+    The products are expanded around the old attitude, ``C' = C + (E_n C + C E_b
+    + E_n C E_b)`` with ``E = exp([. x]) - I`` (and likewise for the
+    quaternion), so that at rest, where the body and frame rotations cancel,
+    the state is not rounded step after step in the same direction.
+    """
+    zm = v_scale(zeta, -1.0)
+    if method == ATT_QUAT:
+        q = (st[S_Q], st[S_Q + 1], st[S_Q + 2], st[S_Q + 3])
+        en = rotvec_to_quat_delta_t(zm)
+        eb = rotvec_to_quat_delta_t(phi)
+        en_q = quat_mul_t(en, q)
+        dq = _q_add(_q_add(en_q, quat_mul_t(q, eb)), quat_mul_t(en_q, eb))
+        for i in range(4):
+            _acc(st, S_Q + i, S_QLO + i, dq[i])
+        # normalization (4.2.3) as a small correction: q (1/|q| - 1)
+        n2 = 0.0
+        for i in range(4):
+            n2 += st[S_Q + i] * st[S_Q + i]
+        f = 1.0 / np.sqrt(n2) - 1.0
+        for i in range(4):
+            _acc(st, S_Q + i, S_QLO + i, st[S_Q + i] * f)
+        _set_cbn(st, quat_to_dcm_t((st[S_Q], st[S_Q + 1], st[S_Q + 2], st[S_Q + 3])))
+    elif method == ATT_DCM_SEED000:
+        c = _cbn(st)
+        db = _seed000_body_delta(c, phi)
+        dc = _m_add(db, m_mul(rotvec_to_dcm_delta_t(zm), _m_add(c, db)))
+        for i in range(3):
+            for j in range(3):
+                _acc(st, S_CBN + 3 * i + j, S_CLO + 3 * i + j, dc[i][j])
+    else:  # ATT_DCM (exact closed form)
+        c = _cbn(st)
+        en_c = m_mul(rotvec_to_dcm_delta_t(zm), c)
+        eb = rotvec_to_dcm_delta_t(phi)
+        dc = _m_add(_m_add(en_c, m_mul(c, eb)), m_mul(en_c, eb))
+        for i in range(3):
+            for j in range(3):
+                _acc(st, S_CBN + 3 * i + j, S_CLO + 3 * i + j, dc[i][j])
+        # orthonormalization (4.1.3) as a small symmetric correction -1/2 C (C^T C - I)
+        c = _cbn(st)
+        e = m_mul(m_trans(c), c)
+        e = ((e[0][0] - 1.0, e[0][1], e[0][2]), (e[1][0], e[1][1] - 1.0, e[1][2]),
+             (e[2][0], e[2][1], e[2][2] - 1.0))
+        ce = m_mul(c, e)
+        for i in range(3):
+            for j in range(3):
+                _acc(st, S_CBN + 3 * i + j, S_CLO + 3 * i + j, -0.5 * ce[i][j])
+
+
+@njit(cache=True)
+def run(time, dtheta_b, dvel_b, st, method, order, nsub, every,
+        out_t, out_pos, out_vel, out_cbn):
+    """Navigate the samples ``time[k]`` (end of each increment interval) from state ``st``.
+
+    ``order`` is the coning/sculling order K (1-4), ``nsub`` the fast samples per
+    attitude update N, ``every`` the output decimation in attitude updates.
+    Writes states into the ``out_*`` arrays (capacity ``len(time) // (nsub*every) + 1``)
+    and returns the number of rows written; ``st`` is updated in place.
+    """
+    coeffs = CONING_COEFFS[order - 1]
+    nprev_max = order - 1
+    n_out = 0
+    prev_dth = np.empty((MAX_ORDER - 1, 3))
+    prev_dv = np.empty((MAX_ORDER - 1, 3))
+    for j in range(MAX_ORDER - 1):
+        for i in range(3):
+            prev_dth[j, i] = st[S_PDTH + 3 * j + i]
+            prev_dv[j, i] = st[S_PDV + 3 * j + i]
+    n_prev = int(st[S_NPREV])
+    alpha, ups, beta, scul = _vec(st, S_ALPHA), _vec(st, S_UPS), _vec(st, S_BETA), _vec(st, S_SCUL)
+    nsub_now = int(st[S_NSUB])
+    for k in range(time.shape[0]):
+        dth = (dtheta_b[k, 0], dtheta_b[k, 1], dtheta_b[k, 2])
+        dv = (dvel_b[k, 0], dvel_b[k, 1], dvel_b[k, 2])
+        alpha, ups, beta, scul = fast_step(alpha, ups, beta, scul, dth, dv, prev_dth, prev_dv,
+                                           min(n_prev, nprev_max), coeffs)
+        for j in range(MAX_ORDER - 2, 0, -1):
+            for i in range(3):
+                prev_dth[j, i] = prev_dth[j - 1, i]
+                prev_dv[j, i] = prev_dv[j - 1, i]
+        for i in range(3):
+            prev_dth[0, i] = dth[i]
+            prev_dv[0, i] = dv[i]
+        n_prev = min(n_prev + 1, MAX_ORDER - 1)
+        nsub_now += 1
+        if nsub_now < nsub:
+            continue
+        # ---- attitude interval closes: moderate-rate update ----
+        t_end = time[k]
+        T = t_end - st[S_TSTART]
+        phi, dv_b = body_increments(alpha, ups, beta, scul)
+        if order == 1:
+            phi = alpha
+        cbn = _cbn(st)
+        dv_n0 = m_vec(cbn, dv_b)
+        vel = _vec(st, S_VEL)
+        lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
+        v_mm2 = _vec(st, S_VMM2)
+        have_mm2 = st[S_HAVE_MM2] > 0.0
+        h0 = st[S_TSTART] - st[S_TMM2]
+        dR = first_guess_displacement(vel, dv_n0, lat, h, T)
+        for _ in range(2):
+            lat_mid, h_mid = midpoint(lat, h, dR)
+            zeta = frame_rotation(lat_mid, h_mid, dR, T)
+            dvel = velocity_update(vel, dv_n0, zeta, lat_mid, h_mid, dR, T)
+            v_new = v_add(vel, dvel)
+            dR = displacement(v_mm2, vel, v_new, h0, T, have_mm2)
+        lat_mid, h_mid = midpoint(lat, h, dR)
+        zeta = frame_rotation(lat_mid, h_mid, dR, T)
+        _attitude_update(st, method, phi, zeta)
+        dlat, dlon, dh = position_update(lat, h, dR)
+        # ---- store (compensated accumulation of every integrated state) ----
+        _set_vec(st, S_VMM2, vel)
+        st[S_TMM2] = st[S_TSTART]
+        st[S_HAVE_MM2] = 1.0
+        for i in range(3):
+            _acc(st, S_VEL + i, S_VLO + i, dvel[i])
+        _acc(st, S_LAT, S_PLO, dlat)
+        _acc(st, S_LON, S_PLO + 1, dlon)
+        _acc(st, S_H, S_PLO + 2, dh)
+        lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
+        v_new = _vec(st, S_VEL)
+        st[S_T] = t_end
+        st[S_TSTART] = t_end
+        alpha = (0.0, 0.0, 0.0)
+        ups = (0.0, 0.0, 0.0)
+        beta = (0.0, 0.0, 0.0)
+        scul = (0.0, 0.0, 0.0)
+        nsub_now = 0
+        st[S_NOUT] += 1.0
+        if st[S_NOUT] >= every:
+            st[S_NOUT] = 0.0
+            out_t[n_out] = t_end
+            out_pos[n_out, 0], out_pos[n_out, 1], out_pos[n_out, 2] = lat, lon, h
+            out_vel[n_out, 0], out_vel[n_out, 1], out_vel[n_out, 2] = v_new[0], v_new[1], v_new[2]
+            for i in range(3):
+                for j in range(3):
+                    out_cbn[n_out, i, j] = st[S_CBN + 3 * i + j]
+            n_out += 1
+    # save the fast-rate memory for the next chunk
+    for j in range(MAX_ORDER - 1):
+        for i in range(3):
+            st[S_PDTH + 3 * j + i] = prev_dth[j, i]
+            st[S_PDV + 3 * j + i] = prev_dv[j, i]
+    st[S_NPREV] = n_prev
+    _set_vec(st, S_ALPHA, alpha)
+    _set_vec(st, S_UPS, ups)
+    _set_vec(st, S_BETA, beta)
+    _set_vec(st, S_SCUL, scul)
+    st[S_NSUB] = nsub_now
+    return n_out
