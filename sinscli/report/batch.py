@@ -86,6 +86,7 @@ class Prepared:
     init: object
     truth: object
     conv: int
+    launch: dict | None = None     # launch point of a simulated flight (for frame: launch-inertial)
 
 
 @dataclass
@@ -214,8 +215,10 @@ def load_batch(path) -> BatchSpec:
     methods = [_load_method(src, k, m) for k, m in enumerate(data["methods"])]
     _unique(src, "datasets", [d.name for d in datasets])
     _unique(src, "methods", [m.name for m in methods])
-    seeds = data.get("seeds", 1)
-    if isinstance(seeds, int) and not isinstance(seeds, bool):
+    seeds = data.get("seeds")
+    if seeds is None:
+        seeds = [None]                       # the scenario's own seed
+    elif isinstance(seeds, int) and not isinstance(seeds, bool):
         if seeds < 1:
             _fail(src, "seeds", f"expected a count >= 1 or a list of seeds, got {seeds!r}")
         seeds = list(range(seeds))
@@ -251,11 +254,10 @@ def prepare_job(ds: DatasetSpec, seed: int | None, outdir: Path) -> Prepared:
     """Simulate the scenario with ``seed`` (writing its files under ``data_dir``) or read the files."""
     if ds.scenario is not None:
         from ..sim import simulate, write_sim
-        from ..sim.scenario import load_scenario
-        scenario = load_scenario(ds.scenario)
-        result = simulate(scenario, seed=seed, perfect=ds.perfect)
+        result = simulate(ds.scenario, seed=seed, perfect=ds.perfect)
         write_sim(result, data_dir(outdir, ds, seed))
-        return Prepared(imu=result.imu, init=result.init, truth=result.truth, conv=int(scenario.conv))
+        return Prepared(imu=result.imu, init=result.init, truth=result.truth, conv=int(result.conv),
+                        launch=dict(result.launch) or None)
     from ..config import load_config
     from ..io.imu_csv import read_imu_csv
     from ..io.init_state import read_init
@@ -269,14 +271,18 @@ def prepare_job(ds: DatasetSpec, seed: int | None, outdir: Path) -> Prepared:
     return Prepared(imu=imu, init=init, truth=truth, conv=conv)
 
 
-def nav_options(navigation: dict, conv: int):
-    """``NavOptions`` from a validated ``navigation`` config section and the body convention."""
-    from ..nav.pipeline import NavOptions
+def nav_options(navigation: dict, conv: int, launch: dict | None = None):
+    """``NavOptions`` from a validated ``navigation`` config section, the body convention and the
+    dataset's launch point (used when the method has no ``launch`` of its own)."""
     import dataclasses
+
+    from ..nav.pipeline import NavOptions
     names = {f.name for f in dataclasses.fields(NavOptions)}
     kwargs = {k: v for k, v in navigation.items() if k in names and v is not None}
     if "conv" in names:
         kwargs["conv"] = conv
+    if "launch" in names and kwargs.get("launch") is None and launch:
+        kwargs["launch"] = {k: launch[k] for k in ("lat", "lon", "height", "azimuth") if k in launch}
     return NavOptions(**kwargs)
 
 
@@ -284,7 +290,7 @@ def navigate_job(prep: Prepared, method: MethodSpec, interpolate: bool, traj_pat
     """Navigate one method on prepared data; return ``(ErrorSeries, seconds)``."""
     from ..nav.pipeline import navigate
     t0 = time.perf_counter()
-    traj = navigate(prep.imu, prep.init, nav_options(method.navigation, prep.conv))
+    traj = navigate(prep.imu, prep.init, nav_options(method.navigation, prep.conv, prep.launch))
     seconds = time.perf_counter() - t0
     if traj_path is not None:
         from ..io.trajectory import write_trajectory
