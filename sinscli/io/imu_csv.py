@@ -17,7 +17,7 @@ from ..config import ACCEL_UNITS, ANGLE_UNITS, GYRO_UNITS, IMU_NAMES, VEL_UNITS,
 from ..errors import SinsError
 from ..types import ImuLog
 from .atomic import atomic_path
-from .csvcore import read_header, read_numeric_columns, write_table_csv
+from .csvcore import iter_numeric_columns, read_header, write_table_csv
 
 log = logging.getLogger("sins")
 
@@ -65,58 +65,105 @@ def _resolve_columns(path, header, cfg_imu):
     return ("increments" if has_incs else "rates"), cols
 
 
-def check_time(path, time, allow_gaps=False, what="time"):
+class TimeChecker:
     """Strictly increasing time; gaps over 5 nominal intervals refused unless allowed.
 
-    Row numbers in messages are file line numbers (header = line 1).
+    Works block by block (the nominal interval is the median spacing of the
+    first block); messages give file line numbers (header = line 1).
     """
-    dt = np.diff(time)
-    if dt.size == 0:
-        return
-    bad = dt <= 0
-    if bad.any():
-        k = int(np.argmax(bad))
-        how = "repeats" if dt[k] == 0 else "goes backwards"
-        raise SinsError(f"{path}: line {k + 3}, column '{what}': time {time[k + 1]!r} {how} "
-                        f"(previous row {time[k]!r}); time must strictly increase")
-    nominal = float(np.median(dt))
-    gaps = np.nonzero(dt > GAP_FACTOR * nominal)[0]
-    if gaps.size:
-        k = int(gaps[0])
-        if not allow_gaps:
-            raise SinsError(f"{path}: line {k + 3}: gap of {dt[k]:.6g} s before time {time[k + 1]!r} "
-                            f"({dt[k] / nominal:.1f} nominal intervals of {nominal:.6g} s; at most "
-                            f"{GAP_FACTOR:g} allowed); use --allow-gaps to bridge it")
-        for k in gaps:
-            log.warning("%s: bridging a gap of %.6g s from time %r to %r (%.1f nominal intervals)",
-                        path, dt[k], time[k], time[k + 1], dt[k] / nominal)
+
+    def __init__(self, path, allow_gaps=False, what="time"):
+        self.path, self.allow_gaps, self.what = path, allow_gaps, what
+        self.prev = None
+        self.nominal = None
+
+    def check(self, time, first_line):
+        path = self.path
+        if self.prev is not None:
+            full = np.concatenate([[self.prev], time])
+            line0 = first_line - 1
+        else:
+            full = time
+            line0 = first_line
+        dt = np.diff(full)
+        if dt.size:
+            bad = dt <= 0
+            if bad.any():
+                k = int(np.argmax(bad))
+                how = "repeats" if dt[k] == 0 else "goes backwards"
+                raise SinsError(f"{path}: line {line0 + k + 1}, column '{self.what}': time {full[k + 1]!r} {how} "
+                                f"(previous row {full[k]!r}); time must strictly increase")
+            if self.nominal is None:
+                self.nominal = float(np.median(dt))
+            gaps = np.nonzero(dt > GAP_FACTOR * self.nominal)[0]
+            for k in gaps:
+                if not self.allow_gaps:
+                    raise SinsError(f"{path}: line {line0 + k + 1}: gap of {dt[k]:.6g} s before time "
+                                    f"{full[k + 1]!r} ({dt[k] / self.nominal:.1f} nominal intervals of "
+                                    f"{self.nominal:.6g} s; at most {GAP_FACTOR:g} allowed); use --allow-gaps "
+                                    f"to bridge it")
+                log.warning("%s: bridging a gap of %.6g s from time %r to %r (%.1f nominal intervals)",
+                            path, dt[k], full[k], full[k + 1], dt[k] / self.nominal)
+        self.prev = float(time[-1])
 
 
-def read_imu_csv(path, cfg=None, allow_gaps=False) -> ImuLog:
-    """Read an IMU CSV (either form) into increments in the sensor axes, SI units.
+def check_time(path, time, allow_gaps=False, what="time"):
+    """Check a whole time column (see :class:`TimeChecker`)."""
+    TimeChecker(path, allow_gaps, what).check(np.asarray(time, dtype=float), 2)
+
+
+def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=1 << 26):
+    """Stream an IMU CSV (either form) as :class:`ImuLog` blocks of increments, SI units, body axes.
 
     ``cfg`` is the config's ``imu`` section (column mapping, units, mounting).
+    Rate logs carry their last sample into the next block, so the increments
+    are the same as for the whole file at once.
     """
     from ..config import DEFAULTS
     cfg_imu = cfg if cfg is not None else DEFAULTS["imu"]
     path = Path(path)
     header = read_header(path)
     form, cols = _resolve_columns(path, header, cfg_imu)
-    data = read_numeric_columns(path, cols)
     units = {**DEFAULTS["imu"]["units"], **(cfg_imu.get("units") or {})}
-    time = data["time"]
-    check_time(path, time, allow_gaps, what=cols["time"])
-    if form == "rates":
-        gyro = np.column_stack([data[c] for c in RATE_COLS[:3]]) * GYRO_UNITS[units["gyro"]]
-        accel = np.column_stack([data[c] for c in RATE_COLS[3:]]) * ACCEL_UNITS[units["accel"]]
-        check_rate_units(path, gyro, units["gyro"])
-        tend, dtheta, dvel, t0 = rates_to_increments(time, gyro, accel)
-        imu = ImuLog(tend, dtheta, dvel, t0=t0, source=str(path), kind="rates")
-    else:
-        dtheta = np.column_stack([data[c] for c in INC_COLS[:3]]) * ANGLE_UNITS[units["dtheta"]]
-        dvel = np.column_stack([data[c] for c in INC_COLS[3:]]) * VEL_UNITS[units["dvel"]]
-        imu = ImuLog(time, dtheta, dvel, t0=None, source=str(path), kind="increments")
-    return apply_mounting(imu, mounting_matrix(cfg_imu.get("mounting")))
+    c_sb = mounting_matrix(cfg_imu.get("mounting"))
+    checker = TimeChecker(path, allow_gaps, what=cols["time"])
+    last = None       # last rate sample (time, gyro, accel) of the previous block
+    rows = 0
+    for line, data in iter_numeric_columns(path, cols, block_bytes):
+        time = data["time"]
+        checker.check(time, line)
+        rows += time.shape[0]
+        if form == "rates":
+            gyro = np.column_stack([data[c] for c in RATE_COLS[:3]]) * GYRO_UNITS[units["gyro"]]
+            accel = np.column_stack([data[c] for c in RATE_COLS[3:]]) * ACCEL_UNITS[units["accel"]]
+            if last is None:
+                check_rate_units(path, gyro, units["gyro"])
+            else:
+                time = np.concatenate([[last[0]], time])
+                gyro = np.vstack([last[1], gyro])
+                accel = np.vstack([last[2], accel])
+            last = (time[-1], gyro[-1:].copy(), accel[-1:].copy())
+            if time.shape[0] < 2:
+                continue
+            tend, dtheta, dvel, t0 = rates_to_increments(time, gyro, accel)
+            imu = ImuLog(tend, dtheta, dvel, t0=t0, source=str(path), kind="rates")
+        else:
+            dtheta = np.column_stack([data[c] for c in INC_COLS[:3]]) * ANGLE_UNITS[units["dtheta"]]
+            dvel = np.column_stack([data[c] for c in INC_COLS[3:]]) * VEL_UNITS[units["dvel"]]
+            imu = ImuLog(time, dtheta, dvel, t0=None, source=str(path), kind="increments")
+        yield apply_mounting(imu, c_sb)
+    if form == "rates" and rows < 2:
+        raise SinsError(f"{path}: a rate log needs at least 2 rows to form increments")
+
+
+def read_imu_csv(path, cfg=None, allow_gaps=False) -> ImuLog:
+    """Read a whole IMU CSV into one :class:`ImuLog` (see :func:`iter_imu_csv`)."""
+    blocks = list(iter_imu_csv(path, cfg, allow_gaps))
+    if len(blocks) == 1:
+        return blocks[0]
+    first = blocks[0]
+    return ImuLog(np.concatenate([b.time for b in blocks]), np.vstack([b.dtheta_b for b in blocks]),
+                  np.vstack([b.dvel_b for b in blocks]), t0=first.t0, source=first.source, kind=first.kind)
 
 
 def apply_mounting(imu: ImuLog, c_sb: np.ndarray) -> ImuLog:
