@@ -1,0 +1,204 @@
+"""Inertial sensor error models applied to exact increments, seeded and reproducible.
+
+Per sensor triad and per interval ``k`` of length ``dt`` (increment form):
+
+    d_meas = (I + diag(s) + N) d_true + (b + b_gm[k]) dt + sigma_rw sqrt(dt) n_k
+
+then quantized with the remainder carried to the next sample (as an
+integrating sensor does).  ``s`` scale factors, ``N`` the misalignment
+(off-diagonal small angles ``[[0, xy, xz], [yx, 0, yz], [zx, zy, 0]]``), ``b``
+the constant bias, ``b_gm`` a first-order Gauss-Markov bias instability
+``b_gm[k] = e^{-dt/tau} b_gm[k-1] + sigma sqrt(1 - e^{-2 dt/tau}) w_k`` (steady
+state from the start), ``sigma_rw`` the angle or velocity random walk.
+
+Random draws come from ``numpy.random.default_rng`` streams spawned from one
+``SeedSequence(seed)``: one stream per sensor and term, so that switching a
+term off leaves the other realizations as they were.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import yaml
+from numba import njit
+
+from ..errors import SinsError
+
+DEG = np.pi / 180.0
+G0 = 9.80665                      # m/s^2 per g (unit conversion only)
+ARCSEC = DEG / 3600.0
+
+# key -> factor to SI (rad/s, rad/sqrt(s), m/s^2, m/s/sqrt(s), dimensionless, rad, s)
+GYRO_UNITS = {
+    "bias": DEG / 3600.0,                  # deg/h, fixed value(s)
+    "bias_sigma": DEG / 3600.0,            # deg/h, turn-on bias drawn per run
+    "bias_instability": DEG / 3600.0,      # deg/h, Gauss-Markov steady-state sigma
+    "bias_tau": 1.0,                       # s, Gauss-Markov correlation time
+    "arw": DEG / 60.0,                     # deg/sqrt(h) -> rad/sqrt(s)
+    "scale_factor": 1e-6,                  # ppm
+    "scale_factor_sigma": 1e-6,            # ppm
+    "misalignment": ARCSEC,                # arcsec (6 values or one)
+    "misalignment_sigma": ARCSEC,          # arcsec
+    "quantization": 1.0,                   # rad per count
+}
+ACCEL_UNITS = {
+    "bias": 1e-6 * G0,                     # micro-g
+    "bias_sigma": 1e-6 * G0,               # micro-g
+    "bias_instability": 1e-6 * G0,         # micro-g
+    "bias_tau": 1.0,                       # s
+    "vrw": 1e-6 * G0,                      # micro-g/sqrt(Hz) -> m/s/sqrt(s)
+    "scale_factor": 1e-6,                  # ppm
+    "scale_factor_sigma": 1e-6,            # ppm
+    "misalignment": ARCSEC,                # arcsec
+    "misalignment_sigma": ARCSEC,          # arcsec
+    "quantization": 1.0,                   # m/s per count
+}
+PRESETS = ("navigation", "tactical", "mems")
+
+
+def preset_dir() -> Path:
+    """``configs/sensors`` of the source tree (presets ``navigation``, ``tactical``, ``mems``)."""
+    return Path(__file__).resolve().parents[2] / "configs" / "sensors"
+
+
+def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path) -> dict:
+    """Resolve a sensor spec (None, preset name, YAML path or mapping) plus overrides.
+
+    Returns ``{"gyro": {key: SI value(s)}, "accel": {...}}``.
+    """
+    data: dict = {}
+    where = src
+    if spec is None:
+        data = {}
+    elif isinstance(spec, dict):
+        data = spec
+    elif isinstance(spec, str):
+        path = preset_dir() / f"{spec.lower()}.yaml" if spec.lower() in PRESETS else Path(spec)
+        if not path.is_absolute() and spec.lower() not in PRESETS:
+            path = base_dir / path
+        try:
+            data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+        except OSError:
+            raise SinsError(f"{src}: imu.sensor: no sensor preset or file {spec!r} "
+                            f"(presets: {', '.join(PRESETS)})") from None
+        except yaml.YAMLError as exc:
+            raise SinsError(f"{path}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
+        where = str(path)
+        if not isinstance(data, dict):
+            raise SinsError(f"{path}: expected a mapping with 'gyro' and 'accel'")
+    else:
+        raise SinsError(f"{src}: imu.sensor: expected a preset name, a file or a mapping; got {spec!r}")
+    out = {}
+    for which, units in (("gyro", GYRO_UNITS), ("accel", ACCEL_UNITS)):
+        merged = dict(data.get(which) or {})
+        merged.update((overrides or {}).get(which) or {})
+        out[which] = _convert(merged, units, where, which)
+    for k in data:
+        if k not in ("gyro", "accel", "name", "description"):
+            raise SinsError(f"{where}: {k}: unknown key; expected gyro, accel, name, description")
+    return out
+
+
+def _convert(d: dict, units: dict, where: str, which: str) -> dict:
+    out = {}
+    for k, v in d.items():
+        if k not in units:
+            raise SinsError(f"{where}: {which}.{k}: unknown key; expected one of {', '.join(units)}")
+        n = 6 if k.startswith("misalignment") else 3
+        if isinstance(v, (list, tuple)):
+            if len(v) != n:
+                raise SinsError(f"{where}: {which}.{k}: expected {n} numbers or one; got {len(v)}")
+            arr = np.array(v, dtype=float)
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            arr = np.full(n, float(v))
+        else:
+            raise SinsError(f"{where}: {which}.{k}: expected a number; got {v!r}")
+        if k in ("bias_tau",) and np.any(arr <= 0.0):
+            raise SinsError(f"{where}: {which}.{k}: must be > 0")
+        if (k.endswith("sigma") or k in ("arw", "vrw", "bias_instability", "quantization")) and np.any(arr < 0):
+            raise SinsError(f"{where}: {which}.{k}: must be >= 0")
+        out[k] = arr * units[k]
+    if "bias_instability" in out and "bias_tau" not in out:
+        raise SinsError(f"{where}: {which}.bias_tau: required with bias_instability (s)")
+    return out
+
+
+@njit(cache=True)
+def gauss_markov(phi, sigma_w, b0, w):
+    """First-order Gauss-Markov sequence (N, 3): ``b[k] = phi b[k-1] + sigma_w w[k]``, ``b[-1] = b0``."""
+    n = w.shape[0]
+    out = np.empty_like(w)
+    prev = b0.copy()
+    for k in range(n):
+        for i in range(3):
+            prev[i] = phi[i] * prev[i] + sigma_w[i] * w[k, i]
+            out[k, i] = prev[i]
+    return out
+
+
+@njit(cache=True)
+def quantize(inc, q):
+    """Quantize increments (N, 3) to steps ``q`` (3,), carrying the remainder (no lost angle)."""
+    out = np.empty_like(inc)
+    rem = np.zeros(3)
+    for k in range(inc.shape[0]):
+        for i in range(3):
+            if q[i] > 0.0:
+                acc = rem[i] + inc[k, i]
+                out[k, i] = np.round(acc / q[i]) * q[i]
+                rem[i] = acc - out[k, i]
+            else:
+                out[k, i] = inc[k, i]
+    return out
+
+
+def _misalignment_matrix(m6):
+    xy, xz, yx, yz, zx, zy = m6
+    return np.array([[0.0, xy, xz], [yx, 0.0, yz], [zx, zy, 0.0]])
+
+
+def corrupt(inc: np.ndarray, dt: np.ndarray, spec: dict, seedseq: np.random.SeedSequence,
+            noise_key: str) -> tuple[np.ndarray, dict]:
+    """Apply one triad's errors to exact increments ``inc`` (N, 3) over intervals ``dt`` (N,).
+
+    Returns the measured increments and the realized constants (SI) for the record.
+    """
+    rng_bias, rng_sf, rng_mis, rng_gm, rng_noise = (np.random.default_rng(s) for s in seedseq.spawn(5))
+    n = inc.shape[0]
+    bias = spec.get("bias", np.zeros(3)).copy()
+    if "bias_sigma" in spec:
+        bias += spec["bias_sigma"] * rng_bias.standard_normal(3)
+    sf = spec.get("scale_factor", np.zeros(3)).copy()
+    if "scale_factor_sigma" in spec:
+        sf += spec["scale_factor_sigma"] * rng_sf.standard_normal(3)
+    mis = spec.get("misalignment", np.zeros(6)).copy()
+    if "misalignment_sigma" in spec:
+        mis += spec["misalignment_sigma"] * rng_mis.standard_normal(6)
+    M = np.eye(3) + np.diag(sf) + _misalignment_matrix(mis)
+    out = inc @ M.T + bias[None, :] * dt[:, None]
+    if "bias_instability" in spec and np.any(spec["bias_instability"] > 0):
+        sig, tau = spec["bias_instability"], spec["bias_tau"]
+        dtm = float(np.mean(dt))
+        phi = np.exp(-dtm / tau)
+        b0 = sig * rng_gm.standard_normal(3)
+        gm = gauss_markov(phi, sig * np.sqrt(1.0 - phi * phi), b0, rng_gm.standard_normal((n, 3)))
+        out += gm * dt[:, None]
+    if noise_key in spec and np.any(spec[noise_key] > 0):
+        out += spec[noise_key][None, :] * np.sqrt(dt)[:, None] * rng_noise.standard_normal((n, 3))
+    if "quantization" in spec and np.any(spec["quantization"] > 0):
+        out = quantize(out, spec["quantization"])
+    return out, {"bias": bias, "scale_factor": sf, "misalignment": mis}
+
+
+def apply_imu_errors(dtheta: np.ndarray, dvel: np.ndarray, dt: np.ndarray, sensor: dict, seed: int):
+    """Measured ``(dtheta, dvel, realized)`` from exact increments, seeded (bit-reproducible)."""
+    gyro_ss, accel_ss = np.random.SeedSequence(seed).spawn(3)[:2]
+    dth, g_real = corrupt(dtheta, dt, sensor.get("gyro", {}), gyro_ss, "arw")
+    dv, a_real = corrupt(dvel, dt, sensor.get("accel", {}), accel_ss, "vrw")
+    return dth, dv, {"gyro": g_real, "accel": a_real}
+
+
+def gnss_seedseq(seed: int) -> np.random.SeedSequence:
+    """The GNSS noise stream of ``seed`` (third child of the run's SeedSequence)."""
+    return np.random.SeedSequence(seed).spawn(3)[2]

@@ -1,0 +1,67 @@
+"""GNSS fixes from the exact truth: antenna point, noise, outages.
+
+The antenna sits at the lever arm ``l^b`` from the IMU; its position and
+velocity are the truth *at the antenna*, exactly:
+
+    r_a^e = r^e + C_n^e Cbn l^b
+    v_a^n = v^n + Cbn (w_eb^b x l^b),   w_eb^b = w_nb^b + C_n^b w_en^n
+
+with the velocity turned into the antenna's own ENU frame.  Noise is white,
+Gaussian, per axis E/N/U (metres turned into latitude/longitude with the
+local radii).  Outages drop the fixes in ``[start, end)`` (s since the start).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef, radii_py
+from ..types import GnssLog
+from .imu_synth import transport_rate_many
+
+
+def gnss_times(duration: float, rate: float, outages) -> np.ndarray:
+    """Fix times (s since start): ``k / rate`` for ``k >= 0`` up to ``duration``, less the outages."""
+    tau = np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate
+    keep = np.ones(tau.size, dtype=bool)
+    for a, b in outages:
+        keep &= ~((tau >= a) & (tau < b))
+    return tau[keep]
+
+
+def antenna_truth(lat, lon, h, vel_n, cbn, w_nb_b, lever_b):
+    """Exact position (rad, rad, m) and ENU velocity (m/s) of the antenna at ``lever_b`` (body, m)."""
+    lever_b = np.asarray(lever_b, dtype=float)
+    if not np.any(lever_b):
+        return lat, lon, h, vel_n
+    c_en = enu_rotation(lat, lon)                                # C_e^n (n, 3, 3)
+    l_n = cbn @ lever_b
+    r_a = lla_to_ecef(lat, lon, h) + np.einsum("nij,ni->nj", c_en, l_n)   # C_n^e = (C_e^n)^T
+    lat_a, lon_a, h_a = ecef_to_lla(r_a)
+    w_en = transport_rate_many(lat, h, vel_n)
+    w_eb = w_nb_b + np.einsum("nji,nj->ni", cbn, w_en)          # C_n^b w_en^n
+    v_a_n = vel_n + np.einsum("nij,nj->ni", cbn, np.cross(w_eb, lever_b))
+    v_a_e = np.einsum("nij,ni->nj", c_en, v_a_n)
+    v_a = np.einsum("nij,nj->ni", enu_rotation(lat_a, lon_a), v_a_e)
+    return lat_a, lon_a, h_a, v_a
+
+
+def make_gnss(tau, t0, lat, lon, h, vel_n, cfg: dict, rng: np.random.Generator | None, source: str) -> GnssLog:
+    """A :class:`GnssLog` (degrees) from antenna truth, with noise drawn from ``rng`` (None: none)."""
+    n = tau.size
+    pos_sig = np.asarray(cfg["pos_noise"], dtype=float)
+    vel_sig = np.asarray(cfg["vel_noise"], dtype=float)
+    lat, lon, h, vel = lat.copy(), lon.copy(), h.copy(), vel_n.copy()
+    if rng is not None:
+        e_pos = rng.standard_normal((n, 3)) * pos_sig
+        e_vel = rng.standard_normal((n, 3)) * vel_sig
+        rm, rn = radii_py(np.sin(lat))
+        lat += e_pos[:, 1] / (rm + h)
+        lon += e_pos[:, 0] / ((rn + h) * np.cos(lat))
+        h += e_pos[:, 2]
+        vel += e_vel
+    return GnssLog(time=t0 + tau, lat=np.degrees(lat), lon=np.degrees(lon), height=h,
+                   vel_n=vel if cfg["velocity"] else None,
+                   std_pos=np.tile(pos_sig, (n, 1)) if rng is not None and np.any(pos_sig > 0) else None,
+                   std_vel=np.tile(vel_sig, (n, 1)) if (rng is not None and cfg["velocity"]
+                                                       and np.any(vel_sig > 0)) else None,
+                   source=source)

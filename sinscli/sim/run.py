@@ -1,0 +1,125 @@
+"""``simulate``: a scenario -> exact truth, IMU increments with sensor errors, GNSS fixes."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..nav.rotation import conv_to_flu
+from ..types import GnssLog, ImuLog, NavState, Trajectory
+from . import truth as truth_mod
+from .errors import apply_imu_errors, gnss_seedseq, load_sensor
+from .gnss import antenna_truth, gnss_times, make_gnss
+from .scenario import Scenario, load_scenario
+from .segments import expand
+
+DEFAULT_SEED = 0
+
+
+@dataclass
+class SimResult:
+    """Everything a simulation produces (the IMU and truth in body convention ``conv``)."""
+    imu: ImuLog                 # increments; imu.t0 = start time
+    truth: Trajectory           # at t0 and every IMU time
+    gnss: GnssLog               # antenna fixes (degrees)
+    init: NavState              # the truth at t0
+    conv: int = 0               # body convention code of imu/truth/init (FLU = 0)
+    seed: int = DEFAULT_SEED
+    name: str = ""
+    perfect: bool = False
+    launch: dict = field(default_factory=dict)      # start point: lat, lon (deg), height (m), azimuth (deg), time
+    sensor: dict = field(default_factory=dict)      # realized sensor constants (SI), empty when perfect
+    scenario: Scenario | None = None
+
+
+@dataclass
+class Prepared:
+    """A checked scenario ready to run: primitives, resolved sensor, sample counts."""
+    scenario: Scenario
+    prims: list
+    sensor: dict
+    n_imu: int
+    tau_gnss: np.ndarray
+    perfect: bool
+
+
+def prepare(scenario, perfect: bool = False) -> Prepared:
+    """Load and check everything (raises ``SinsError``) before any work or output."""
+    sc = load_scenario(scenario)
+    prims = expand(sc.segments, sc.x_start, sc.source)
+    sensor = {} if perfect else load_sensor(sc.sensor, sc.sensor_overrides, sc.source, sc.base_dir)
+    n_imu = int(np.floor(sc.duration * sc.imu_rate + 1e-9))
+    tau_g = gnss_times(n_imu / sc.imu_rate, sc.gnss["rate"], sc.gnss["outages"])
+    return Prepared(sc, prims, sensor, n_imu, tau_g, perfect)
+
+
+def simulate(scenario, seed: int | None = None, perfect: bool = False, *, nodes: int = 8,
+             progress=None) -> SimResult:
+    """Simulate a scenario (mapping, YAML path, :class:`Scenario` or :class:`Prepared`).
+
+    ``seed`` overrides the scenario's ``seed`` (default 0); ``perfect`` drops
+    every IMU error and the GNSS noise (outages and lever arm stay: they are
+    geometry, not error).  ``nodes`` Gauss-Legendre points per sub-interval;
+    ``progress(k)`` is called as k more IMU intervals are done.
+    """
+    p = scenario if isinstance(scenario, Prepared) else prepare(scenario, perfect)
+    sc = p.scenario
+    perfect = perfect or p.perfect
+    seed = seed if seed is not None else (sc.seed if sc.seed is not None else DEFAULT_SEED)
+    td = truth_mod.generate(p.prims, sc.lat0, sc.lon0, sc.h0, sc.imu_rate, p.n_imu, extra_times=p.tau_gnss,
+                            nodes=nodes, progress=progress)
+    return assemble(sc, td, p.tau_gnss, {} if perfect else p.sensor, seed, perfect)
+
+
+def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: dict, seed: int,
+             perfect: bool) -> SimResult:
+    """Containers from the truth engine's output: body convention, sensor errors, GNSS."""
+    conv = sc.conv
+    c_flu_conv = conv_to_flu(conv).T.copy()          # C_FLU^conv
+    idx = td.imu_idx
+    tau = td.tau[idx]
+    cbn = td.cbn[idx] @ conv_to_flu(conv)            # Cbn_conv = Cbn_FLU C_conv^FLU
+    truth = Trajectory(time=sc.t0 + tau, lat=td.lat[idx], lon=td.lon[idx], height=td.h[idx],
+                       vel_n=td.vel_n[idx], Cbn=cbn, source=f"simulate:{sc.name}")
+    dtheta = td.dtheta_b @ c_flu_conv.T
+    dvel = td.dvel_b @ c_flu_conv.T
+    realized = {}
+    if sensor and (sensor.get("gyro") or sensor.get("accel")):
+        dtheta, dvel, realized = apply_imu_errors(dtheta, dvel, np.diff(tau), sensor, seed)
+    imu = ImuLog(time=sc.t0 + tau[1:], dtheta_b=dtheta, dvel_b=dvel, t0=sc.t0,
+                 source=f"simulate:{sc.name}", kind="increments")
+    gi = np.searchsorted(td.tau, tau_g)
+    lever_flu = conv_to_flu(conv) @ sc.gnss["lever_arm"]
+    lat_a, lon_a, h_a, v_a = antenna_truth(td.lat[gi], td.lon[gi], td.h[gi], td.vel_n[gi], td.cbn[gi],
+                                           td.w_nb_b[gi], lever_flu)
+    rng = None if perfect else np.random.default_rng(gnss_seedseq(seed))
+    gnss = make_gnss(tau_g, sc.t0, lat_a, lon_a, h_a, v_a, sc.gnss, rng, f"simulate:{sc.name}")
+    init = NavState(time=sc.t0, lat=float(truth.lat[0]), lon=float(truth.lon[0]),
+                    height=float(truth.height[0]), vel_n=truth.vel_n[0].copy(), Cbn=cbn[0].copy())
+    launch = {"time": sc.t0, "lat": float(np.degrees(sc.lat0)), "lon": float(np.degrees(sc.lon0)),
+              "height": sc.h0, "azimuth": float(np.degrees(sc.x_start[0]) % 360.0)}
+    return SimResult(imu=imu, truth=truth, gnss=gnss, init=init, conv=conv, seed=seed, name=sc.name,
+                     perfect=perfect, launch=launch, sensor=realized, scenario=sc)
+
+
+def write_sim(result: SimResult, outdir) -> list[Path]:
+    """Write ``imu.csv``, ``gnss.csv``, ``truth.csv``, ``init.yaml`` into ``outdir`` (FORMATS.md).
+
+    Each file is written atomically by the project's writers.  Returns the paths.
+    """
+    from ..io.gnss_csv import write_gnss_csv
+    from ..io.imu_csv import write_imu_csv
+    from ..io.init_state import write_init_yaml
+    from ..io.trajectory import write_trajectory
+
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [out / "imu.csv", out / "gnss.csv", out / "truth.csv", out / "init.yaml"]
+    write_imu_csv(paths[0], result.imu)
+    write_gnss_csv(paths[1], result.gnss)
+    write_trajectory(paths[2], result.truth, conv=result.conv)
+    extra = {"scenario": result.name, "seed": result.seed, "perfect": result.perfect,
+             "body": ("flu", "rfu", "frd")[result.conv], "launch": result.launch}
+    write_init_yaml(paths[3], result.init, result.conv, extra)
+    return paths

@@ -1,0 +1,267 @@
+"""Scenario files: YAML loading and validation into a :class:`Scenario`.
+
+Every refusal is one ``SinsError`` line that names the file and the key, e.g.
+``vehicle.yaml: segments[3].type: unknown segment type 'fly'; expected one of ...``.
+Units in files: degrees, metres, seconds, Hz, m/s, m/s^2 (docs/simulate.md).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..errors import SinsError
+from ..nav.rotation import BODY_CONVENTIONS
+from .segments import AXES
+
+# Segment type -> (required keys, optional keys, groups of which exactly one is required)
+SEGMENT_SCHEMA: dict[str, tuple[set, set, list]] = {
+    "rest": (set(), set(), []),
+    "cruise": (set(), set(), []),
+    "accelerate": (set(), {"speed", "accel"}, [("speed", "accel")]),
+    "decelerate": (set(), {"speed", "accel"}, [("speed", "accel")]),
+    "turn": (set(), {"angle", "rate", "bank"}, [("angle", "rate")]),
+    "climb": ({"pitch"}, {"transition"}, []),
+    "descend": ({"pitch"}, {"transition"}, []),
+    "pitch": (set(), {"angle", "rate"}, [("angle", "rate")]),
+    "pull_up": (set(), {"angle", "rate"}, [("angle", "rate")]),
+    "pitch_over": (set(), {"angle", "rate"}, [("angle", "rate")]),
+    "loop": (set(), {"angle"}, []),
+    "roll": (set(), {"angle", "rate"}, [("angle", "rate")]),
+    "maneuver": (set(), {"heading", "pitch", "roll", "speed", "heading_rate", "pitch_rate", "roll_rate",
+                         "accel", "bank"}, []),
+    "coning": ({"half_angle", "freq"}, {"ramp"}, []),
+    "sculling": ({"freq"}, {"angle", "accel", "axis", "accel_axis", "ramp"}, []),
+    "boost": ({"accel"}, {"spin", "ramp", "pitch"}, []),
+}
+COMMON_SEGMENT_KEYS = {"type", "duration", "label"}
+NON_NUMERIC = {"bank", "axis", "accel_axis", "label", "type"}
+POSITIVE = {"freq", "half_angle"}
+NONNEGATIVE = {"speed", "ramp", "transition"}
+
+TOP_KEYS = {"name", "description", "seed", "duration", "start", "imu", "gnss", "gravity", "body", "segments"}
+START_KEYS = {"time", "lat", "lon", "height", "heading", "pitch", "roll", "speed"}
+IMU_KEYS = {"rate", "sensor", "gyro", "accel"}
+GNSS_KEYS = {"rate", "pos_noise", "vel_noise", "lever_arm", "outages", "velocity"}
+GRAVITY_MODELS = ("normal",)
+
+
+@dataclass
+class Scenario:
+    """A validated scenario (SI units, radians)."""
+    name: str
+    source: str                    # name used in messages
+    base_dir: Path                 # for relative sensor paths
+    seed: int | None
+    duration: float                # s, total
+    t0: float                      # s, start epoch
+    lat0: float                    # rad
+    lon0: float                    # rad
+    h0: float                      # m
+    x_start: np.ndarray            # (heading, pitch, roll, speed) rad, m/s
+    imu_rate: float                # Hz
+    sensor: object                 # None, preset name, path or mapping (resolved in errors.py)
+    sensor_overrides: dict         # {"gyro": {...}, "accel": {...}}
+    gnss: dict                     # normalized GNSS settings (see _gnss)
+    gravity: str
+    conv: int                      # output body convention code
+    segments: list[dict]
+    description: str = ""
+    raw: dict = field(default_factory=dict)
+
+
+def load_scenario(scenario) -> Scenario:
+    """A :class:`Scenario` from a mapping or a YAML file path; raises ``SinsError`` on bad input."""
+    if isinstance(scenario, Scenario):
+        return scenario
+    if isinstance(scenario, dict):
+        return validate(scenario, "<scenario>", Path.cwd())
+    path = Path(scenario)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SinsError(f"{path}: cannot read the scenario ({exc.strerror or exc})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise SinsError(f"{path}: not valid YAML{where}: {getattr(exc, 'problem', exc)}") from None
+    if not isinstance(data, dict):
+        raise SinsError(f"{path}: expected a mapping of scenario keys at the top level")
+    return validate(data, str(path), path.parent)
+
+
+def _fail(src, key, msg):
+    raise SinsError(f"{src}: {key}: {msg}")
+
+
+def _number(src, key, value, *, gt=None, ge=None):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        _fail(src, key, f"expected a number; got {value!r}")
+    v = float(value)
+    if not np.isfinite(v):
+        _fail(src, key, f"expected a finite number; got {value!r}")
+    if gt is not None and not v > gt:
+        _fail(src, key, f"must be > {gt:g}; got {v:g}")
+    if ge is not None and not v >= ge:
+        _fail(src, key, f"must be >= {ge:g}; got {v:g}")
+    return v
+
+
+def _vector(src, key, value, n=3, ge=None):
+    """A scalar (broadcast) or a list of ``n`` numbers."""
+    if isinstance(value, (list, tuple)):
+        if len(value) != n:
+            _fail(src, key, f"expected {n} numbers; got {len(value)}")
+        return np.array([_number(src, f"{key}[{i}]", v, ge=ge) for i, v in enumerate(value)])
+    return np.full(n, _number(src, key, value, ge=ge))
+
+
+def _mapping(src, key, value, allowed):
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        _fail(src, key, f"expected a mapping; got {value!r}")
+    for k in value:
+        if k not in allowed:
+            _fail(src, f"{key}.{k}", f"unknown key {k!r}; expected one of {', '.join(sorted(allowed))}")
+    return value
+
+
+def validate(data: dict, src: str, base_dir: Path) -> Scenario:
+    """Check every key of a scenario mapping; return the :class:`Scenario`."""
+    for k in data:
+        if k not in TOP_KEYS:
+            _fail(src, k, f"unknown key {k!r}; expected one of {', '.join(sorted(TOP_KEYS))}")
+    deg = np.pi / 180.0
+    start = _mapping(src, "start", data.get("start"), START_KEYS)
+    for k in ("lat", "lon"):
+        if k not in start:
+            _fail(src, f"start.{k}", "required (degrees)")
+    lat = _number(src, "start.lat", start["lat"])
+    if abs(lat) >= 89.9:
+        _fail(src, "start.lat", f"must be within (-89.9, 89.9) degrees (ENU is singular at the poles); got {lat:g}")
+    lon = _number(src, "start.lon", start["lon"])
+    h = _number(src, "start.height", start.get("height", 0.0))
+    x_start = np.array([_number(src, "start.heading", start.get("heading", 0.0)) * deg,
+                        _number(src, "start.pitch", start.get("pitch", 0.0)) * deg,
+                        _number(src, "start.roll", start.get("roll", 0.0)) * deg,
+                        _number(src, "start.speed", start.get("speed", 0.0), ge=0.0)])
+    t0 = _number(src, "start.time", start.get("time", 0.0))
+
+    imu = _mapping(src, "imu", data.get("imu"), IMU_KEYS)
+    if "rate" not in imu:
+        _fail(src, "imu.rate", "required (Hz)")
+    rate = _number(src, "imu.rate", imu["rate"])
+    if rate < 1.0:
+        _fail(src, "imu.rate", f"must be at least 1 Hz; got {rate:g}")
+    overrides = {k: _mapping(src, f"imu.{k}", imu.get(k), _sensor_keys(k)) for k in ("gyro", "accel")}
+
+    gnss = _gnss(src, _mapping(src, "gnss", data.get("gnss", {}), GNSS_KEYS), rate)
+
+    gravity = data.get("gravity", "normal")
+    if gravity not in GRAVITY_MODELS:
+        _fail(src, "gravity", f"unknown gravity model {gravity!r}; expected one of {', '.join(GRAVITY_MODELS)}")
+    body = data.get("body", "flu")
+    if not isinstance(body, str) or body.lower() not in BODY_CONVENTIONS:
+        _fail(src, "body", f"unknown body convention {body!r}; expected one of {', '.join(BODY_CONVENTIONS)}")
+
+    segs = data.get("segments")
+    if not isinstance(segs, list) or not segs:
+        _fail(src, "segments", "expected a non-empty list of motion segments")
+    segments = [_segment(src, i, s) for i, s in enumerate(segs)]
+    total = sum(s["duration"] for s in segments)
+    duration = total
+    if data.get("duration") is not None:
+        duration = _number(src, "duration", data["duration"], gt=0.0)
+        if duration > total * (1.0 + 1e-12):
+            _fail(src, "duration", f"{duration:g} s is longer than the segments' total {total:g} s")
+    if duration * rate < 1.0:
+        _fail(src, "duration", f"{duration:g} s holds no IMU interval at {rate:g} Hz")
+    seed = data.get("seed")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
+        _fail(src, "seed", f"expected a non-negative integer; got {seed!r}")
+    name = str(data.get("name", Path(src).stem if src != "<scenario>" else "scenario"))
+    return Scenario(name=name, source=src, base_dir=base_dir, seed=seed, duration=duration, t0=t0,
+                    lat0=lat * deg, lon0=lon * deg, h0=h, x_start=x_start, imu_rate=rate,
+                    sensor=imu.get("sensor"), sensor_overrides=overrides, gnss=gnss, gravity=gravity,
+                    conv=BODY_CONVENTIONS[body.lower()], segments=segments,
+                    description=str(data.get("description", "")), raw=data)
+
+
+def _sensor_keys(which):
+    from .errors import ACCEL_UNITS, GYRO_UNITS
+    return set(GYRO_UNITS if which == "gyro" else ACCEL_UNITS)
+
+
+def _gnss(src, g, imu_rate):
+    rate = _number(src, "gnss.rate", g.get("rate", 1.0), gt=0.0)
+    if rate > imu_rate:
+        _fail(src, "gnss.rate", f"{rate:g} Hz is above the IMU rate {imu_rate:g} Hz")
+    outages = g.get("outages", []) or []
+    if not isinstance(outages, list):
+        _fail(src, "gnss.outages", "expected a list of [start, end] pairs (s since the start)")
+    outs = []
+    for i, o in enumerate(outages):
+        if not isinstance(o, (list, tuple)) or len(o) != 2:
+            _fail(src, f"gnss.outages[{i}]", f"expected [start, end] in s since the start; got {o!r}")
+        a = _number(src, f"gnss.outages[{i}][0]", o[0], ge=0.0)
+        b = _number(src, f"gnss.outages[{i}][1]", o[1])
+        if b <= a:
+            _fail(src, f"gnss.outages[{i}]", f"end {b:g} must be after start {a:g}")
+        outs.append((a, b))
+    velocity = g.get("velocity", True)
+    if not isinstance(velocity, bool):
+        _fail(src, "gnss.velocity", f"expected true or false; got {velocity!r}")
+    return {"rate": rate,
+            "pos_noise": _vector(src, "gnss.pos_noise", g.get("pos_noise", 0.0), ge=0.0),
+            "vel_noise": _vector(src, "gnss.vel_noise", g.get("vel_noise", 0.0), ge=0.0),
+            "lever_arm": _vector(src, "gnss.lever_arm", g.get("lever_arm", 0.0)),
+            "outages": outs, "velocity": velocity}
+
+
+def _segment(src, i, s):
+    key = f"segments[{i}]"
+    if not isinstance(s, dict):
+        _fail(src, key, f"expected a mapping with a 'type'; got {s!r}")
+    kind = s.get("type")
+    if kind not in SEGMENT_SCHEMA:
+        _fail(src, f"{key}.type", f"unknown segment type {kind!r}; expected one of {', '.join(sorted(SEGMENT_SCHEMA))}")
+    required, optional, groups = SEGMENT_SCHEMA[kind]
+    allowed = required | optional | COMMON_SEGMENT_KEYS
+    for k in s:
+        if k not in allowed:
+            _fail(src, f"{key}.{k}", f"unknown key {k!r} for segment type {kind!r}; "
+                                      f"expected one of {', '.join(sorted(allowed - {'type'}))}")
+    if "duration" not in s:
+        _fail(src, f"{key}.duration", "required (s)")
+    out = {"type": kind, "duration": _number(src, f"{key}.duration", s["duration"], gt=0.0)}
+    for k in required:
+        if k not in s:
+            _fail(src, f"{key}.{k}", f"required for segment type {kind!r}")
+    for grp in groups:
+        present = [k for k in grp if k in s]
+        if len(present) != 1:
+            _fail(src, f"{key}", f"segment type {kind!r} needs exactly one of {', '.join(grp)}")
+    for k, v in s.items():
+        if k in ("type", "duration"):
+            continue
+        if k in ("axis", "accel_axis"):
+            if v not in AXES:
+                _fail(src, f"{key}.{k}", f"expected one of x, y, z; got {v!r}")
+            out[k] = v
+        elif k == "bank":
+            if v not in ("coordinated", "none", True, False):
+                _fail(src, f"{key}.bank", f"expected 'coordinated' or 'none'; got {v!r}")
+            out[k] = v
+        elif k == "label":
+            out[k] = str(v)
+        else:
+            out[k] = _number(src, f"{key}.{k}", v, gt=0.0 if k in POSITIVE else None,
+                             ge=0.0 if k in NONNEGATIVE else None)
+    if kind == "boost" and out["accel"] == 0.0:
+        _fail(src, f"{key}.accel", "a boost needs a non-zero acceleration")
+    return out
