@@ -3,3 +3,4 @@ from .base import main  # noqa: F401
 
 # One import per command module (each adds its command to ``main``).
 from . import compare  # noqa: F401,E402
+from . import simulate  # noqa: F401,E402
