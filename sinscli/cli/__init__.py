@@ -3,4 +3,5 @@ from .base import main  # noqa: F401
 
 # One import per command module (each adds its command to ``main``).
 from . import compare  # noqa: F401,E402
+from . import navigate  # noqa: F401,E402
 from . import simulate  # noqa: F401,E402

@@ -23,7 +23,7 @@ beyond the interval's own ``1/2 alpha x dth`` terms.
 import numpy as np
 from numba import njit
 
-from .rotation import v_add, v_cross, v_scale
+from .rotation import v_add, v_cross, v_scale, v_sub
 
 MAX_ORDER = 4
 
@@ -56,17 +56,28 @@ def fast_step(alpha, upsilon, beta, scul, dth, dv, prev_dth, prev_dv, n_prev, co
 
 
 @njit(cache=True, inline="always")
-def body_increments(alpha, upsilon, beta, scul):
+def body_increments(alpha, upsilon, beta, scul, alpha_prev, upsilon_prev, have_prev):
     """Rotation vector and velocity increment of the interval in the frame b(m-1).
 
-    ``phi_m = alpha_m + beta_m`` (eq 35) and
-    ``dv^b = upsilon + 1/2 alpha x upsilon + scul + 1/6 alpha x (alpha x upsilon)``:
-    the rotation compensation to second order, which is exact for a constant
-    rate and specific force (the first-order textbook term alone leaves a
-    drift of order (w T)^2 g per step, visible at rest over an hour).
+    ``phi_m = alpha_m + beta_m`` (eq 35) and ``dv^b = int C_{b(t)}^{b0} f dt``:
+
+        dv^b = upsilon + 1/2 alpha x upsilon + scul + 1/6 alpha x (alpha x upsilon)
+               + 1/24 [alpha x (alpha x (upsilon - upsilon')) - (alpha - alpha') x (alpha x upsilon)]
+
+    The 1/6 term is the second-order rotation compensation, exact for a
+    constant rate and specific force (the first-order textbook term alone leaves
+    a drift of order (w T)^2 g per step, visible at rest over an hour); the
+    1/24 term is its next order for linearly varying rate and specific force
+    (with the previous interval's sums ``alpha'``, ``upsilon'``), together with
+    the ``int beta x f dt`` part of the rotation-vector expansion.  Without it
+    the velocity error is third order in T.
     """
     phi = v_add(alpha, beta)
     axu = v_cross(alpha, upsilon)
     dv_b = v_add(v_add(upsilon, v_scale(axu, 0.5)),
                  v_add(scul, v_scale(v_cross(alpha, axu), 1.0 / 6.0)))
+    if have_prev:
+        corr = v_sub(v_cross(alpha, v_cross(alpha, v_sub(upsilon, upsilon_prev))),
+                     v_cross(v_sub(alpha, alpha_prev), axu))
+        dv_b = v_add(dv_b, v_scale(corr, 1.0 / 24.0))
     return phi, dv_b

@@ -16,10 +16,10 @@ with ``Gamma(zeta) = int_0^1 exp(-(1-s)[zeta x]) ds = I - 1/2 [zeta x]
 ``dR = int v dt``.  This form keeps a vehicle at rest exactly at rest:
 the body and navigation-frame rotations cancel to third order.
 
-Position: ``dR = int v^n dt`` by the quadratic (third-order Adams-Moulton)
-rule through the velocities at t_{m-2}, t_{m-1}, t_m (actual spacings), a
-trapezoid with a curvature correction that carries the rotation/scrolling
-effects of the interval; then latitude, longitude and height with the radii
+Position: ``dR = int v^n dt`` by the cubic (fourth-order Adams-Moulton)
+rule through the velocities at t_{m-3} .. t_m (actual spacings): a trapezoid
+with curvature corrections that carry the rotation/scrolling effects of the
+interval to fourth order; then latitude, longitude and height with the radii
 of curvature at the interval midpoint.
 """
 import numpy as np
@@ -79,14 +79,38 @@ def velocity_update(vel, dv_sf_n0, zeta, lat_mid, h_mid, dR, T):
 
 
 @njit(cache=True, inline="always")
-def displacement(v_mm2, v_mm1, v_m, h0, T, have_mm2):
-    """``int v dt`` over (t_{m-1}, t_m]: quadratic through three velocities, or a trapezoid at the start."""
-    if not have_mm2:
-        return v_scale(v_add(v_mm1, v_m), 0.5 * T)
-    w2 = T * (2.0 * T + 3.0 * h0) / (6.0 * (T + h0))
-    w0 = -T * T * T / (6.0 * h0 * (T + h0))
-    w1 = T - w0 - w2
-    return v_add(v_add(v_scale(v_mm2, w0), v_scale(v_mm1, w1)), v_scale(v_m, w2))
+def _lagrange_weight(xi, xa, xb, xc, h):
+    """``int_0^h L(x) dx`` for the cubic Lagrange basis of node ``xi`` with other nodes xa, xb, xc."""
+    s1 = xa + xb + xc
+    s2 = xa * xb + xa * xc + xb * xc
+    s3 = xa * xb * xc
+    num = h * h * h * h / 4.0 - s1 * h * h * h / 3.0 + s2 * h * h / 2.0 - s3 * h
+    return num / ((xi - xa) * (xi - xb) * (xi - xc))
+
+
+@njit(cache=True, inline="always")
+def displacement(v3, v2, v1, v0, h2, h1, T, nhist):
+    """``int v dt`` over (t_{m-1}, t_m] from the velocities at t_{m-3}, t_{m-2}, t_{m-1}, t_m.
+
+    ``v3, v2, v1, v0`` are those velocities, ``h2 = t_{m-2} - t_{m-3}``,
+    ``h1 = t_{m-1} - t_{m-2}``, ``T = t_m - t_{m-1}``; ``nhist`` how many of the
+    older velocities exist (0: trapezoid, 1: quadratic, 2: cubic).  The cubic is
+    the fourth-order Adams-Moulton rule ((9, 19, -5, 1)/24 at equal spacing), with
+    weights from the actual spacings.
+    """
+    if nhist == 0:
+        return v_scale(v_add(v1, v0), 0.5 * T)
+    if nhist == 1:
+        w0 = T * (2.0 * T + 3.0 * h1) / (6.0 * (T + h1))
+        w2 = -T * T * T / (6.0 * h1 * (T + h1))
+        w1 = T - w0 - w2
+        return v_add(v_add(v_scale(v2, w2), v_scale(v1, w1)), v_scale(v0, w0))
+    x3, x2, x1, x0 = -(h1 + h2), -h1, 0.0, T
+    w3 = _lagrange_weight(x3, x2, x1, x0, T)
+    w2 = _lagrange_weight(x2, x3, x1, x0, T)
+    w0 = _lagrange_weight(x0, x3, x2, x1, T)
+    w1 = T - w0 - w2 - w3
+    return v_add(v_add(v_scale(v3, w3), v_scale(v2, w2)), v_add(v_scale(v1, w1), v_scale(v0, w0)))
 
 
 @njit(cache=True, inline="always")

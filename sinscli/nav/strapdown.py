@@ -39,7 +39,7 @@ S_PDV = 29             # MAX_ORDER-1 previous dvel, 3 each
 S_NPREV = 38
 S_VMM2 = 39            # velocity at t_{m-2}
 S_TMM2 = 42
-S_HAVE_MM2 = 43
+S_HAVE_MM2 = 43        # older velocities available (0, 1, 2)
 S_ALPHA = 44
 S_UPS = 47
 S_BETA = 50
@@ -58,7 +58,12 @@ S_QLO = 72             # 4: compensated-summation residues (see _acc)
 S_CLO = 76             # 9
 S_VLO = 85             # 3
 S_PLO = 88             # 3: lat, lon, h
-STATE_SIZE = 92
+S_PALPHA = 91          # 3: previous interval's alpha (rate model of the velocity increment)
+S_PUPS = 94            # 3: previous interval's upsilon
+S_HAVE_PREV = 97
+S_VMM3 = 98            # 3: velocity at t_{m-3}
+S_TMM3 = 101
+STATE_SIZE = 104
 
 
 def new_state(time, lat, lon, h, vel_n, cbn):
@@ -242,7 +247,11 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every,
         # ---- attitude interval closes: moderate-rate update ----
         t_end = time[k]
         T = t_end - st[S_TSTART]
-        phi, dv_b = body_increments(alpha, ups, beta, scul)
+        phi, dv_b = body_increments(alpha, ups, beta, scul, _vec(st, S_PALPHA), _vec(st, S_PUPS),
+                                    st[S_HAVE_PREV] > 0.0 and order > 1)
+        _set_vec(st, S_PALPHA, alpha)
+        _set_vec(st, S_PUPS, ups)
+        st[S_HAVE_PREV] = 1.0
         if order == 1:
             phi = alpha
         cbn = _cbn(st)
@@ -250,23 +259,27 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every,
         vel = _vec(st, S_VEL)
         lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
         v_mm2 = _vec(st, S_VMM2)
-        have_mm2 = st[S_HAVE_MM2] > 0.0
-        h0 = st[S_TSTART] - st[S_TMM2]
+        v_mm3 = _vec(st, S_VMM3)
+        nhist = int(st[S_HAVE_MM2])
+        h1 = st[S_TSTART] - st[S_TMM2]
+        h2 = st[S_TMM2] - st[S_TMM3]
         dR = first_guess_displacement(vel, dv_n0, lat, h, T)
         for _ in range(2):
             lat_mid, h_mid = midpoint(lat, h, dR)
             zeta = frame_rotation(lat_mid, h_mid, dR, T)
             dvel = velocity_update(vel, dv_n0, zeta, lat_mid, h_mid, dR, T)
             v_new = v_add(vel, dvel)
-            dR = displacement(v_mm2, vel, v_new, h0, T, have_mm2)
+            dR = displacement(v_mm3, v_mm2, vel, v_new, h2, h1, T, nhist)
         lat_mid, h_mid = midpoint(lat, h, dR)
         zeta = frame_rotation(lat_mid, h_mid, dR, T)
         _attitude_update(st, method, phi, zeta)
         dlat, dlon, dh = position_update(lat, h, dR)
         # ---- store (compensated accumulation of every integrated state) ----
+        _set_vec(st, S_VMM3, v_mm2)
+        st[S_TMM3] = st[S_TMM2]
         _set_vec(st, S_VMM2, vel)
         st[S_TMM2] = st[S_TSTART]
-        st[S_HAVE_MM2] = 1.0
+        st[S_HAVE_MM2] = min(nhist + 1, 2)
         for i in range(3):
             _acc(st, S_VEL + i, S_VLO + i, dvel[i])
         _acc(st, S_LAT, S_PLO, dlat)

@@ -1,0 +1,99 @@
+"""``sins navigate``: IMU log + initial state -> trajectory file."""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import click
+
+from .. import config as config_mod
+from ..errors import SinsError
+from ..io.imu_csv import check_static_start
+from ..io.init_state import read_init
+from ..io.readers import iter_imu
+from ..io.trajectory import TrajectoryWriter, write_trajectory
+from ..nav.earth import gravity
+from ..nav.pipeline import NavOptions, concat, navigate_blocks
+from ..nav.rotation import BODY_CONVENTIONS
+from .base import log, main, progress, quiet_option
+
+
+def _count_rows(path: Path) -> int:
+    """Rough row count for the progress bar (file size / first line length)."""
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as fh:
+            fh.readline()
+            line = fh.readline()
+        return max(1, size // max(len(line), 1))
+    except OSError:
+        return 1
+
+
+@main.command("navigate")
+@click.argument("imu", type=click.Path(path_type=Path))
+@click.option("--init", "init_path", required=True, type=click.Path(path_type=Path),
+              help="Initial state: init YAML or trajectory CSV/Parquet (the row at the IMU start).")
+@click.option("--attitude", type=click.Choice(["dcm", "quat", "krylov", "euler"]), default=None,
+              help="Attitude algorithm (default from config: quat).")
+@click.option("--dcm-variant", type=click.Choice(["exact", "seed000"]), default=None,
+              help="dcm: exact closed form (Savage eq 26) or the series recursion of seed 000 eqs 12-14.")
+@click.option("--coning", type=click.IntRange(1, 4), default=None,
+              help="Coning/sculling order: 1 (none, fixed axis), 2, 3 or 4 samples.")
+@click.option("--subsamples", type=click.IntRange(1), default=None,
+              help="Fast IMU samples per attitude update (1 = one-speed).")
+@click.option("--every", type=click.IntRange(1), default=None, help="Write every K-th attitude update.")
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
+              help="Navigation config YAML (see configs/navigation.yaml).")
+@click.option("--body", type=click.Choice(sorted(BODY_CONVENTIONS)), default=None,
+              help="Body axes convention of the IMU after mounting.")
+@click.option("--allow-gaps", is_flag=True, default=None, help="Bridge gaps > 5 intervals with a warning.")
+@click.option("--static-start", is_flag=True, default=None,
+              help="The log starts at rest: check the specific force against gravity.")
+@click.option("--angles", is_flag=True, help="Add the raw angles (krylov/euler) to the output.")
+@click.option("--imu-topic", default=None, help="IMU topic in a ROS bag / MCAP log.")
+@click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("trajectory.csv"),
+              show_default=True, help="Trajectory output: .csv, .parquet, .mcap, .tum, .geojson, .kml.")
+@quiet_option
+def navigate_cmd(imu, init_path, attitude, dcm_variant, coning, subsamples, every, config_path, body,
+                 allow_gaps, static_start, angles, imu_topic, output, quiet):
+    """Navigate IMU increments from an initial state and write the trajectory."""
+    cfg = config_mod.load_config(config_path)
+    cfg = config_mod.merge(cfg, "navigation", attitude=attitude, dcm_variant=dcm_variant, coning=coning,
+                           subsamples=subsamples, every=every, allow_gaps=allow_gaps)
+    cfg = config_mod.merge(cfg, "imu", body=body, static_start=static_start)
+    cfg = config_mod.merge(cfg, "ros", imu_topic=imu_topic)
+    nav = cfg["navigation"]
+    conv = BODY_CONVENTIONS[cfg["imu"]["body"]]
+    opts = NavOptions(attitude=nav["attitude"], dcm_variant=nav["dcm_variant"], coning=nav["coning"],
+                      subsamples=nav["subsamples"], every=nav["every"], conv=conv, frame=nav["frame"],
+                      angles=angles, euler_integrator=nav["euler_integrator"],
+                      singularity_threshold=nav["singularity_threshold"], on_singularity=nav["on_singularity"],
+                      launch=nav["launch"])
+    opts.check()
+    blocks = iter_imu(imu, cfg, allow_gaps=nav["allow_gaps"])
+    first = next(blocks, None)
+    if first is None or len(first) == 0:
+        raise SinsError(f"{imu}: no IMU samples")
+    t_start = first.t0 if first.t0 is not None else float(first.time[0] - (
+        first.time[1] - first.time[0] if len(first) > 1 else 0.0))
+    init = read_init(init_path, t_start, conv)
+    if cfg["imu"]["static_start"]:
+        check_static_start(first, gravity(math.sin(init.lat), init.height), conv)
+
+    def all_blocks():
+        yield first
+        yield from blocks
+
+    total = _count_rows(Path(imu)) if Path(imu).is_file() else len(first)
+    streaming = output.suffix.lower() in (".csv", ".parquet")
+    with progress(total, "navigating", quiet or total < 200_000) as bar:
+        chunks = navigate_blocks(all_blocks(), init, opts, progress=bar.update)
+        if streaming:
+            with TrajectoryWriter(output, conv) as writer:
+                for chunk in chunks:
+                    writer.write(chunk)
+        else:
+            write_trajectory(output, concat(list(chunks)), conv)
+    log.info("wrote %s", os.fspath(output))

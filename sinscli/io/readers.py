@@ -1,0 +1,57 @@
+"""Pick the reader for an IMU or GNSS log: CSV here, ROS bags and MCAP in :mod:`sinscli.io.rosbag`."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SinsError
+from ..types import ImuLog
+from .imu_csv import apply_mounting, iter_imu_csv
+
+
+def _is_log(path) -> bool:
+    try:
+        from . import rosbag
+    except ImportError:
+        return False
+    return rosbag.is_log(path)
+
+
+def iter_imu(path, cfg: dict, allow_gaps: bool = False):
+    """IMU blocks from a CSV file or a ROS/MCAP log (``cfg`` is the whole validated config)."""
+    path = Path(path)
+    if not path.exists():
+        raise SinsError(f"{path}: file not found")
+    if _is_log(path):
+        from ..config import mounting_matrix
+        from . import rosbag
+        ros = cfg["ros"]
+        imu = rosbag.read_imu(path, topic=ros.get("imu_topic"), time_source=ros.get("time", "header"))
+        yield apply_mounting(imu, mounting_matrix(cfg["imu"].get("mounting")))
+        return
+    yield from iter_imu_csv(path, cfg["imu"], allow_gaps)
+
+
+def read_imu(path, cfg: dict, allow_gaps: bool = False) -> ImuLog:
+    """A whole IMU log in memory (for alignment and tests)."""
+    blocks = list(iter_imu(path, cfg, allow_gaps))
+    if len(blocks) == 1:
+        return blocks[0]
+    b0 = blocks[0]
+    return ImuLog(np.concatenate([b.time for b in blocks]), np.vstack([b.dtheta_b for b in blocks]),
+                  np.vstack([b.dvel_b for b in blocks]), t0=b0.t0, source=b0.source, kind=b0.kind)
+
+
+def read_gnss(path, cfg: dict):
+    """A GNSS log from a CSV file or a ROS/MCAP log."""
+    path = Path(path)
+    if not path.exists():
+        raise SinsError(f"{path}: file not found")
+    if _is_log(path):
+        from . import rosbag
+        ros = cfg["ros"]
+        return rosbag.read_gnss(path, topic=ros.get("gnss_topic"), vel_topic=ros.get("vel_topic"),
+                                time_source=ros.get("time", "header"))
+    from .gnss_csv import read_gnss_csv
+    return read_gnss_csv(path, cfg["gnss"])

@@ -1,0 +1,173 @@
+"""Navigation stage: IMU increments + initial state -> trajectory, block by block.
+
+This is the glue between readers and writers: it selects the IMU rows that
+follow the initial time, feeds them to the numba kernel
+(:func:`sinscli.nav.strapdown.run`) in blocks, and returns trajectory chunks.
+Memory stays at one block whatever the log length.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SinsError
+from ..types import ImuLog, NavState, Trajectory
+from . import strapdown as sd
+
+log = logging.getLogger("sins")
+
+ATTITUDE_METHODS = ("dcm", "quat", "krylov", "euler")
+BLOCK = 1 << 17
+
+
+@dataclass
+class NavOptions:
+    """Algorithm choices (see ``configs/navigation.yaml`` for each key)."""
+    attitude: str = "quat"          # dcm | quat | krylov | euler
+    dcm_variant: str = "exact"      # exact | seed000
+    coning: int = 2                 # 1..4
+    subsamples: int = 1             # fast samples per attitude update
+    every: int = 1                  # output every K attitude updates
+    conv: int = 0                   # body convention code (rotation.FLU/RFU/FRD)
+    frame: str = "enu"              # enu | launch-inertial
+    angles: bool = False            # add the raw angles of the angle methods
+    euler_integrator: str = "rk4"
+    singularity_threshold: float = 0.01
+    on_singularity: str = "continue"
+    launch: dict | None = None
+
+    def method_code(self) -> int:
+        if self.attitude == "dcm":
+            return sd.ATT_DCM_SEED000 if self.dcm_variant == "seed000" else sd.ATT_DCM
+        if self.attitude == "quat":
+            return sd.ATT_QUAT
+        if self.attitude == "krylov":
+            return sd.ATT_KRYLOV
+        if self.attitude == "euler":
+            return sd.ATT_EULER
+        raise SinsError(f"attitude: unknown method {self.attitude!r}; expected one of {', '.join(ATTITUDE_METHODS)}")
+
+    def check(self) -> None:
+        self.method_code()
+        if self.coning not in (1, 2, 3, 4):
+            raise SinsError(f"coning: expected 1, 2, 3 or 4, got {self.coning!r}")
+        if self.subsamples < 1 or self.every < 1:
+            raise SinsError("subsamples and every must be whole numbers >= 1")
+        if self.angles and self.attitude not in ("krylov", "euler"):
+            raise SinsError(f"--angles: the raw angles exist only for --attitude krylov or euler, "
+                            f"not {self.attitude}")
+        if self.frame != "enu":
+            raise SinsError(f"frame: {self.frame!r} is not available in this version; expected enu")
+
+
+class Navigator:
+    """Stateful navigator: feed IMU blocks in time order, get trajectory chunks back."""
+
+    def __init__(self, init: NavState, opts: NavOptions):
+        opts.check()
+        c = np.asarray(init.Cbn, dtype=np.float64)
+        err = float(np.abs(c @ c.T - np.eye(3)).max())
+        if err > 1e-6 or np.linalg.det(c) < 0:
+            raise SinsError(f"initial attitude DCM is not orthonormal (error {err:.3g} > 1e-6)")
+        if not -math.pi / 2 <= init.lat <= math.pi / 2:
+            raise SinsError(f"initial latitude {math.degrees(init.lat)!r} deg is outside [-90, 90]")
+        self.init = init
+        self.opts = opts
+        self.method = opts.method_code()
+        self.state = sd.new_state(init.time, init.lat, init.lon, init.height,
+                                  np.asarray(init.vel_n, dtype=float), c)
+        self.applied = 0
+        self.first_time = None
+        self.last_time = None
+        self._emitted_initial = False
+        self._source = "<memory>"
+
+    def initial_row(self) -> Trajectory:
+        s = self.init
+        return Trajectory(np.array([s.time]), np.array([s.lat]), np.array([s.lon]), np.array([s.height]),
+                          np.asarray(s.vel_n, dtype=float)[None, :].copy(),
+                          np.asarray(s.Cbn, dtype=float)[None, :, :].copy())
+
+    def feed(self, imu: ImuLog) -> Trajectory | None:
+        """Navigate one block; returns its output rows (or None when it produced none)."""
+        self._source = imu.source
+        t_init = self.init.time
+        tol = 1e-9 * max(1.0, abs(t_init))
+        if self.first_time is None and len(imu):
+            start = imu.t0 if imu.t0 is not None else imu.time[0] - (
+                imu.time[1] - imu.time[0] if len(imu) > 1 else 0.0)
+            if t_init < start - tol:
+                raise SinsError(f"{imu.source}: the initial time {t_init!r} is before the log starts "
+                                f"({start!r}); the init must lie within the log")
+        sel = imu.time > t_init + tol
+        if not sel.all():
+            k0 = int(np.argmax(sel)) if sel.any() else len(imu)
+            time, dth, dv = imu.time[k0:], imu.dtheta_b[k0:], imu.dvel_b[k0:]
+        else:
+            time, dth, dv = imu.time, imu.dtheta_b, imu.dvel_b
+        if time.shape[0] == 0:
+            return None
+        if self.first_time is None:
+            self.first_time = float(time[0])
+        self.last_time = float(time[-1])
+        chunks = []
+        for a in range(0, time.shape[0], BLOCK):
+            b = min(a + BLOCK, time.shape[0])
+            chunks.append(self._run(np.ascontiguousarray(time[a:b]), np.ascontiguousarray(dth[a:b]),
+                                    np.ascontiguousarray(dv[a:b])))
+        self.applied += time.shape[0]
+        rows = [c for c in chunks if len(c)]
+        if not rows:
+            return None
+        return concat(rows)
+
+    def _run(self, time, dth, dv) -> Trajectory:
+        per = self.opts.subsamples * self.opts.every
+        cap = time.shape[0] // per + 2
+        out_t = np.empty(cap)
+        out_pos = np.empty((cap, 3))
+        out_vel = np.empty((cap, 3))
+        out_cbn = np.empty((cap, 3, 3))
+        n = sd.run(time, dth, dv, self.state, self.method, self.opts.coning, self.opts.subsamples,
+                   self.opts.every, out_t, out_pos, out_vel, out_cbn)
+        return Trajectory(out_t[:n], out_pos[:n, 0], out_pos[:n, 1], out_pos[:n, 2], out_vel[:n], out_cbn[:n])
+
+    def finish(self) -> None:
+        """Check that the log covered the initial time (call after the last block)."""
+        if self.applied == 0:
+            raise SinsError(f"{self._source}: no IMU sample after the initial time {self.init.time!r}: "
+                            f"the init time is outside the log")
+
+
+def concat(parts: list[Trajectory]) -> Trajectory:
+    """Concatenate trajectory chunks."""
+    if len(parts) == 1:
+        return parts[0]
+    extra = {}
+    if parts[0].extra:
+        extra = {k: np.concatenate([p.extra[k] for p in parts]) for k in parts[0].extra}
+    return Trajectory(np.concatenate([p.time for p in parts]), np.concatenate([p.lat for p in parts]),
+                      np.concatenate([p.lon for p in parts]), np.concatenate([p.height for p in parts]),
+                      np.vstack([p.vel_n for p in parts]), np.concatenate([p.Cbn for p in parts]), extra,
+                      source=parts[0].source)
+
+
+def navigate_blocks(blocks, init: NavState, opts: NavOptions, progress=None):
+    """Yield trajectory chunks (the initial row first) for an iterable of IMU blocks."""
+    nav = Navigator(init, opts)
+    yield nav.initial_row()
+    for blk in blocks:
+        out = nav.feed(blk)
+        if progress is not None:
+            progress(len(blk))
+        if out is not None:
+            yield out
+    nav.finish()
+
+
+def navigate(imu: ImuLog, init: NavState, opts: NavOptions | None = None, progress=None) -> Trajectory:
+    """Navigate a whole in-memory IMU log; returns the trajectory with the initial row first."""
+    return concat(list(navigate_blocks([imu], init, opts or NavOptions(), progress)))
