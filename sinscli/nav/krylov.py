@@ -18,16 +18,18 @@ overshoot) away from its singularity.
 The classic three Krylov angles ``ang3 = (phi, psi, gamma)`` are the same
 sequence with xi = 0 (sec. 2.4), singular at cos psi = 0.
 
-All kernels are numba ``njit`` functions over float64 arrays and scalars,
-with no I/O.  Stage functions work on scalars (no array allocation), so one
-four-angle RK4 step costs a few tenths of a microsecond.
+All kernels are numba ``njit`` functions with no I/O.  As in
+``rotation.py``, the cores (``*_t``) work on tuples (angles as 4- or
+3-tuples, vectors as 3-tuples, matrices as tuples of row tuples) so that the
+navigation loop allocates nothing per sample; the array functions of the same
+name without ``_t`` wrap them for other callers.
 """
 import math
 
 import numpy as np
 from numba import njit
 
-from .rotation import mm3
+from .rotation import m_from_array, m_mul, m_to_array, m_trans
 
 SET_A, SET_B = 0, 1
 GAMMA_S = 0.25 * math.pi            # transfer threshold gamma_s = 45 deg (sec. 3.1)
@@ -35,6 +37,9 @@ COS_GAMMA_S = math.cos(GAMMA_S)
 HALF_PI = 0.5 * math.pi
 TWO_PI = 2.0 * math.pi
 EULER3_FORWARD_EULER, EULER3_RK4 = 0, 1
+# Taylor coefficients of sin and cos (used by _cs_shift)
+_S3, _S5, _S7, _S9 = -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362880.0
+_C4, _C6, _C8, _C10 = 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40320.0, -1.0 / 3628800.0
 _CPSI_FLOOR = 1e-15                 # |cos psi| floor of the 3-angle rates (no division by zero)
 
 
@@ -46,43 +51,55 @@ def wrap_pi(a):
     return a - TWO_PI * math.ceil((a - math.pi) / TWO_PI)
 
 
-@njit(cache=True, error_model="numpy")
-def krylov4_dcm(phi, psi, gamma, xi):
-    """``Cbn = Rz(phi) Ry(psi) Rx(gamma) Ry(xi)`` in element form (sec. 1.3), radians."""
-    cf, sf = math.cos(phi), math.sin(phi)
-    cp, sp = math.cos(psi), math.sin(psi)
-    cg, sg = math.cos(gamma), math.sin(gamma)
-    cx, sx = math.cos(xi), math.sin(xi)
-    # rows of B = Ry(psi) Rx(gamma) Ry(xi)
+@njit(cache=True, error_model="numpy", inline="always")
+def _dcm_from_trig(cf, sf, cp, sp, cg, sg, cx, sx):
+    """Element form of sec. 1.3 from the cosines and sines of (phi, psi, gamma, xi)."""
+    # rows E, N of B = Ry(psi) Rx(gamma) Ry(xi); row U of B is row U of Cbn
     be0 = cp * cx - sp * cg * sx
     be1 = sp * sg
     be2 = cp * sx + sp * cg * cx
     bn0 = sg * sx
     bn1 = cg
     bn2 = -sg * cx
-    c = np.empty((3, 3))
-    c[0, 0] = cf * be0 - sf * bn0
-    c[0, 1] = cf * be1 - sf * bn1
-    c[0, 2] = cf * be2 - sf * bn2
-    c[1, 0] = sf * be0 + cf * bn0
-    c[1, 1] = sf * be1 + cf * bn1
-    c[1, 2] = sf * be2 + cf * bn2
-    c[2, 0] = -sp * cx - cp * cg * sx
-    c[2, 1] = cp * sg
-    c[2, 2] = -sp * sx + cp * cg * cx
-    return c
+    return ((cf * be0 - sf * bn0, cf * be1 - sf * bn1, cf * be2 - sf * bn2),
+            (sf * be0 + cf * bn0, sf * be1 + cf * bn1, sf * be2 + cf * bn2),
+            (-sp * cx - cp * cg * sx, cp * sg, -sp * sx + cp * cg * cx))
 
 
 @njit(cache=True, error_model="numpy")
-def krylov_dcm(ang, kset, phiB):
-    """``Cbn`` (3x3) of the four-angle state (sec. 1.3, 4.6 step 4).
+def krylov4_dcm_t(phi, psi, gamma, xi):
+    """``Cbn = Rz(phi) Ry(psi) Rx(gamma) Ry(xi)`` in element form (sec. 1.3), radians -> matrix tuple."""
+    return _dcm_from_trig(math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi),
+                          math.cos(gamma), math.sin(gamma), math.cos(xi), math.sin(xi))
+
+
+@njit(cache=True, error_model="numpy")
+def krylov4_dcm(phi, psi, gamma, xi):
+    """Array form of :func:`krylov4_dcm_t` (3x3)."""
+    return m_to_array(krylov4_dcm_t(phi, psi, gamma, xi))
+
+
+@njit(cache=True, error_model="numpy")
+def krylov_dcm_t(ang, kset, phiB):
+    """``Cbn`` (matrix tuple) of the four-angle state (sec. 1.3, 4.6 step 4).
 
     ``ang = (phi, psi, gamma, xi)`` rad; in set A psi is 0, in set B the
     frozen yaw ``phiB`` is used for phi.
     """
+    g, x = ang[2], ang[3]
     if kset == SET_A:
-        return krylov4_dcm(ang[0], 0.0, ang[2], ang[3])
-    return krylov4_dcm(phiB, ang[1], ang[2], ang[3])
+        f = ang[0]
+        return _dcm_from_trig(math.cos(f), math.sin(f), 1.0, 0.0,
+                              math.cos(g), math.sin(g), math.cos(x), math.sin(x))
+    p = ang[1]
+    return _dcm_from_trig(math.cos(phiB), math.sin(phiB), math.cos(p), math.sin(p),
+                          math.cos(g), math.sin(g), math.cos(x), math.sin(x))
+
+
+@njit(cache=True, error_model="numpy")
+def krylov_dcm(ang, kset, phiB):
+    """``Cbn`` (3x3 array) of the four-angle state ``ang`` (float64[4]); see :func:`krylov_dcm_t`."""
+    return m_to_array(krylov_dcm_t((ang[0], ang[1], ang[2], ang[3]), kset, phiB))
 
 
 @njit(cache=True, error_model="numpy")
@@ -97,34 +114,34 @@ def krylov_margin(ang, kset):
 
 
 @njit(cache=True, error_model="numpy")
-def krylov_init(Cbn):
-    """Four-angle state ``(ang, kset, phiB)`` from any rotation ``Cbn`` (sec. 4.8).
+def krylov_init_t(c):
+    """Four-angle state ``(ang, kset, phiB)`` from any rotation (matrix tuple) ``c = Cbn`` (sec. 4.8).
 
     Set A when the elevation of Y' is at most 45 deg (margin >= 45 deg),
     otherwise set B with ``phiB`` the azimuth of Y', so that gamma = 90 deg
     (margin 90 deg).  Rows of ``Cbn`` are E, N, U; columns X', Y', Z'.
+    ``ang`` is a 4-tuple (phi, psi, gamma, xi), radians.
     """
-    c = Cbn
-    ang = np.zeros(4)
-    gam_a = math.atan2(c[2, 1], math.sqrt(c[0, 1] * c[0, 1] + c[1, 1] * c[1, 1]))
+    gam_a = math.atan2(c[2][1], math.sqrt(c[0][1] * c[0][1] + c[1][1] * c[1][1]))
     if abs(gam_a) <= GAMMA_S:
-        ang[0] = math.atan2(-c[0, 1], c[1, 1])
-        ang[1] = 0.0
-        ang[2] = gam_a
-        ang[3] = math.atan2(-c[2, 0], c[2, 2])
-        return ang, SET_A, 0.0
-    phib = math.atan2(c[1, 1], c[0, 1])          # 0 when Y' is exactly vertical
+        return ((math.atan2(-c[0][1], c[1][1]), 0.0, gam_a, math.atan2(-c[2][0], c[2][2])),
+                SET_A, 0.0)
+    phib = math.atan2(c[1][1], c[0][1])          # 0 when Y' is exactly vertical
     cb, sb = math.cos(phib), math.sin(phib)
     # rows E' = cb E + sb N, N' = -sb E + cb N
-    ep_y = cb * c[0, 1] + sb * c[1, 1]
-    np_x = -sb * c[0, 0] + cb * c[1, 0]
-    np_y = -sb * c[0, 1] + cb * c[1, 1]
-    np_z = -sb * c[0, 2] + cb * c[1, 2]
-    ang[0] = phib
-    ang[1] = math.atan2(ep_y, c[2, 1])
-    ang[2] = math.atan2(math.sqrt(np_x * np_x + np_z * np_z), np_y)
-    ang[3] = math.atan2(np_x, -np_z)
-    return ang, SET_B, phib
+    ep_y = cb * c[0][1] + sb * c[1][1]
+    np_x = -sb * c[0][0] + cb * c[1][0]
+    np_y = -sb * c[0][1] + cb * c[1][1]
+    np_z = -sb * c[0][2] + cb * c[1][2]
+    return ((phib, math.atan2(ep_y, c[2][1]), math.atan2(math.sqrt(np_x * np_x + np_z * np_z), np_y),
+             math.atan2(np_x, -np_z)), SET_B, phib)
+
+
+@njit(cache=True, error_model="numpy")
+def krylov_init(Cbn):
+    """:func:`krylov_init_t` for a 3x3 array; returns ``(ang float64[4], kset, phiB)``."""
+    ang, kset, phib = krylov_init_t(m_from_array(Cbn))
+    return np.array(ang), kset, phib
 
 
 @njit(cache=True, error_model="numpy")
@@ -152,18 +169,32 @@ def transfer_b_to_a(psi, gamma, xi, phib):
     return phi_a, gam_a, xi_a
 
 
-@njit(cache=True, error_model="numpy")
-def _f4(kset, a, g, x, wx, wy, wz, zx, zy, zz):
-    """Angle increments ``F_s(x, w)`` of sec. 4.3 (scalars).
+@njit(cache=True, error_model="numpy", inline="always")
+def _cs_shift(c, s, d):
+    """``(cos(x + d), sin(x + d))`` from ``c = cos x``, ``s = sin x`` (angle addition).
 
-    ``(a, g, x)`` = (phi or psi, gamma, xi); ``w`` body increment (rad);
-    ``z`` = zeta (rad, ENU, already turned by Rz(-phiB) in set B).  Returns
-    (da, dgamma, dxi).
+    Below |d| = 0.1 rad the sine and cosine of ``d`` come from their Taylor
+    series to d^10 (truncation < 0.3 ulp), which is cheaper than libm; the RK4
+    stages of one step only move the angles by such small amounts.
     """
-    cg, sg = math.cos(g), math.sin(g)
-    cx, sx = math.cos(x), math.sin(x)
-    if zx != 0.0 or zy != 0.0 or zz != 0.0:
-        ca, sa = math.cos(a), math.sin(a)
+    if abs(d) < 0.1:
+        d2 = d * d
+        sd = d * (1.0 + d2 * (_S3 + d2 * (_S5 + d2 * (_S7 + d2 * _S9))))
+        cd = 1.0 + d2 * (-0.5 + d2 * (_C4 + d2 * (_C6 + d2 * (_C8 + d2 * _C10))))
+    else:
+        sd, cd = math.sin(d), math.cos(d)
+    return c * cd - s * sd, s * cd + c * sd
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _f4(kset, ca, sa, cg, sg, cx, sx, wx, wy, wz, zx, zy, zz, nav):
+    """Angle increments ``F_s(x, w)`` of sec. 4.3, from the cosines and sines of x.
+
+    x = (a, gamma, xi), a = phi (set A) or psi (set B); ``w`` body increment
+    (rad); ``z`` = zeta (rad, ENU, already turned by Rz(-phiB) in set B),
+    used when ``nav``.  Returns (da, dgamma, dxi).
+    """
+    if nav:
         if kset == SET_A:        # Rz(-phi) zeta
             p1 = ca * zx + sa * zy
             p2 = -sa * zx + ca * zy
@@ -187,41 +218,49 @@ def _f4(kset, a, g, x, wx, wy, wz, zx, zy, zz):
 
 
 @njit(cache=True, error_model="numpy")
-def krylov_step(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n):
-    """One four-angle attitude update t_k -> t_k + dt (sec. 4.6, 4.11).
+def krylov_step_dcm_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n):
+    """One four-angle attitude update t_k -> t_k + dt (sec. 4.6, 4.11), with ``Cbn(t_k + dt)``.
 
-    ang: float64[4] (phi, psi, gamma, xi) rad at t_k; kset: SET_A / SET_B;
+    ang: 4-tuple (phi, psi, gamma, xi) rad at t_k; kset: SET_A / SET_B;
     phiB: frozen yaw of set B (rad); dtheta_prev_b, dtheta_b: body angle
     increments (rad, FLU) of the previous and current interval (on the first
     step pass dtheta_b twice, sec. 4.4); dt: interval (s); w_in_n: navigation
     frame rate (rad/s, ENU, constant over the interval, taken at mid-interval).
+    Vectors are 3-tuples or arrays.
 
-    Order as in the patent: state-transfer test and mapping (M1 for A->B,
-    sec. 3.3 extraction for B->A), then RK4 (sec. 4.5) on the active angles
-    with the two-sample linear rate model (sec. 4.4) and the nav-frame term
-    inside F at every stage (sec. 4.3).  Returns ``(ang_new, kset, phiB,
-    transferred)``; ``transferred`` tells whether a transfer happened at the
-    start of this step (at t_k).
+    Order as in the patent: (1) state-transfer test and mapping (M1 for
+    A->B, sec. 3.3 extraction for B->A); (2) RK4 (sec. 4.5) on the active
+    angles with the two-sample linear rate model (sec. 4.4) and the nav-frame
+    term inside F at every stage (sec. 4.3); (3) ``Cbn`` of the new angles
+    (sec. 1.3), equal to :func:`krylov_dcm_t` of them to rounding.  Returns
+    ``(ang_new 4-tuple, kset, phiB, transferred, Cbn matrix tuple)``;
+    ``transferred`` tells whether a transfer happened at the start of this
+    step (at t_k).  The sines and cosines of the RK4 stage states and of the
+    result come from those of x_k by angle addition (:func:`_cs_shift`).
     """
     phi, psi, g, x = ang[0], ang[1], ang[2], ang[3]
+    cg, sg = math.cos(g), math.sin(g)
     transferred = False
     if kset == SET_A:
-        if math.cos(g) < COS_GAMMA_S:
+        if cg < COS_GAMMA_S:
             phiB, psi, g, x = transfer_a_to_b(phi, g, x)
             phi = phiB
             kset = SET_B
             transferred = True
-    elif math.sin(g) < COS_GAMMA_S:
+            cg, sg = 0.0, 1.0                    # gamma = 90 deg exactly
+    elif sg < COS_GAMMA_S:
         phi, g, x = transfer_b_to_a(psi, g, x, phiB)
         psi = 0.0
         phiB = 0.0
         kset = SET_A
         transferred = True
+        cg, sg = math.cos(g), math.sin(g)
 
     zx, zy, zz = w_in_n[0] * dt, w_in_n[1] * dt, w_in_n[2] * dt
-    if kset == SET_B and (zx != 0.0 or zy != 0.0):
+    nav = zx != 0.0 or zy != 0.0 or zz != 0.0
+    if kset == SET_B:
         cb, sb = math.cos(phiB), math.sin(phiB)
-        zx, zy = cb * zx + sb * zy, -sb * zx + cb * zy
+        zx, zy = cb * zx + sb * zy, -sb * zx + cb * zy      # Rz(-phiB) zeta
     # two-sample linear rate model (sec. 4.4)
     p0, p1, p2 = dtheta_prev_b[0], dtheta_prev_b[1], dtheta_prev_b[2]
     h0, h1, h2 = dtheta_b[0], dtheta_b[1], dtheta_b[2]
@@ -229,29 +268,60 @@ def krylov_step(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n):
     a1x, a1y, a1z = 1.5 * h0 - 0.5 * p0, 1.5 * h1 - 0.5 * p1, 1.5 * h2 - 0.5 * p2
 
     a = phi if kset == SET_A else psi
-    k1a, k1g, k1x = _f4(kset, a, g, x, a0x, a0y, a0z, zx, zy, zz)
-    k2a, k2g, k2x = _f4(kset, a + 0.5 * k1a, g + 0.5 * k1g, x + 0.5 * k1x, h0, h1, h2, zx, zy, zz)
-    k3a, k3g, k3x = _f4(kset, a + 0.5 * k2a, g + 0.5 * k2g, x + 0.5 * k2x, h0, h1, h2, zx, zy, zz)
-    k4a, k4g, k4x = _f4(kset, a + k3a, g + k3g, x + k3x, a1x, a1y, a1z, zx, zy, zz)
-    a = wrap_pi(a + (k1a + 2.0 * (k2a + k3a) + k4a) / 6.0)
-    g = g + (k1g + 2.0 * (k2g + k3g) + k4g) / 6.0
-    x = wrap_pi(x + (k1x + 2.0 * (k2x + k3x) + k4x) / 6.0)
+    ca, sa = math.cos(a), math.sin(a)
+    cx, sx = math.cos(x), math.sin(x)
+    # RK4 (sec. 4.5); stage states by angle addition from the trig of x_k
+    k1a, k1g, k1x = _f4(kset, ca, sa, cg, sg, cx, sx, a0x, a0y, a0z, zx, zy, zz, nav)
+    c2a, s2a = _cs_shift(ca, sa, 0.5 * k1a) if nav else (1.0, 0.0)
+    c2g, s2g = _cs_shift(cg, sg, 0.5 * k1g)
+    c2x, s2x = _cs_shift(cx, sx, 0.5 * k1x)
+    k2a, k2g, k2x = _f4(kset, c2a, s2a, c2g, s2g, c2x, s2x, h0, h1, h2, zx, zy, zz, nav)
+    c3a, s3a = _cs_shift(ca, sa, 0.5 * k2a) if nav else (1.0, 0.0)
+    c3g, s3g = _cs_shift(cg, sg, 0.5 * k2g)
+    c3x, s3x = _cs_shift(cx, sx, 0.5 * k2x)
+    k3a, k3g, k3x = _f4(kset, c3a, s3a, c3g, s3g, c3x, s3x, h0, h1, h2, zx, zy, zz, nav)
+    c4a, s4a = _cs_shift(ca, sa, k3a) if nav else (1.0, 0.0)
+    c4g, s4g = _cs_shift(cg, sg, k3g)
+    c4x, s4x = _cs_shift(cx, sx, k3x)
+    k4a, k4g, k4x = _f4(kset, c4a, s4a, c4g, s4g, c4x, s4x, a1x, a1y, a1z, zx, zy, zz, nav)
+    da = (k1a + 2.0 * (k2a + k3a) + k4a) / 6.0
+    dg = (k1g + 2.0 * (k2g + k3g) + k4g) / 6.0
+    dx = (k1x + 2.0 * (k2x + k3x) + k4x) / 6.0
+    ca, sa = _cs_shift(ca, sa, da)
+    cg, sg = _cs_shift(cg, sg, dg)
+    cx, sx = _cs_shift(cx, sx, dx)
+    a = wrap_pi(a + da)
+    g = g + dg
+    x = wrap_pi(x + dx)
 
-    out = np.empty(4)
     if kset == SET_A:
-        out[0] = a
-        out[1] = 0.0
-    else:
-        out[0] = phiB
-        out[1] = a
-    out[2] = g
-    out[3] = x
-    return out, kset, phiB, transferred
+        return ((a, 0.0, g, x), kset, phiB, transferred,
+                _dcm_from_trig(ca, sa, 1.0, 0.0, cg, sg, cx, sx))
+    return ((phiB, a, g, x), kset, phiB, transferred,
+            _dcm_from_trig(cb, sb, ca, sa, cg, sg, cx, sx))
+
+
+@njit(cache=True, error_model="numpy")
+def krylov_step_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n):
+    """:func:`krylov_step_dcm_t` without the DCM: ``(ang_new 4-tuple, kset, phiB, transferred)``."""
+    a, kset, phiB, tr, _ = krylov_step_dcm_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n)
+    return a, kset, phiB, tr
+
+
+@njit(cache=True, error_model="numpy")
+def krylov_step(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n):
+    """Array form of :func:`krylov_step_t` (sec. 4.6): ``ang`` float64[4], vectors float64[3].
+
+    Returns ``(ang_new float64[4], kset, phiB, transferred)``.
+    """
+    a, kset, phiB, tr = krylov_step_t((ang[0], ang[1], ang[2], ang[3]), kset, phiB,
+                                      dtheta_prev_b, dtheta_b, dt, w_in_n)
+    return np.array(a), kset, phiB, tr
 
 
 @njit(cache=True, error_model="numpy")
 def krylov_propagate(Cbn0, dtheta_b, dt, w_in_n):
-    """Attitude-only run of :func:`krylov_step` over ``dtheta_b`` (N, 3).
+    """Attitude-only run of :func:`krylov_step_dcm_t` over ``dtheta_b`` (N, 3) rad.
 
     Starts from ``Cbn0`` (sec. 4.8), first step with Δθ_{-1} := Δθ_0, a
     constant nav-frame rate ``w_in_n`` (rad/s ENU).  Returns ``(Cbn (N+1,3,3),
@@ -263,19 +333,23 @@ def krylov_propagate(Cbn0, dtheta_b, dt, w_in_n):
     cbn = np.empty((n + 1, 3, 3))
     angs = np.empty((n + 1, 4))
     sets = np.empty(n + 1, dtype=np.int64)
-    ang, kset, phib = krylov_init(Cbn0)
-    cbn[0] = krylov_dcm(ang, kset, phib)
-    angs[0] = ang
+    w = (w_in_n[0], w_in_n[1], w_in_n[2])
+    ang, kset, phib = krylov_init_t(m_from_array(Cbn0))
+    cbn[0] = m_to_array(krylov_dcm_t(ang, kset, phib))
+    angs[0] = np.array(ang)
     sets[0] = kset
     transfers = 0
+    prev = (dtheta_b[0, 0], dtheta_b[0, 1], dtheta_b[0, 2])
     for k in range(n):
-        prev = dtheta_b[k - 1] if k > 0 else dtheta_b[0]
-        ang, kset, phib, tr = krylov_step(ang, kset, phib, prev, dtheta_b[k], dt, w_in_n)
+        cur = (dtheta_b[k, 0], dtheta_b[k, 1], dtheta_b[k, 2])
+        ang, kset, phib, tr, c = krylov_step_dcm_t(ang, kset, phib, prev, cur, dt, w)
         if tr:
             transfers += 1
-        cbn[k + 1] = krylov_dcm(ang, kset, phib)
-        angs[k + 1] = ang
+        cbn[k + 1] = m_to_array(c)
+        for j in range(4):
+            angs[k + 1, j] = ang[j]
         sets[k + 1] = kset
+        prev = cur
     return cbn, angs, sets, transfers
 
 
@@ -283,29 +357,36 @@ def krylov_propagate(Cbn0, dtheta_b, dt, w_in_n):
 
 
 @njit(cache=True, error_model="numpy")
+def euler3_dcm_t(ang3):
+    """``Cbn = Rz(phi) Ry(psi) Rx(gamma)``: the classic Krylov angles (sec. 2.4, xi = 0), matrix tuple."""
+    return krylov4_dcm_t(ang3[0], ang3[1], ang3[2], 0.0)
+
+
+@njit(cache=True, error_model="numpy")
 def euler3_dcm(ang3):
-    """``Cbn = Rz(phi) Ry(psi) Rx(gamma)``: the classic Krylov angles (sec. 2.4, xi = 0)."""
-    return krylov4_dcm(ang3[0], ang3[1], ang3[2], 0.0)
+    """Array form of :func:`euler3_dcm_t` (3x3)."""
+    return m_to_array(euler3_dcm_t(ang3))
+
+
+@njit(cache=True, error_model="numpy")
+def euler3_init_t(c):
+    """Classic angles ``(phi, psi, gamma)`` (rad, 3-tuple) from ``Cbn`` (matrix tuple).
+
+    Inverse of :func:`euler3_dcm_t`, psi in [-90, 90] deg.  At cos psi = 0
+    (X' vertical) gamma is set to 0 and phi takes the whole rotation about
+    the vertical.
+    """
+    horiz = math.sqrt(c[0][0] * c[0][0] + c[1][0] * c[1][0])
+    psi = math.atan2(-c[2][0], horiz)
+    if horiz > 1e-12:
+        return (math.atan2(c[1][0], c[0][0]), psi, math.atan2(c[2][1], c[2][2]))
+    return (math.atan2(-c[0][1], c[1][1]), psi, 0.0)
 
 
 @njit(cache=True, error_model="numpy")
 def euler3_init(Cbn):
-    """Classic angles ``(phi, psi, gamma)`` (rad) from ``Cbn`` (inverse of :func:`euler3_dcm`).
-
-    psi in [-90, 90] deg.  At cos psi = 0 (X' vertical) gamma is set to 0
-    and phi takes the whole rotation about the vertical.
-    """
-    c = Cbn
-    ang = np.empty(3)
-    horiz = math.sqrt(c[0, 0] * c[0, 0] + c[1, 0] * c[1, 0])
-    ang[1] = math.atan2(-c[2, 0], horiz)
-    if horiz > 1e-12:
-        ang[0] = math.atan2(c[1, 0], c[0, 0])
-        ang[2] = math.atan2(c[2, 1], c[2, 2])
-    else:
-        ang[0] = math.atan2(-c[0, 1], c[1, 1])
-        ang[2] = 0.0
-    return ang
+    """:func:`euler3_init_t` for a 3x3 array -> float64[3]."""
+    return np.array(euler3_init_t(m_from_array(Cbn)))
 
 
 @njit(cache=True, error_model="numpy")
@@ -335,20 +416,19 @@ def _f3(f, p, g, wx, wy, wz, zx, zy, zz):
 
 
 @njit(cache=True, error_model="numpy")
-def euler3_step(ang3, dtheta_prev_b, dtheta_b, dt, w_in_n, integrator):
+def euler3_step_t(ang3, dtheta_prev_b, dtheta_b, dt, w_in_n, integrator):
     """One update of the classic three Krylov angles (sec. 2.4).
 
     integrator 0 (``EULER3_FORWARD_EULER``): the patent's baseline,
     ``x_{k+1} = x_k + F(x_k, dtheta_k)``; 1 (``EULER3_RK4``): RK4 with the
-    same two-sample rate model as the four angles (sec. 4.4, 4.5).  Arguments
-    as :func:`krylov_step`.  Returns ``(ang3_new, cos_psi_min)``, the
-    smallest |cos psi| met by the step (start, stages and end): the caller
-    compares it with ``--singularity-threshold``.
+    same two-sample rate model as the four angles (sec. 4.4, 4.5).  Other
+    arguments as :func:`krylov_step_t`.  Returns ``(ang3_new 3-tuple,
+    cos_psi_min)``, the smallest |cos psi| met by the step (start, stages
+    and end): the caller compares it with ``--singularity-threshold``.
     """
     f, p, g = ang3[0], ang3[1], ang3[2]
     zx, zy, zz = w_in_n[0] * dt, w_in_n[1] * dt, w_in_n[2] * dt
     h0, h1, h2 = dtheta_b[0], dtheta_b[1], dtheta_b[2]
-    out = np.empty(3)
     if integrator == EULER3_FORWARD_EULER:
         d1, d2, d3, c1 = _f3(f, p, g, h0, h1, h2, zx, zy, zz)
         f, p, g = f + d1, p + d2, g + d3
@@ -365,16 +445,21 @@ def euler3_step(ang3, dtheta_prev_b, dtheta_b, dt, w_in_n, integrator):
         p = p + (k1p + 2.0 * (k2p + k3p) + k4p) / 6.0
         g = g + (k1g + 2.0 * (k2g + k3g) + k4g) / 6.0
         cmin = min(min(c1, c2), min(c3, c4))
-    out[0] = wrap_pi(f)
-    out[1] = wrap_pi(p)
-    out[2] = wrap_pi(g)
-    cmin = min(cmin, abs(math.cos(out[1])))
-    return out, cmin
+    p = wrap_pi(p)
+    return (wrap_pi(f), p, wrap_pi(g)), min(cmin, abs(math.cos(p)))
+
+
+@njit(cache=True, error_model="numpy")
+def euler3_step(ang3, dtheta_prev_b, dtheta_b, dt, w_in_n, integrator):
+    """Array form of :func:`euler3_step_t`: returns ``(ang3_new float64[3], cos_psi_min)``."""
+    a, cmin = euler3_step_t((ang3[0], ang3[1], ang3[2]), dtheta_prev_b, dtheta_b, dt, w_in_n,
+                            integrator)
+    return np.array(a), cmin
 
 
 @njit(cache=True, error_model="numpy")
 def euler3_propagate(Cbn0, dtheta_b, dt, w_in_n, integrator):
-    """Attitude-only run of :func:`euler3_step` (as :func:`krylov_propagate`).
+    """Attitude-only run of :func:`euler3_step_t` (as :func:`krylov_propagate`).
 
     Returns ``(Cbn (N+1,3,3), ang3 (N+1,3), cos_psi_min (N,))``.
     """
@@ -382,14 +467,18 @@ def euler3_propagate(Cbn0, dtheta_b, dt, w_in_n, integrator):
     cbn = np.empty((n + 1, 3, 3))
     angs = np.empty((n + 1, 3))
     cmin = np.empty(n)
-    ang = euler3_init(Cbn0)
-    cbn[0] = euler3_dcm(ang)
-    angs[0] = ang
+    w = (w_in_n[0], w_in_n[1], w_in_n[2])
+    ang = euler3_init_t(m_from_array(Cbn0))
+    cbn[0] = m_to_array(euler3_dcm_t(ang))
+    angs[0] = np.array(ang)
+    prev = (dtheta_b[0, 0], dtheta_b[0, 1], dtheta_b[0, 2])
     for k in range(n):
-        prev = dtheta_b[k - 1] if k > 0 else dtheta_b[0]
-        ang, cmin[k] = euler3_step(ang, prev, dtheta_b[k], dt, w_in_n, integrator)
-        cbn[k + 1] = euler3_dcm(ang)
-        angs[k + 1] = ang
+        cur = (dtheta_b[k, 0], dtheta_b[k, 1], dtheta_b[k, 2])
+        ang, cmin[k] = euler3_step_t(ang, prev, cur, dt, w, integrator)
+        cbn[k + 1] = m_to_array(euler3_dcm_t(ang))
+        for j in range(3):
+            angs[k + 1, j] = ang[j]
+        prev = cur
     return cbn, angs, cmin
 
 
@@ -398,25 +487,26 @@ def euler3_propagate(Cbn0, dtheta_b, dt, w_in_n, integrator):
 
 @njit(cache=True, error_model="numpy")
 def check_orthonormal(C):
-    """Orthonormality error of a would-be rotation: ``max(max|C^T C - I|, |det C - 1|)``.
+    """Orthonormality error of a would-be rotation (3x3 array): ``max(max|C^T C - I|, |det C - 1|)``.
 
     Raises nothing; the caller compares with 1e-6 and raises SinsError
     ``initial attitude DCM is not orthonormal (error X > 1e-6)``.  A
-    reflection (det = -1) gives an error of 2.
+    reflection (det = -1) gives an error of 2, a NaN entry infinity.
     """
-    e = mm3(C.T.copy(), C)
+    c = m_from_array(C)
+    e = m_mul(m_trans(c), c)
     err = 0.0
     for i in range(3):
         for j in range(3):
-            d = abs(e[i, j] - (1.0 if i == j else 0.0))
-            if d > err:
+            d = abs(e[i][j] - (1.0 if i == j else 0.0))
+            if d > err or d != d:
                 err = d
-    det = (C[0, 0] * (C[1, 1] * C[2, 2] - C[1, 2] * C[2, 1])
-           - C[0, 1] * (C[1, 0] * C[2, 2] - C[1, 2] * C[2, 0])
-           + C[0, 2] * (C[1, 0] * C[2, 1] - C[1, 1] * C[2, 0]))
+    det = (c[0][0] * (c[1][1] * c[2][2] - c[1][2] * c[2][1])
+           - c[0][1] * (c[1][0] * c[2][2] - c[1][2] * c[2][0])
+           + c[0][2] * (c[1][0] * c[2][1] - c[1][1] * c[2][0]))
     d = abs(det - 1.0)
     if d > err:
         err = d
-    if not (err == err):      # NaN in C
+    if err != err:            # NaN in C
         err = math.inf
     return err
