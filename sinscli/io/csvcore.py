@@ -63,7 +63,7 @@ def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]
         bad = ~np.isfinite(arr)
         if bad.any():
             k = int(np.argmax(bad))
-            raise SinsError(f"{path}: line {k + 2}, column '{theirs}': value {arr[k]!r} is not a finite number")
+            raise SinsError(f"{path}: line {k + 2}, column '{theirs}': value {float(arr[k])!r} is not a finite number")
         out[ours] = arr
     return out
 
@@ -122,7 +122,7 @@ def iter_numeric_columns(path, columns: dict[str, str], block_bytes: int = 1 << 
             bad = ~np.isfinite(arr)
             if bad.any():
                 k = int(np.argmax(bad))
-                raise SinsError(f"{path}: line {line + k}, column '{theirs}': value {arr[k]!r} "
+                raise SinsError(f"{path}: line {line + k}, column '{theirs}': value {float(arr[k])!r} "
                                 f"is not a finite number")
             out[ours] = arr
         yield line, out

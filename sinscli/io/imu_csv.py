@@ -91,19 +91,19 @@ class TimeChecker:
             if bad.any():
                 k = int(np.argmax(bad))
                 how = "repeats" if dt[k] == 0 else "goes backwards"
-                raise SinsError(f"{path}: line {line0 + k + 1}, column '{self.what}': time {full[k + 1]!r} {how} "
-                                f"(previous row {full[k]!r}); time must strictly increase")
+                raise SinsError(f"{path}: line {line0 + k + 1}, column '{self.what}': time {float(full[k + 1])!r} "
+                                f"{how} (previous row {float(full[k])!r}); time must strictly increase")
             if self.nominal is None:
                 self.nominal = float(np.median(dt))
             gaps = np.nonzero(dt > GAP_FACTOR * self.nominal)[0]
             for k in gaps:
                 if not self.allow_gaps:
                     raise SinsError(f"{path}: line {line0 + k + 1}: gap of {dt[k]:.6g} s before time "
-                                    f"{full[k + 1]!r} ({dt[k] / self.nominal:.1f} nominal intervals of "
+                                    f"{float(full[k + 1])!r} ({dt[k] / self.nominal:.1f} nominal intervals of "
                                     f"{self.nominal:.6g} s; at most {GAP_FACTOR:g} allowed); use --allow-gaps "
                                     f"to bridge it")
                 log.warning("%s: bridging a gap of %.6g s from time %r to %r (%.1f nominal intervals)",
-                            path, dt[k], full[k], full[k + 1], dt[k] / self.nominal)
+                            path, dt[k], float(full[k]), float(full[k + 1]), dt[k] / self.nominal)
         self.prev = float(time[-1])
 
 
