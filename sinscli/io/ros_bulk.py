@@ -76,7 +76,9 @@ def gather(buf: np.ndarray, starts: np.ndarray, length: int) -> np.ndarray:
     starts = np.asarray(starts, dtype=np.int64)
     if starts.size and (starts.min() < 0 or starts.max() + length > buf.shape[0]):
         raise IndexError("record outside the buffer")
-    return buf[starts[:, None] + np.arange(length, dtype=np.int64)[None, :]]
+    if length == 0:
+        return np.empty((starts.size, 0), dtype=buf.dtype)
+    return np.lib.stride_tricks.sliding_window_view(buf, length)[starts]
 
 
 def read_le(buf: np.ndarray, starts: np.ndarray, dtype: str) -> np.ndarray:
@@ -120,8 +122,10 @@ def decode_imu_block(block: np.ndarray, encoding: str) -> ImuBlock | None:
     nsec = np.ascontiguousarray(block[:, 8:12]).view("<u4")[:, 0].astype(np.int64)
     if np.any(nsec >= 1_000_000_000):
         return None
-    values = np.ascontiguousarray(block[:, data:data + _BODY]).view("<f8").reshape(n, N_VALUES)
-    return ImuBlock(sec, nsec, values.astype(np.float64, copy=False), n_bulk=n)
+    block = np.ascontiguousarray(block)
+    # a strided float64 view of the 37 values of every row: no copy of the payload
+    values = np.ndarray(shape=(n, N_VALUES), dtype="<f8", buffer=block, offset=data, strides=(length, 8))
+    return ImuBlock(sec, nsec, values, n_bulk=n)
 
 
 def imu_from_message(msg) -> tuple[int, int, np.ndarray]:

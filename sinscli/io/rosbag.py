@@ -40,7 +40,7 @@ VEL_TYPES = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/msg/TwistWithCovar
              "nav_msgs/msg/Odometry")
 TIME_SOURCES = ("header", "log")
 _KNOWN_MCAP_COMPRESSION = ("", "zstd", "lz4")
-_GROUP_CONCAT_MAX_BYTES = 200_000_000       # below SQLite's 1e9-byte string limit
+_GROUP_CONCAT_MAX_BYTES = 800_000_000       # below SQLite's 1e9-byte string limit
 
 
 def is_log(path) -> bool:
@@ -345,7 +345,7 @@ def _sqlite_times(path: Path, topic: str) -> np.ndarray:
 
 
 def _sqlite_bulk(path: Path, topic: str, deser) -> tuple[np.ndarray, ImuBlock] | None:
-    """Imu rows of a rosbag2 sqlite3 file: SQLite concatenates the blobs, numpy slices them.
+    """Imu rows of a rosbag2 sqlite3 file: SQLite concatenates the blobs in one scan, numpy slices them.
 
     Rows are read in row-id order and stably sorted by timestamp, which is the
     order of ``ORDER BY timestamp`` over the timestamp index that the library uses.
@@ -358,35 +358,34 @@ def _sqlite_bulk(path: Path, topic: str, deser) -> tuple[np.ndarray, ImuBlock] |
         if len(ids) != 1:
             return None
         tid = ids[0]
-        n, lmin, lmax, idmin, idmax = con.execute(
-            "SELECT count(*), min(length(data)), max(length(data)), min(id), max(id) "
-            "FROM messages WHERE topic_id = ?", (tid,)).fetchone()
-        if n == 0:
+        idmin, idmax = con.execute("SELECT min(id), max(id) FROM messages").fetchone()
+        first = con.execute("SELECT length(data) FROM messages WHERE topic_id = ? LIMIT 1", (tid,)).fetchone()
+        if idmin is None or first is None:
             return np.empty(0, np.int64), ros_bulk.concat_blocks([])
-        if lmin != lmax or lmin < 16:
-            return None
-        length = int(lmin)
-        step = max(1, _GROUP_CONCAT_MAX_BYTES // length)
+        length = None
         times, blobs = [], []
+        step = max(1, _GROUP_CONCAT_MAX_BYTES // max(int(first[0]), 1))   # rows per query (one query usually)
         for lo in range(int(idmin), int(idmax) + 1, step):
-            hi = lo + step - 1
-            blob = con.execute(
-                "SELECT group_concat(data, x'') FROM (SELECT data FROM messages "
-                "WHERE topic_id = ? AND id BETWEEN ? AND ? ORDER BY id)", (tid, lo, hi)).fetchone()[0]
-            ts = con.execute("SELECT timestamp FROM messages WHERE topic_id = ? AND id BETWEEN ? AND ? "
-                             "ORDER BY id", (tid, lo, hi)).fetchall()
-            if not ts:
+            n, lmin, lmax, blob, ts = con.execute(
+                "SELECT count(*), min(length(data)), max(length(data)), group_concat(data, x''), "
+                "group_concat(timestamp) FROM (SELECT data, timestamp FROM messages "
+                "WHERE topic_id = ? AND id BETWEEN ? AND ? ORDER BY id)", (tid, lo, lo + step - 1)).fetchone()
+            if n == 0:
                 continue
-            if not isinstance(blob, bytes) or len(blob) != len(ts) * length:
+            if lmin != lmax or (length is not None and lmin != length) or lmin < 16 or n * lmin > 950_000_000:
+                return None
+            length = int(lmin)
+            t = np.fromstring(ts, dtype=np.int64, sep=",")
+            if not isinstance(blob, bytes) or len(blob) != n * length or t.shape[0] != n:
                 return None
             blobs.append(blob)
-            times.append(np.array([r[0] for r in ts], dtype=np.int64))
+            times.append(t)
+    if not blobs:
+        return np.empty(0, np.int64), ros_bulk.concat_blocks([])
     t = np.concatenate(times)
-    block = np.frombuffer(b"".join(blobs), dtype=np.uint8).reshape(-1, length)
-    if block.shape[0] != n:
-        return None
+    block = np.frombuffer(b"".join(blobs) if len(blobs) > 1 else blobs[0], dtype=np.uint8).reshape(-1, length)
     order = np.argsort(t, kind="stable")
-    if np.any(order != np.arange(n)):
+    if np.any(order != np.arange(t.shape[0])):
         t, block = t[order], block[order]
     dec = ros_bulk.decode_imu_block(block, "cdr")
     if dec is None or not ros_bulk.check_block(dec, [block[0].tobytes(), block[-1].tobytes()], deser):

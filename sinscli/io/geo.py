@@ -1,0 +1,94 @@
+"""Trajectory tracks for maps: GeoJSON (RFC 7946 LineString) and KML (LineString, absolute altitude).
+
+Coordinates are ``lon, lat, height`` in degrees and metres on WGS-84, written
+in shortest round-trip form.  The GeoJSON feature also carries the sample
+times (``properties.time``, seconds in the trajectory's epoch) so that the
+track reads back with its times.
+"""
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SinsError
+from ..types import Trajectory
+from .atomic import atomic_path
+
+KML_NS = "http://www.opengis.net/kml/2.2"
+
+
+def _track(traj: Trajectory):
+    if len(traj) == 0:
+        raise SinsError(f"{traj.source}: trajectory is empty; nothing to write")
+    lon, lat = np.degrees(traj.lon), np.degrees(traj.lat)
+    if not (np.isfinite(lon).all() and np.isfinite(lat).all() and np.isfinite(traj.height).all()):
+        raise SinsError(f"{traj.source}: trajectory has non-finite positions; cannot write a map track")
+    return lon.tolist(), lat.tolist(), np.asarray(traj.height, dtype=np.float64).tolist()
+
+
+def write_geojson(path, traj: Trajectory, conv: int = 0) -> None:
+    """A FeatureCollection with one LineString feature (``[lon, lat, height]``) and the times."""
+    lon, lat, h = _track(traj)
+    feature = {
+        "type": "Feature",
+        "geometry": {"type": "LineString", "coordinates": [list(p) for p in zip(lon, lat, h)]},
+        "properties": {"name": "sins trajectory", "source": str(traj.source),
+                       "time": np.asarray(traj.time, dtype=np.float64).tolist()},
+    }
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump({"type": "FeatureCollection", "features": [feature]}, f, allow_nan=False)
+
+
+def read_geojson(path):
+    """``(time or None, lat deg, lon deg, height m)`` of the first LineString feature."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        feats = doc["features"] if doc.get("type") == "FeatureCollection" else [doc]
+        feat = next(f for f in feats if f["geometry"]["type"] == "LineString")
+        coords = np.array(feat["geometry"]["coordinates"], dtype=np.float64)
+    except (OSError, ValueError, KeyError, TypeError, StopIteration) as exc:
+        raise SinsError(f"{path}: not a GeoJSON file with a LineString feature ({type(exc).__name__})") from None
+    if coords.ndim != 2 or coords.shape[1] < 2:
+        raise SinsError(f"{path}: LineString coordinates must be [lon, lat(, height)] pairs")
+    t = feat.get("properties", {}).get("time")
+    t = np.array(t, dtype=np.float64) if t is not None else None
+    h = coords[:, 2] if coords.shape[1] > 2 else np.zeros(coords.shape[0])
+    return t, coords[:, 1], coords[:, 0], h
+
+
+def write_kml(path, traj: Trajectory, conv: int = 0) -> None:
+    """A KML document with one Placemark LineString (absolute altitude)."""
+    lon, lat, h = _track(traj)
+    coords = " ".join(f"{a!r},{b!r},{c!r}" for a, b, c in zip(lon, lat, h))
+    name = str(traj.source).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write('<?xml version="1.0" encoding="UTF-8"?>\n'
+                    f'<kml xmlns="{KML_NS}">\n<Document>\n<name>sins trajectory</name>\n'
+                    f'<description>{name}</description>\n'
+                    '<Style id="track"><LineStyle><color>ff0000ff</color><width>3</width></LineStyle></Style>\n'
+                    '<Placemark>\n<name>sins trajectory</name>\n<styleUrl>#track</styleUrl>\n'
+                    '<LineString>\n<altitudeMode>absolute</altitudeMode>\n<coordinates>')
+            f.write(coords)
+            f.write("</coordinates>\n</LineString>\n</Placemark>\n</Document>\n</kml>\n")
+
+
+def read_kml(path):
+    """``(lat deg, lon deg, height m)`` of the first LineString of a KML file."""
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+        node = root.find(f".//{{{KML_NS}}}LineString/{{{KML_NS}}}coordinates")
+        text = node.text
+        pts = np.array([[float(v) for v in p.split(",")] for p in text.split()], dtype=np.float64)
+    except (OSError, ET.ParseError, AttributeError, ValueError) as exc:
+        raise SinsError(f"{path}: not a KML file with a LineString ({type(exc).__name__})") from None
+    if pts.ndim != 2 or pts.shape[1] < 2:
+        raise SinsError(f"{path}: LineString coordinates must be lon,lat(,height) triples")
+    h = pts[:, 2] if pts.shape[1] > 2 else np.zeros(pts.shape[0])
+    return pts[:, 1], pts[:, 0], h

@@ -1,0 +1,115 @@
+"""TUM trajectory format (``evo``, TUM RGB-D benchmark): ``time tx ty tz qx qy qz qw`` per line.
+
+Position is in a local ENU frame whose origin is the trajectory's first point
+(kept in a ``#`` comment line, which ``evo`` skips); the quaternion is the
+attitude of the FLU body axes (x forward, y left, z up, REP-103) in that ENU
+frame, scalar last as the format wants.  Floats are written in shortest
+round-trip form.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SinsError
+from ..nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef
+from ..nav.rotation import conv_to_flu, dcm_to_quat_many, quat_to_dcm_many
+from ..types import Trajectory
+from .atomic import atomic_path
+
+_ORIGIN_RE = re.compile(r"origin_lat_deg=(\S+)\s+origin_lon_deg=(\S+)\s+origin_height_m=(\S+)")
+
+
+def lla_to_local_enu(lat, lon, h, lat0: float, lon0: float, h0: float) -> np.ndarray:
+    """ENU coordinates (N, 3) in metres of geodetic points (radians, metres) about an origin point."""
+    d = lla_to_ecef(np.asarray(lat), np.asarray(lon), np.asarray(h)) - lla_to_ecef(lat0, lon0, h0)
+    return d @ enu_rotation(lat0, lon0).T
+
+
+def local_enu_to_lla(enu, lat0: float, lon0: float, h0: float):
+    """Inverse of :func:`lla_to_local_enu`: ``(lat, lon, h)`` in radians and metres."""
+    xyz = lla_to_ecef(lat0, lon0, h0) + np.asarray(enu) @ enu_rotation(lat0, lon0)
+    return ecef_to_lla(xyz)
+
+
+def body_flu_in_enu(cbn: np.ndarray, conv: int) -> np.ndarray:
+    """``C_FLU^n = Cbn C_{conv}^{FLU T}`` (N, 3, 3): the attitude of the FLU body axes."""
+    return np.einsum("nij,kj->nik", np.asarray(cbn, dtype=np.float64), conv_to_flu(conv))
+
+
+def cbn_from_flu(c_flu_n: np.ndarray, conv: int) -> np.ndarray:
+    """Inverse of :func:`body_flu_in_enu`: ``Cbn = C_FLU^n C_{conv}^{FLU}``."""
+    return np.einsum("nij,jk->nik", np.asarray(c_flu_n, dtype=np.float64), conv_to_flu(conv))
+
+
+def trajectory_enu_quat(traj: Trajectory, conv: int):
+    """``(origin (lat, lon, h), enu (N, 3), q_xyzw (N, 4))`` of a trajectory for local-frame formats."""
+    if len(traj) == 0:
+        raise SinsError(f"{traj.source}: trajectory is empty; nothing to write")
+    origin = (float(traj.lat[0]), float(traj.lon[0]), float(traj.height[0]))
+    enu = lla_to_local_enu(traj.lat, traj.lon, traj.height, *origin)
+    q = dcm_to_quat_many(np.ascontiguousarray(body_flu_in_enu(traj.Cbn, conv)))
+    return origin, enu, q[:, [1, 2, 3, 0]]
+
+
+def _fmt(a: np.ndarray) -> list[str]:
+    return [repr(x) for x in np.asarray(a, dtype=np.float64).tolist()]
+
+
+def write_tum(path, traj: Trajectory, conv: int = 0) -> None:
+    """Write ``time tx ty tz qx qy qz qw`` lines (ENU about the first point, FLU body), atomically."""
+    origin, enu, q = trajectory_enu_quat(traj, conv)
+    cols = [_fmt(traj.time)] + [_fmt(enu[:, i]) for i in range(3)] + [_fmt(q[:, i]) for i in range(4)]
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="ascii", newline="\n") as f:
+            f.write("# sins trajectory, TUM format: time tx ty tz qx qy qz qw; position in a local ENU frame (m), "
+                    "attitude of the FLU body axes in that frame\n")
+            f.write(f"# origin_lat_deg={float(np.degrees(origin[0]))!r} "
+                    f"origin_lon_deg={float(np.degrees(origin[1]))!r} origin_height_m={float(origin[2])!r}\n")
+            f.writelines(" ".join(row) + "\n" for row in zip(*cols))
+
+
+def read_tum(path):
+    """``(time, enu (N,3), q_xyzw (N,4), origin (lat rad, lon rad, h) or None)`` from a TUM file."""
+    path = Path(path)
+    origin = None
+    rows = []
+    try:
+        text = path.read_text(encoding="ascii")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SinsError(f"{path}: cannot read TUM file ({type(exc).__name__})") from None
+    for lineno, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        if not s:
+            continue
+        if s.startswith("#"):
+            m = _ORIGIN_RE.search(s)
+            if m:
+                origin = (np.radians(float(m.group(1))), np.radians(float(m.group(2))), float(m.group(3)))
+            continue
+        parts = s.split()
+        if len(parts) != 8:
+            raise SinsError(f"{path}: line {lineno}: expected 8 numbers (time tx ty tz qx qy qz qw), got {len(parts)}")
+        try:
+            rows.append([float(x) for x in parts])
+        except ValueError:
+            raise SinsError(f"{path}: line {lineno}: not a number in {s[:60]!r}") from None
+    a = np.array(rows, dtype=np.float64).reshape(-1, 8)
+    return a[:, 0], a[:, 1:4], a[:, 4:8], origin
+
+
+def read_tum_trajectory(path, conv: int = 0) -> Trajectory:
+    """A :class:`Trajectory` back from a TUM file written by :func:`write_tum` (needs the origin comment).
+
+    Velocity is not in the format: it is left as zeros.
+    """
+    t, enu, q_xyzw, origin = read_tum(path)
+    if origin is None:
+        raise SinsError(f"{path}: no '# origin_lat_deg=... origin_lon_deg=... origin_height_m=...' line; "
+                        "cannot place the local ENU frame on the earth")
+    lat, lon, h = local_enu_to_lla(enu, *origin)
+    c_flu = quat_to_dcm_many(np.ascontiguousarray(q_xyzw[:, [3, 0, 1, 2]]))
+    return Trajectory(time=t, lat=lat, lon=lon, height=h, vel_n=np.zeros((t.shape[0], 3)),
+                      Cbn=cbn_from_flu(c_flu, conv), source=str(path))
