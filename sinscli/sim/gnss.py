@@ -19,9 +19,9 @@ from ..types import GnssLog
 from .imu_synth import transport_rate_many
 
 
-def gnss_times(duration: float, rate: float, outages) -> np.ndarray:
-    """Fix times (s since start): ``k / rate`` for ``k >= 0`` up to ``duration``, less the outages."""
-    tau = np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate
+def gnss_times(duration: float, rate: float, outages, t0: float = 0.0) -> np.ndarray:
+    """Fix times (s since start) ``fl(t0 + k/rate) - t0`` for ``k >= 0`` up to ``duration``, less the outages."""
+    tau = (t0 + np.arange(int(np.floor(duration * rate + 1e-9)) + 1) / rate) - t0
     keep = np.ones(tau.size, dtype=bool)
     for a, b in outages:
         keep &= ~((tau >= a) & (tau < b))

@@ -50,7 +50,7 @@ def prepare(scenario, perfect: bool = False) -> Prepared:
     prims = expand(sc.segments, sc.x_start, sc.source)
     sensor = {} if perfect else load_sensor(sc.sensor, sc.sensor_overrides, sc.source, sc.base_dir)
     n_imu = int(np.floor(sc.duration * sc.imu_rate + 1e-9))
-    tau_g = gnss_times(n_imu / sc.imu_rate, sc.gnss["rate"], sc.gnss["outages"])
+    tau_g = gnss_times(n_imu / sc.imu_rate, sc.gnss["rate"], sc.gnss["outages"], sc.t0)
     return Prepared(sc, prims, sensor, n_imu, tau_g, perfect)
 
 
@@ -68,7 +68,7 @@ def simulate(scenario, seed: int | None = None, perfect: bool = False, *, nodes:
     perfect = perfect or p.perfect
     seed = seed if seed is not None else (sc.seed if sc.seed is not None else DEFAULT_SEED)
     td = truth_mod.generate(p.prims, sc.lat0, sc.lon0, sc.h0, sc.imu_rate, p.n_imu, extra_times=p.tau_gnss,
-                            nodes=nodes, progress=progress)
+                            nodes=nodes, progress=progress, t0=sc.t0)
     return assemble(sc, td, p.tau_gnss, {} if perfect else p.sensor, seed, perfect)
 
 

@@ -12,7 +12,8 @@ every channel is the polynomial
 with the septic smooth step ``S(u) = 35u^4 - 84u^5 + 70u^6 - 20u^7`` and its
 integral ``S1``.  The rate ramps smoothly from ``r0`` to ``r1`` and a step
 ``D`` is added; since ``S', S'', S'''`` vanish at both ends, channel values are
-C^4 and rates C^3 across primitive joints (the angular rate is C^2).
+C^3 and rates C^2 across primitive joints (so are the angular rate and the
+acceleration), and analytic inside a primitive.
 
 Attitude and velocity (FLU body axes, ENU navigation frame):
 
@@ -118,15 +119,16 @@ class Primitive:
             w = max(w, abs(self.pert.omega))
         return w
 
-    def kinematics(self, tau: np.ndarray):
-        """``(Cbn, vel_n)`` jets of order 1 at times ``tau`` (s since start), FLU body, ENU.
+    def kinematics(self, t_local: np.ndarray):
+        """``(Cbn, vel_n, disp_n)`` at times ``t_local`` (s since this primitive's start), FLU body, ENU.
 
-        ``Cbn`` is (n, 3, 3) with its time derivative, ``vel_n`` (n, 3) with
-        ``dv^n/dt``; and the ENU displacement (n, 3) of the linear vibration
-        (zeros without one), which the position integration does not need.
+        ``Cbn`` (n, 3, 3) and ``vel_n`` (n, 3) are jets of order 1 (with the
+        time derivatives ``dCbn/dt`` and ``dv^n/dt``); ``disp_n`` (n, 3) is the
+        ENU displacement of the linear vibration (zeros without one).  Local
+        times keep the rounding of fast phases at the scale of the primitive.
         """
         T = self.duration
-        u = (Jet.time(np.asarray(tau, dtype=float), 2) - self.t_start) / T
+        u = Jet.time(np.asarray(t_local, dtype=float), 2) / T
         sv = 2.0 * u - 1.0
         coeffs = self.channel_coeffs()
         hdg, pit, rol, spd = (polynomial(coeffs[k], sv) for k in range(4))
@@ -169,10 +171,18 @@ def _phase(p: Perturbation, t: Jet) -> Jet:
 def _pert_rotation(p, m, t):
     ph = _phase(p, t)
     if p.kind == "coning":
-        # Rotation by beta about the body axis (0, cos ph, sin ph): Rx(ph) Ry(beta) Rx(-ph).
+        # Rotation by beta about the body axis n = (0, cos ph, sin ph) (Rodrigues, which avoids the
+        # cancelling fast terms of Rx(ph) Ry(beta) Rx(-ph)):  R = cos b I + sin b [n x] + (1 - cos b) n n^T.
         beta = (p.amplitude * m).truncate(1)
         ph1 = ph.truncate(1)
-        return axis_rotation(0, ph1) @ axis_rotation(1, beta) @ axis_rotation(0, -ph1)
+        zero = 0.0 * ph1
+        cph, sph = np.cos(ph1), np.sin(ph1)
+        n = stack([zero, cph, sph], axis=-1)
+        nx = stack([stack([zero, -sph, cph], axis=-1), stack([sph, zero, zero], axis=-1),
+                    stack([-cph, zero, zero], axis=-1)], axis=-2)
+        cb, sb = np.cos(beta), np.sin(beta)
+        return (cb[..., None, None] * np.eye(3) + sb[..., None, None] * nx
+                + (1.0 - cb)[..., None, None] * (n[..., :, None] * n[..., None, :]))
     ang = (p.amplitude * m * np.sin(ph)).truncate(1)
     return axis_rotation(p.axis, ang)
 

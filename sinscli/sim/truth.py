@@ -66,21 +66,26 @@ def boundaries(tau_imu: np.ndarray, extra: np.ndarray, subdiv: int):
     return b, imu_idx
 
 
-def evaluate(prims: list[Primitive], starts: np.ndarray, tau: np.ndarray, side: str = "right"):
-    """Attitude and velocity at times ``tau``: ``(Cbn, dCbn, vel_n, acc_n)``.
+def evaluate(prims: list[Primitive], starts: np.ndarray, base: np.ndarray, off=None, side: str = "right"):
+    """Attitude and velocity at times ``base + off`` (s since start): ``(Cbn, dCbn, vel_n, acc_n)``.
 
-    Each time takes the primitive that contains it (``side='right'``: a joint
-    time belongs to the later primitive; values agree there).
+    ``base`` are exact instants (sub-interval starts) and ``off`` small offsets
+    from them (Gauss nodes); each primitive gets ``(base - t_start) + off``,
+    so rounding stays at the scale of the primitive, not of the run.  Each
+    time takes the primitive that contains it (``side='right'``: a joint
+    belongs to the later primitive; values agree there).
     """
-    n = tau.shape[0]
+    base = np.asarray(base, dtype=float)
+    off = np.zeros_like(base) if off is None else np.asarray(off, dtype=float)
+    n = base.shape[0]
     cbn = np.empty((n, 3, 3))
     dcbn = np.empty((n, 3, 3))
     vel = np.empty((n, 3))
     acc = np.empty((n, 3))
-    which = np.clip(np.searchsorted(starts, tau, side=side) - 1, 0, len(prims) - 1)
+    which = np.clip(np.searchsorted(starts, base + off, side=side) - 1, 0, len(prims) - 1)
     for p in np.unique(which):
         sel = np.nonzero(which == p)[0]
-        c, v, _ = prims[p].kinematics(tau[sel])
+        c, v, _ = prims[p].kinematics((base[sel] - starts[p]) + off[sel])
         cbn[sel], dcbn[sel] = c.c[0], c.c[1]
         vel[sel], acc[sel] = v.c[0], v.c[1]
     return cbn, dcbn, vel, acc
@@ -126,15 +131,22 @@ def integrate_position(lat0, lon0, h0, half, vel_nodes, w, A):
     return (lat_n, lon0 + dlon_n, h_n), (lat0 + dl_e, lon0 + dlon_e, h0 + dh_e)
 
 
+def sample_times(t0: float, rate: float, n: int) -> np.ndarray:
+    """``tau_k = fl(t0 + k/rate) - t0``, k = 0..n: times since the start whose sums ``t0 + tau_k``
+    are exactly the written time stamps, so that intervals of the file's times are those integrated."""
+    return (t0 + np.arange(n + 1) / rate) - t0
+
+
 def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: float, n_imu: int,
-             extra_times=(), nodes: int = 8, gravity=normal_gravity_n, progress=None) -> TruthData:
-    """Exact truth and increments for ``n_imu`` IMU intervals at ``rate`` Hz.
+             extra_times=(), nodes: int = 8, gravity=normal_gravity_n, progress=None,
+             t0: float = 0.0) -> TruthData:
+    """Exact truth and increments for ``n_imu`` IMU intervals at ``rate`` Hz from epoch ``t0``.
 
     ``extra_times`` (s since start, e.g. GNSS epochs) become boundaries too;
     ``gravity(lat, h)`` gives ``g^n`` (n, 3); ``progress(k)`` is called with
     the number of IMU intervals completed by each chunk.
     """
-    tau_imu = np.arange(n_imu + 1) / rate
+    tau_imu = sample_times(t0, rate, n_imu)
     starts = np.array([p.t_start for p in prims])
     joints = starts[1:]
     wmax = max(p.max_frequency() for p in prims)
@@ -155,9 +167,10 @@ def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: 
         j1 = min(j0 + CHUNK, M)
         a, c = b[j0:j1], b[j0 + 1:j1 + 1]
         half = 0.5 * (c - a)
-        tn = (0.5 * (a + c))[:, None] + half[:, None] * x[None, :]
         J = j1 - j0
-        cbn, dcbn, vel, acc = evaluate(prims, starts, tn.ravel())
+        base = np.repeat(a, nodes)
+        off = (half[:, None] * (1.0 + x[None, :])).ravel()
+        cbn, dcbn, vel, acc = evaluate(prims, starts, base, off)
         (lat_n, lon_n, h_n), (lat_e, lon_e, h_e) = integrate_position(
             lat[j0], lon[j0], hgt[j0], half, vel.reshape(J, nodes, 3), w, A)
         lat[j0 + 1:j1 + 1], lon[j0 + 1:j1 + 1], hgt[j0 + 1:j1 + 1] = lat_e, lon_e, h_e
