@@ -402,3 +402,14 @@ def test_cs_shift_angle_addition():
         for d in np.concatenate([np.linspace(-0.5, 0.5, 201), [1e-9, -1e-12, 0.0999999, 0.1]]):
             c, s = K._cs_shift(math.cos(x), math.sin(x), d)
             assert abs(c - math.cos(x + d)) < 5e-16 and abs(s - math.sin(x + d)) < 5e-16
+
+
+def test_rate_model_is_exact_for_a_linear_rate():
+    """KRYLOV.md 4.4: for w(t) = a + b t the model gives w T at t_k, t_k + T/2, t_k + T."""
+    a, b, T, tk = np.array([0.3, -1.1, 0.7]), np.array([2.0, 0.5, -4.0]), 0.01, 3.0
+    inc = lambda t0: a * T + b * (t0 * T + 0.5 * T * T)          # integral over [t0, t0 + T]
+    w0, wh, w1 = (np.array(v) for v in K.rate_model(inc(tk - T), inc(tk)))
+    assert np.abs(w0 - (a + b * tk) * T).max() < 1e-15
+    assert np.abs(wh - (a + b * (tk + T / 2)) * T).max() < 1e-15
+    assert np.abs(w1 - (a + b * (tk + T)) * T).max() < 1e-15
+    assert np.abs((w0 + 4 * wh + w1) / 6 - inc(tk)).max() < 1e-17

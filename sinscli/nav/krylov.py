@@ -187,6 +187,20 @@ def _cs_shift(c, s, d):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def rate_model(dtheta_prev_b, dtheta_b):
+    """Two-sample linear rate model of sec. 4.4: ``(W0, Wh, W1)`` as 3-tuples (rad).
+
+    ``W0 = (dth_prev + dth)/2``, ``Wh = dth``, ``W1 = (3 dth - dth_prev)/2``: the
+    rate times T at the start, middle and end of the interval;
+    ``(W0 + 4 Wh + W1)/6 = dth`` exactly.
+    """
+    p0, p1, p2 = dtheta_prev_b[0], dtheta_prev_b[1], dtheta_prev_b[2]
+    h0, h1, h2 = dtheta_b[0], dtheta_b[1], dtheta_b[2]
+    return ((0.5 * (p0 + h0), 0.5 * (p1 + h1), 0.5 * (p2 + h2)), (h0, h1, h2),
+            (1.5 * h0 - 0.5 * p0, 1.5 * h1 - 0.5 * p1, 1.5 * h2 - 0.5 * p2))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _f4(kset, ca, sa, cg, sg, cx, sx, wx, wy, wz, zx, zy, zz, nav):
     """Angle increments ``F_s(x, w)`` of sec. 4.3, from the cosines and sines of x.
 
@@ -261,11 +275,7 @@ def krylov_step_dcm_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n):
     if kset == SET_B:
         cb, sb = math.cos(phiB), math.sin(phiB)
         zx, zy = cb * zx + sb * zy, -sb * zx + cb * zy      # Rz(-phiB) zeta
-    # two-sample linear rate model (sec. 4.4)
-    p0, p1, p2 = dtheta_prev_b[0], dtheta_prev_b[1], dtheta_prev_b[2]
-    h0, h1, h2 = dtheta_b[0], dtheta_b[1], dtheta_b[2]
-    a0x, a0y, a0z = 0.5 * (p0 + h0), 0.5 * (p1 + h1), 0.5 * (p2 + h2)
-    a1x, a1y, a1z = 1.5 * h0 - 0.5 * p0, 1.5 * h1 - 0.5 * p1, 1.5 * h2 - 0.5 * p2
+    (a0x, a0y, a0z), (h0, h1, h2), (a1x, a1y, a1z) = rate_model(dtheta_prev_b, dtheta_b)
 
     a = phi if kset == SET_A else psi
     ca, sa = math.cos(a), math.sin(a)
@@ -434,9 +444,7 @@ def euler3_step_t(ang3, dtheta_prev_b, dtheta_b, dt, w_in_n, integrator):
         f, p, g = f + d1, p + d2, g + d3
         cmin = c1
     else:
-        p0, p1, p2 = dtheta_prev_b[0], dtheta_prev_b[1], dtheta_prev_b[2]
-        a0x, a0y, a0z = 0.5 * (p0 + h0), 0.5 * (p1 + h1), 0.5 * (p2 + h2)
-        a1x, a1y, a1z = 1.5 * h0 - 0.5 * p0, 1.5 * h1 - 0.5 * p1, 1.5 * h2 - 0.5 * p2
+        (a0x, a0y, a0z), _, (a1x, a1y, a1z) = rate_model(dtheta_prev_b, dtheta_b)
         k1f, k1p, k1g, c1 = _f3(f, p, g, a0x, a0y, a0z, zx, zy, zz)
         k2f, k2p, k2g, c2 = _f3(f + 0.5 * k1f, p + 0.5 * k1p, g + 0.5 * k1g, h0, h1, h2, zx, zy, zz)
         k3f, k3p, k3g, c3 = _f3(f + 0.5 * k2f, p + 0.5 * k2p, g + 0.5 * k2g, h0, h1, h2, zx, zy, zz)
