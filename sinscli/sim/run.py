@@ -97,8 +97,8 @@ def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: d
     gnss = make_gnss(tau_g, sc.t0, lat_a, lon_a, h_a, v_a, sc.gnss, rng, f"simulate:{sc.name}")
     init = NavState(time=sc.t0, lat=float(truth.lat[0]), lon=float(truth.lon[0]),
                     height=float(truth.height[0]), vel_n=truth.vel_n[0].copy(), Cbn=cbn[0].copy())
-    launch = {"time": sc.t0, "lat": float(np.degrees(sc.lat0)), "lon": float(np.degrees(sc.lon0)),
-              "height": sc.h0, "azimuth": float(np.degrees(sc.x_start[0]) % 360.0)}
+    launch = {"time": sc.t0, "lat": sc.start_deg["lat"], "lon": sc.start_deg["lon"], "height": sc.h0,
+              "azimuth": sc.start_deg["heading"] % 360.0}
     return SimResult(imu=imu, truth=truth, gnss=gnss, init=init, conv=conv, seed=seed, name=sc.name,
                      perfect=perfect, launch=launch, sensor=realized, scenario=sc)
 

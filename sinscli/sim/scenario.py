@@ -61,6 +61,7 @@ class Scenario:
     lon0: float                    # rad
     h0: float                      # m
     x_start: np.ndarray            # (heading, pitch, roll, speed) rad, m/s
+    start_deg: dict                # the start as written: lat, lon (deg), height (m), heading (deg)
     imu_rate: float                # Hz
     sensor: object                 # None, preset name, path or mapping (resolved in errors.py)
     sensor_overrides: dict         # {"gyro": {...}, "accel": {...}}
@@ -186,7 +187,10 @@ def validate(data: dict, src: str, base_dir: Path) -> Scenario:
         _fail(src, "seed", f"expected a non-negative integer; got {seed!r}")
     name = str(data.get("name", Path(src).stem if src != "<scenario>" else "scenario"))
     return Scenario(name=name, source=src, base_dir=base_dir, seed=seed, duration=duration, t0=t0,
-                    lat0=lat * deg, lon0=lon * deg, h0=h, x_start=x_start, imu_rate=rate,
+                    lat0=lat * deg, lon0=lon * deg, h0=h, x_start=x_start,
+                    start_deg={"lat": lat, "lon": lon, "height": h,
+                               "heading": _number(src, "start.heading", start.get("heading", 0.0))},
+                    imu_rate=rate,
                     sensor=imu.get("sensor"), sensor_overrides=overrides, gnss=gnss, gravity=gravity,
                     conv=BODY_CONVENTIONS[body.lower()], segments=segments,
                     description=str(data.get("description", "")), raw=data)
