@@ -5,3 +5,5 @@ from .base import main  # noqa: F401
 from . import compare  # noqa: F401,E402
 from . import navigate  # noqa: F401,E402
 from . import simulate  # noqa: F401,E402
+from . import info  # noqa: F401,E402
+from . import convert  # noqa: F401,E402

@@ -62,6 +62,63 @@ def _stamps(traj: Trajectory) -> np.ndarray:
     return np.round(t * 1e9).astype(np.int64)
 
 
+_FIX_JSON = ('{"timestamp": {"sec": %d, "nsec": %d}, "frame_id": "' + FRAME_BODY + '", "latitude": %r, '
+             '"longitude": %r, "altitude": %r, "position_covariance": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], '
+             '"position_covariance_type": 0}')
+_POSE_JSON = ('{"timestamp": {"sec": %d, "nsec": %d}, "frame_id": "' + FRAME_ENU + '", "pose": {"position": '
+              '{"x": %r, "y": %r, "z": %r}, "orientation": {"x": %r, "y": %r, "z": %r, "w": %r}}}')
+
+
+def odometry_message(ts, sec, nsec, pos, q_xyzw, v_body):
+    """A ``nav_msgs/msg/Odometry`` object of typestore ``ts`` (frame ``enu``, child ``base_link``)."""
+    t = ts.types
+    vec = t["geometry_msgs/msg/Vector3"]
+    return t["nav_msgs/msg/Odometry"](
+        header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=int(sec), nanosec=int(nsec)),
+                                        frame_id=FRAME_ENU),
+        child_frame_id=FRAME_BODY,
+        pose=t["geometry_msgs/msg/PoseWithCovariance"](
+            pose=t["geometry_msgs/msg/Pose"](
+                position=t["geometry_msgs/msg/Point"](x=float(pos[0]), y=float(pos[1]), z=float(pos[2])),
+                orientation=t["geometry_msgs/msg/Quaternion"](x=float(q_xyzw[0]), y=float(q_xyzw[1]),
+                                                              z=float(q_xyzw[2]), w=float(q_xyzw[3]))),
+            covariance=np.zeros(36)),
+        twist=t["geometry_msgs/msg/TwistWithCovariance"](
+            twist=t["geometry_msgs/msg/Twist"](linear=vec(x=float(v_body[0]), y=float(v_body[1]), z=float(v_body[2])),
+                                               angular=vec(x=0.0, y=0.0, z=0.0)),
+            covariance=np.zeros(36)))
+
+
+def odometry_cdr_block(ts, sec, nsec, pos, q_xyzw, v_body) -> np.ndarray:
+    """CDR bytes of many Odometry messages at once, (N, L) uint8.
+
+    The library serializes one template message whose fields hold marker
+    values; the markers' byte offsets are where numpy writes every message's
+    stamp, position, orientation and body velocity.  Equal to the library's
+    ``serialize_cdr`` of each message bit for bit (``tests/test_io_traj_writers.py``).
+    """
+    markers = [float.fromhex(f"0x1.{k:x}5a5a5a5a5a5ap+{600 + k}") for k in range(10)]
+    sec_m, nsec_m = 0x2B3C4D5E, 0x1A2B3C4D
+    tpl = bytes(ts.serialize_cdr(odometry_message(ts, sec_m, nsec_m, markers[0:3], markers[3:7], markers[7:10]),
+                                 "nav_msgs/msg/Odometry"))
+
+    def where(pattern: bytes) -> int:
+        if tpl.count(pattern) != 1:
+            raise RuntimeError("Odometry template marker is not unique")
+        return tpl.index(pattern)
+
+    n = len(sec)
+    block = np.tile(np.frombuffer(tpl, dtype=np.uint8), (n, 1))
+    cols = [(where(np.int32(sec_m).tobytes()), np.asarray(sec, dtype="<i4")),
+            (where(np.uint32(nsec_m).tobytes()), np.asarray(nsec, dtype="<u4"))]
+    vals = np.column_stack([pos, q_xyzw, v_body]).astype("<f8")
+    for j, m in enumerate(markers):
+        cols.append((where(np.float64(m).tobytes()), vals[:, j]))
+    for off, arr in cols:
+        block[:, off:off + arr.itemsize] = np.ascontiguousarray(arr).view(np.uint8).reshape(n, arr.itemsize)
+    return block
+
+
 def write_trajectory_mcap(path, traj: Trajectory, conv: int = 0) -> None:
     """Write the trajectory as MCAP (see module docstring), atomically."""
     from mcap.writer import Writer
@@ -69,13 +126,21 @@ def write_trajectory_mcap(path, traj: Trajectory, conv: int = 0) -> None:
 
     origin, enu, q = trajectory_enu_quat(traj, conv)
     t_ns = _stamps(traj)
+    if t_ns.shape[0] and t_ns.max() >= 2**31 * 1_000_000_000:
+        raise SinsError(f"{traj.source}: times beyond 2^31 s do not fit a ROS time stamp")
     c_flu = body_flu_in_enu(traj.Cbn, conv)
     v_body = np.einsum("nji,nj->ni", c_flu, np.asarray(traj.vel_n, dtype=np.float64))   # C_n^FLU v_n
     lat_deg, lon_deg = np.degrees(traj.lat), np.degrees(traj.lon)
+    fields = np.column_stack([lat_deg, lon_deg, traj.height, enu, q, v_body])
+    if not np.isfinite(fields).all():
+        k = int(np.flatnonzero(~np.isfinite(fields).all(axis=1))[0])
+        raise SinsError(f"{traj.source}: row {k} (time {traj.time[k]!r}) has a non-finite value; cannot write MCAP")
+    sec, nsec = t_ns // 1_000_000_000, t_ns % 1_000_000_000
     ts = get_typestore(Stores.ROS2_HUMBLE)
     odom_def, _ = ts.generate_msgdef("nav_msgs/msg/Odometry", ros_version=2)
-    types = ts.types
-    zeros36 = np.zeros(36)
+    odom = odometry_cdr_block(ts, sec, nsec, enu, q, v_body)
+    rows = fields.tolist()
+    sec_l, nsec_l, t_l = sec.tolist(), nsec.tolist(), t_ns.tolist()
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             w = Writer(f)
@@ -89,38 +154,14 @@ def write_trajectory_mcap(path, traj: Trajectory, conv: int = 0) -> None:
             w.add_metadata("sins", {
                 "enu_origin_lat_deg": repr(float(np.degrees(origin[0]))),
                 "enu_origin_lon_deg": repr(float(np.degrees(origin[1]))),
-                "enu_origin_height_m": repr(origin[2]), "body_axes": "FLU", "source": str(traj.source)})
-            for k in range(t_ns.shape[0]):
-                tk = int(t_ns[k])
-                sec, nsec = tk // 1_000_000_000, tk % 1_000_000_000
-                stamp = {"sec": sec, "nsec": nsec}
-                fix = {"timestamp": stamp, "frame_id": FRAME_BODY, "latitude": float(lat_deg[k]),
-                       "longitude": float(lon_deg[k]), "altitude": float(traj.height[k]),
-                       "position_covariance": [0.0] * 9, "position_covariance_type": 0}
-                x, y, z = (float(v) for v in enu[k])
-                qx, qy, qz, qw = (float(v) for v in q[k])
-                pose = {"timestamp": stamp, "frame_id": FRAME_ENU,
-                        "pose": {"position": {"x": x, "y": y, "z": z},
-                                 "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}}
-                w.add_message(c_fix, log_time=tk, publish_time=tk, sequence=k, data=json.dumps(fix).encode())
-                w.add_message(c_pose, log_time=tk, publish_time=tk, sequence=k, data=json.dumps(pose).encode())
-                vb = v_body[k]
-                odom = types["nav_msgs/msg/Odometry"](
-                    header=types["std_msgs/msg/Header"](
-                        stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec), frame_id=FRAME_ENU),
-                    child_frame_id=FRAME_BODY,
-                    pose=types["geometry_msgs/msg/PoseWithCovariance"](
-                        pose=types["geometry_msgs/msg/Pose"](
-                            position=types["geometry_msgs/msg/Point"](x=x, y=y, z=z),
-                            orientation=types["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw)),
-                        covariance=zeros36),
-                    twist=types["geometry_msgs/msg/TwistWithCovariance"](
-                        twist=types["geometry_msgs/msg/Twist"](
-                            linear=types["geometry_msgs/msg/Vector3"](x=float(vb[0]), y=float(vb[1]), z=float(vb[2])),
-                            angular=types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)),
-                        covariance=zeros36))
-                w.add_message(c_odom, log_time=tk, publish_time=tk, sequence=k,
-                              data=bytes(ts.serialize_cdr(odom, "nav_msgs/msg/Odometry")))
+                "enu_origin_height_m": repr(float(origin[2])), "body_axes": "FLU", "source": str(traj.source)})
+            for k, r in enumerate(rows):
+                tk, s_, ns_ = t_l[k], sec_l[k], nsec_l[k]
+                w.add_message(c_fix, log_time=tk, publish_time=tk, sequence=k,
+                              data=(_FIX_JSON % (s_, ns_, r[0], r[1], r[2])).encode())
+                w.add_message(c_pose, log_time=tk, publish_time=tk, sequence=k,
+                              data=(_POSE_JSON % (s_, ns_, r[3], r[4], r[5], r[6], r[7], r[8], r[9])).encode())
+                w.add_message(c_odom, log_time=tk, publish_time=tk, sequence=k, data=odom[k].tobytes())
             w.finish()
 
 

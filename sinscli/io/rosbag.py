@@ -158,7 +158,12 @@ class _RosbagsLog(_Log):
             self.reader = AnyReader([path])
             self.reader.open()
         self.is2 = self.reader.is2
-        self.meta = self._metadata() if path.is_dir() else None
+        try:
+            self.meta = self._metadata() if path.is_dir() else None
+        except BaseException:
+            with contextlib.suppress(Exception):
+                self.reader.close()
+            raise
         if not self.is2:
             self.kind = "ROS 1 bag"
         elif self.meta is not None:
@@ -166,12 +171,17 @@ class _RosbagsLog(_Log):
         else:
             self.kind = f"ROS 2 storage file ({path.suffix})"
         self.topics = {}
-        with _guard(path, None, "cannot read topic list"):
-            for name, ti in self.reader.topics.items():
-                if ti.msgtype is None:
-                    raise SinsError(f"{path}: topic {name} has several message types")
-                self.topics[name] = TopicInfo(name, normalize_type(ti.msgtype), int(ti.msgcount),
-                                              "cdr" if self.is2 else "ros1", {"connections": ti.connections})
+        try:
+            with _guard(path, None, "cannot read topic list"):
+                for name, ti in self.reader.topics.items():
+                    if ti.msgtype is None:
+                        raise SinsError(f"{path}: topic {name} has several message types")
+                    self.topics[name] = TopicInfo(name, normalize_type(ti.msgtype), int(ti.msgcount),
+                                                  "cdr" if self.is2 else "ros1", {"connections": ti.connections})
+        except BaseException:
+            with contextlib.suppress(Exception):
+                self.reader.close()
+            raise
 
     def _metadata(self) -> dict:
         with _guard(self.path, None, "cannot read metadata.yaml"):
@@ -576,6 +586,12 @@ def open_log(path) -> _Log:
     raise SinsError(f"{p}: not a ROS log (expected .bag, .db3, .mcap or a ROS 2 bag directory)")
 
 
+def log_topics(path) -> dict[str, str]:
+    """``{topic: message type}`` of a log (types in ROS 2 spelling, e.g. ``sensor_msgs/msg/Imu``)."""
+    with open_log(path) as lg:
+        return {n: i.msgtype for n, i in lg.topics.items()}
+
+
 # --------------------------------------------------------------------------- topic choice
 
 def _topic_list(lg: _Log) -> str:
@@ -622,7 +638,8 @@ def read_imu_block(path, topic=None, bulk=True):
     """``(topic, log ns, ImuBlock)`` of an Imu topic (raw decode, no checks): used by tests and ``info``."""
     with open_log(path) as lg:
         topic = choose_topic(lg, topic, IMU_TYPE, "IMU", "--imu-topic")
-        t, block = lg.imu_block(topic, bulk=bulk)
+        with _guard(lg.path, topic, "cannot decode sensor_msgs/Imu messages"):
+            t, block = lg.imu_block(topic, bulk=bulk)
     return topic, t, block
 
 
@@ -766,58 +783,65 @@ def read_gnss(path, topic=None, vel_topic=None, time_source="header") -> GnssLog
     with open_log(path) as lg:
         topic = choose_topic(lg, topic, NAVSAT_TYPE, "GNSS", "--gnss-topic")
         where = f"{path}: topic {topic}"
-        log_ns, msgs = lg.decode_all(topic)
-        if not msgs:
-            raise SinsError(f"{where}: topic has no messages")
-        status = np.array([int(m.status.status) for m in msgs])
-        fix = status >= 0
-        n_drop = int((~fix).sum())
-        if n_drop:
-            log.warning("%s: dropped %d of %d NavSatFix messages with status 'no fix'", where, n_drop, len(msgs))
-        if not fix.any():
-            raise SinsError(f"{where}: no NavSatFix message has a fix (all {len(msgs)} have status 'no fix')")
-        t_all = _times(lg, topic, log_ns, msgs, time_source)
-        keep = np.flatnonzero(fix)
-        msgs = [msgs[i] for i in keep]
-        t = t_all[keep]
-        lla = np.array([(m.latitude, m.longitude, m.altitude) for m in msgs], dtype=np.float64)
-        bad = ~np.isfinite(lla).all(axis=1)
+        with _guard(path, topic, "cannot decode sensor_msgs/NavSatFix messages"):
+            return _read_navsat(lg, topic, where, vel_topic, time_source)
+
+
+def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source) -> GnssLog:
+    """The body of :func:`read_gnss` on an open log."""
+    path = lg.path
+    log_ns, msgs = lg.decode_all(topic)
+    if not msgs:
+        raise SinsError(f"{where}: topic has no messages")
+    status = np.array([int(m.status.status) for m in msgs])
+    fix = status >= 0
+    n_drop = int((~fix).sum())
+    if n_drop:
+        log.warning("%s: dropped %d of %d NavSatFix messages with status 'no fix'", where, n_drop, len(msgs))
+    if not fix.any():
+        raise SinsError(f"{where}: no NavSatFix message has a fix (all {len(msgs)} have status 'no fix')")
+    t_all = _times(lg, topic, log_ns, msgs, time_source)
+    keep = np.flatnonzero(fix)
+    msgs = [msgs[i] for i in keep]
+    t = t_all[keep]
+    lla = np.array([(m.latitude, m.longitude, m.altitude) for m in msgs], dtype=np.float64)
+    bad = ~np.isfinite(lla).all(axis=1)
+    if bad.any():
+        k = int(keep[np.flatnonzero(bad)[0]])
+        raise SinsError(f"{where}: message {k} has a fix with NaN or infinite latitude/longitude/altitude")
+    if np.any(np.abs(lla[:, 0]) > 90) or np.any(np.abs(lla[:, 1]) > 180):
+        k = int(keep[np.flatnonzero((np.abs(lla[:, 0]) > 90) | (np.abs(lla[:, 1]) > 180))[0]])
+        raise SinsError(f"{where}: message {k} has latitude/longitude out of range")
+    _check_increasing(t, where, f"{time_source} stamp")
+    ctype = np.array([int(m.position_covariance_type) for m in msgs])
+    cov = np.array([np.asarray(m.position_covariance, dtype=np.float64) for m in msgs]).reshape(-1, 9)
+    std = None
+    known = ctype != 0
+    if known.any():
+        var = cov[:, [0, 4, 8]]
+        bad = known & (~np.isfinite(var).all(axis=1) | (var <= 0).any(axis=1))
         if bad.any():
             k = int(keep[np.flatnonzero(bad)[0]])
-            raise SinsError(f"{where}: message {k} has a fix with NaN or infinite latitude/longitude/altitude")
-        if np.any(np.abs(lla[:, 0]) > 90) or np.any(np.abs(lla[:, 1]) > 180):
-            k = int(keep[np.flatnonzero((np.abs(lla[:, 0]) > 90) | (np.abs(lla[:, 1]) > 180))[0]])
-            raise SinsError(f"{where}: message {k} has latitude/longitude out of range")
-        _check_increasing(t, where, f"{time_source} stamp")
-        ctype = np.array([int(m.position_covariance_type) for m in msgs])
-        cov = np.array([np.asarray(m.position_covariance, dtype=np.float64) for m in msgs]).reshape(-1, 9)
-        std = None
-        known = ctype != 0
-        if known.any():
-            var = cov[:, [0, 4, 8]]
-            bad = known & (~np.isfinite(var).all(axis=1) | (var <= 0).any(axis=1))
-            if bad.any():
-                k = int(keep[np.flatnonzero(bad)[0]])
-                raise SinsError(f"{where}: message {k} has a zero, negative or NaN position covariance "
-                                f"({var[np.flatnonzero(bad)[0]].tolist()}) with covariance type "
-                                f"{ctype[np.flatnonzero(bad)[0]]}")
-            if known.all():
-                std = np.sqrt(var)
-            else:
-                log.warning("%s: %d fixes have unknown covariance; std columns left out",
-                            where, int((~known).sum()))
-        vel = std_vel = None
-        if vel_topic is not None:
-            vtopic = choose_topic(lg, vel_topic, VEL_TYPES, "GNSS velocity", "--vel-topic")
-            tv, v, sv = _velocity(lg, vtopic, time_source)
-            vel = _interp_rows(t, tv, v)
-            std_vel = _interp_rows(t, tv, sv) if sv is not None else None
-            miss = int(np.isnan(vel[:, 0]).sum())
-            if miss == len(t):
-                raise SinsError(f"{path}: topic {vtopic}: velocity times do not overlap the fixes of {topic}")
-            if miss:
-                log.warning("%s: %d fixes lie outside the velocity topic %s; their velocity is NaN",
-                            where, miss, vtopic)
+            raise SinsError(f"{where}: message {k} has a zero, negative or NaN position covariance "
+                            f"({var[np.flatnonzero(bad)[0]].tolist()}) with covariance type "
+                            f"{ctype[np.flatnonzero(bad)[0]]}")
+        if known.all():
+            std = np.sqrt(var)
+        else:
+            log.warning("%s: %d fixes have unknown covariance; std columns left out",
+                        where, int((~known).sum()))
+    vel = std_vel = None
+    if vel_topic is not None:
+        vtopic = choose_topic(lg, vel_topic, VEL_TYPES, "GNSS velocity", "--vel-topic")
+        tv, v, sv = _velocity(lg, vtopic, time_source)
+        vel = _interp_rows(t, tv, v)
+        std_vel = _interp_rows(t, tv, sv) if sv is not None else None
+        miss = int(np.isnan(vel[:, 0]).sum())
+        if miss == len(t):
+            raise SinsError(f"{path}: topic {vtopic}: velocity times do not overlap the fixes of {topic}")
+        if miss:
+            log.warning("%s: %d fixes lie outside the velocity topic %s; their velocity is NaN",
+                        where, miss, vtopic)
     return GnssLog(time=t, lat=lla[:, 0].copy(), lon=lla[:, 1].copy(), height=lla[:, 2].copy(),
                    vel_n=vel, std_pos=std, std_vel=std_vel, source=f"{path}:{topic}")
 
