@@ -156,14 +156,19 @@ def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=1 << 26):
         raise SinsError(f"{path}: a rate log needs at least 2 rows to form increments")
 
 
-def read_imu_csv(path, cfg=None, allow_gaps=False) -> ImuLog:
-    """Read a whole IMU CSV into one :class:`ImuLog` (see :func:`iter_imu_csv`)."""
-    blocks = list(iter_imu_csv(path, cfg, allow_gaps))
+def concat_imu(blocks) -> ImuLog:
+    """One :class:`ImuLog` from consecutive blocks."""
+    blocks = list(blocks)
     if len(blocks) == 1:
         return blocks[0]
     first = blocks[0]
     return ImuLog(np.concatenate([b.time for b in blocks]), np.vstack([b.dtheta_b for b in blocks]),
                   np.vstack([b.dvel_b for b in blocks]), t0=first.t0, source=first.source, kind=first.kind)
+
+
+def read_imu_csv(path, cfg=None, allow_gaps=False) -> ImuLog:
+    """Read a whole IMU CSV into one :class:`ImuLog` (see :func:`iter_imu_csv`)."""
+    return concat_imu(iter_imu_csv(path, cfg, allow_gaps))
 
 
 def apply_mounting(imu: ImuLog, c_sb: np.ndarray) -> ImuLog:

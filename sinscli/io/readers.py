@@ -3,11 +3,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import SinsError
 from ..types import ImuLog
-from .imu_csv import apply_mounting, iter_imu_csv
+from .imu_csv import apply_mounting, concat_imu, iter_imu_csv
 
 
 def _is_log(path) -> bool:
@@ -35,12 +33,7 @@ def iter_imu(path, cfg: dict, allow_gaps: bool = False):
 
 def read_imu(path, cfg: dict, allow_gaps: bool = False) -> ImuLog:
     """A whole IMU log in memory (for alignment and tests)."""
-    blocks = list(iter_imu(path, cfg, allow_gaps))
-    if len(blocks) == 1:
-        return blocks[0]
-    b0 = blocks[0]
-    return ImuLog(np.concatenate([b.time for b in blocks]), np.vstack([b.dtheta_b for b in blocks]),
-                  np.vstack([b.dvel_b for b in blocks]), t0=b0.t0, source=b0.source, kind=b0.kind)
+    return concat_imu(iter_imu(path, cfg, allow_gaps))
 
 
 def read_gnss(path, cfg: dict):
