@@ -92,31 +92,44 @@ def test_large_displacement_uses_radii_at_truth_point():
 
 
 @pytest.mark.parametrize("conv", [FLU, RFU, FRD])
-def test_body_components_are_euler_differences_near_level(conv):
-    truth = make_truth(n=50, conv=conv, pitch_deg=1.0)
-    truth.Cbn = euler_to_dcm_many(np.full(50, 2 * D2R), np.full(50, 1 * D2R), np.linspace(0.3, 6.0, 50), conv)
+def test_level_components_are_euler_differences(conv):
+    """Euler perturbations (dR, dP, dH) at any attitude give exactly (dR cos P, dP, dH - dR sin P)."""
+    n = 50
+    truth = make_truth(n=n, conv=conv)
+    roll, pitch = np.full(n, 30 * D2R), np.linspace(-60, 60, n) * D2R
+    truth.Cbn = euler_to_dcm_many(roll, pitch, np.linspace(0.3, 6.0, n), conv)
     eul_t = dcm_to_euler_many(truth.Cbn, conv)
     dr, dp, dh = 2e-5, -3e-5, 4e-5                       # truth minus navigation, rad
     cbn_nav = euler_to_dcm_many(eul_t[:, 0] - dr, eul_t[:, 1] - dp, eul_t[:, 2] - dh, conv)
     nav = Trajectory(truth.time, truth.lat, truth.lon, truth.height, truth.vel_n, cbn_nav)
     s = compare_trajectories(truth, nav, conv=conv)
-    # First-order equality; the attitude is 2 deg off level, so the cross terms are ~ 0.035 * 4e-5.
-    np.testing.assert_allclose(s.att_rph_rad, np.tile([dr, dp, dh], (50, 1)), atol=2.5e-6)
+    p = eul_t[:, 1]
+    expect = np.column_stack([dr * np.cos(p), np.full(n, dp), dh - dr * np.sin(p)])
+    # First order in the perturbation: second-order terms ~ (5e-5)^2.
+    np.testing.assert_allclose(s.att_rph_rad, expect, atol=5e-9)
+    # Level attitude: exactly the Euler differences (to second order).
+    flat = euler_to_dcm_many(np.zeros(n), np.zeros(n), np.linspace(0.3, 6.0, n), conv)
+    e_f = dcm_to_euler_many(flat, conv)
+    nav_f = euler_to_dcm_many(e_f[:, 0] - dr, e_f[:, 1] - dp, e_f[:, 2] - dh, conv)
+    s = compare_trajectories(Trajectory(truth.time, truth.lat, truth.lon, truth.height, truth.vel_n, flat),
+                             Trajectory(truth.time, truth.lat, truth.lon, truth.height, truth.vel_n, nav_f), conv=conv)
+    np.testing.assert_allclose(s.att_rph_rad, np.tile([dr, dp, dh], (n, 1)), atol=5e-9)
 
 
 @pytest.mark.parametrize("conv", [FLU, RFU, FRD])
-def test_body_components_have_no_singularity_at_vertical(conv):
-    """Pitch 89.99 deg (vertical launch): a known body rotation comes back exactly."""
-    truth = make_truth(n=20, conv=conv)
-    truth.Cbn = euler_to_dcm_many(np.linspace(-3, 3, 20), np.full(20, 89.99 * D2R), np.linspace(0, 6, 20), conv)
-    rph = np.array([1e-5, -2e-5, 3e-5])                 # roll (fwd), pitch (right), heading (down)
-    # In FLU axes: roll = +F, pitch = -L, heading = -U; then to the file's axes.
-    from sinscli.nav.rotation import conv_to_flu
-    phi_flu = np.array([rph[0], -rph[1], -rph[2]])
-    phi_body = conv_to_flu(conv).T @ phi_flu
-    nav = displaced(truth, [0, 0, 0], [0, 0, 0], phi_body=phi_body)
+def test_level_components_do_not_spin_with_a_rolling_vehicle_near_vertical(conv):
+    """Pitch 89.99 deg, rolling through 360 deg: a constant ENU error gives constant, bounded components."""
+    n = 37
+    truth = make_truth(n=n, conv=conv)
+    heading = 30 * D2R
+    truth.Cbn = euler_to_dcm_many(np.linspace(-np.pi, np.pi, n), np.full(n, 89.99 * D2R), np.full(n, heading),
+                                  conv)
+    phi = np.array([1e-5, -2e-5, 3e-5])
+    nav = displaced(truth, [0, 0, 0], [0, 0, 0], phi_n=phi)
     s = compare_trajectories(truth, nav, conv=conv)
-    np.testing.assert_allclose(s.att_rph_rad, np.tile(rph, (20, 1)), atol=1e-15)
+    f_h = np.array([np.sin(heading), np.cos(heading), 0.0])
+    r_h = np.array([np.cos(heading), -np.sin(heading), 0.0])
+    np.testing.assert_allclose(s.att_rph_rad, np.tile([phi @ f_h, phi @ r_h, -phi[2]], (n, 1)), atol=1e-13)
 
 
 def test_matching_with_float_noise_and_decimation():

@@ -435,7 +435,7 @@ def write_dataset_report(repdir: Path, ds: DatasetSpec, jobs: list[JobResult], s
             if ds.scenario is not None else f"truth {ds.truth.name}, IMU {ds.imu.name}")
     notes = [f"Dataset {ds.name}: {what}. Batch {spec.source.name}."]
     notes += [f"FAILED {j.label}: {j.error}" for j in jobs if not j.ok]
-    title = f"{spec.title}: {ds.name}"
+    title = f"{ds.name}: {spec.title}"
     with staged_dir(repdir) as tmp:
         extra_files, extra_html = [], ""
         if len({j.seed for j in ok}) > 1:

@@ -11,12 +11,15 @@ Pure numerical code (numpy, one numba kernel), no I/O.  Every error is
 - attitude from the DCM difference, never from Euler differences: the
   small-angle vector ``phi_n`` with ``Cbn_true = exp([phi_n x]) Cbn_nav``
   (:func:`sinscli.nav.rotation.attitude_error_many`), its angle ``|phi_n|``,
-  and its components about the *truth body* axes, signed like physical Euler
-  angle errors (truth minus navigation): ``roll`` about the forward axis,
-  ``pitch`` about the right axis (nose up positive), ``heading`` about the down
-  axis (clockwise positive).  Near level attitude they equal the differences of
-  the physical Euler angles to first order; unlike those they have no
-  singularity at pitch +-90 deg (a vertical launch).
+  and its components in the truth's *level heading frame*, signed like the
+  physical Euler angle errors (truth minus navigation): ``roll`` about the
+  horizontal forward direction, ``pitch`` about the horizontal right
+  direction (nose up positive), ``heading`` about the vertical (clockwise
+  positive).  With ``phi_n = -dH up + dP r_h + dR f`` (heading, pitch, roll
+  sequence) they are exactly ``dR cos P``, ``dP`` and ``dH - dR sin P``, so
+  near level they equal the Euler differences; they are a rotation of
+  ``phi_n``, bounded at every attitude (no blow-up at pitch +-90 deg), and do
+  not oscillate with the spin of a rolling vehicle as body-axis components do.
 """
 from __future__ import annotations
 
@@ -27,7 +30,7 @@ from numba import njit
 
 from ..errors import SinsError
 from ..nav.earth import radii_py
-from ..nav.rotation import attitude_error_many, conv_to_flu, dcm_to_rotvec, mm3, rotvec_to_dcm
+from ..nav.rotation import attitude_error_many, dcm_to_euler_many, dcm_to_rotvec, mm3, rotvec_to_dcm
 from ..types import Trajectory
 
 REL_TIME_TOL = 1e-9     # epochs match when |t_truth - t_nav| <= 1e-9 max(1 s, |t|) ...
@@ -53,7 +56,7 @@ class ErrorSeries:
     pos_enu_m: np.ndarray     # (N, 3) position error E, N, U, m
     vel_enu_mps: np.ndarray   # (N, 3) velocity error E, N, U, m/s
     att_n_rad: np.ndarray     # (N, 3) small-angle vector phi_n in ENU axes, rad
-    att_rph_rad: np.ndarray   # (N, 3) phi about truth body forward / right / down: roll, pitch, heading, rad
+    att_rph_rad: np.ndarray   # (N, 3) phi in the truth level heading frame: roll, pitch, heading, rad
     angle_rad: np.ndarray     # (N,) attitude error angle |phi_n|, rad
 
     def __len__(self) -> int:
@@ -169,15 +172,17 @@ def position_error_enu(lat_t, lon_t, h_t, lat_n, lon_n, h_n) -> np.ndarray:
     return np.stack([dlon * (rn + h_t) * np.cos(lat_t), (lat_t - lat_n) * (rm + h_t), h_t - h_n], axis=-1)
 
 
-def body_components(cbn_true: np.ndarray, att_n: np.ndarray, conv: int = 0) -> np.ndarray:
-    """``phi_n`` about the truth body forward / right / down axes: (roll, pitch, heading) errors, rad.
+def level_components(cbn_true: np.ndarray, att_n: np.ndarray, conv: int = 0) -> np.ndarray:
+    """``phi_n`` in the truth's level heading frame: (roll, pitch, heading) errors, rad.
 
-    ``phi_b = Cbn_true^T phi_n`` in the file's body axes (convention code
-    ``conv``), turned into FLU axes; then roll = +F, pitch = -L, heading = -U.
+    With the truth heading H (physical, from :func:`dcm_to_euler_many` with the
+    files' body convention ``conv``): roll = phi . (sin H, cos H, 0) (horizontal
+    forward), pitch = phi . (cos H, -sin H, 0) (horizontal right), heading = -phi_U.
     """
-    phi_b = np.einsum("nji,nj->ni", cbn_true, att_n)
-    phi_flu = phi_b @ conv_to_flu(conv).T
-    return np.stack([phi_flu[:, 0], -phi_flu[:, 1], -phi_flu[:, 2]], axis=-1)
+    heading = dcm_to_euler_many(np.ascontiguousarray(cbn_true), conv)[:, 2]
+    sh, ch = np.sin(heading), np.cos(heading)
+    return np.stack([att_n[:, 0] * sh + att_n[:, 1] * ch, att_n[:, 0] * ch - att_n[:, 1] * sh, -att_n[:, 2]],
+                    axis=-1)
 
 
 def error_series(truth: Trajectory, nav: Trajectory, conv: int = 0) -> ErrorSeries:
@@ -189,7 +194,7 @@ def error_series(truth: Trajectory, nav: Trajectory, conv: int = 0) -> ErrorSeri
         pos_enu_m=position_error_enu(truth.lat, truth.lon, truth.height, nav.lat, nav.lon, nav.height),
         vel_enu_mps=truth.vel_n - nav.vel_n,
         att_n_rad=att_n,
-        att_rph_rad=body_components(truth.Cbn, att_n, conv),
+        att_rph_rad=level_components(truth.Cbn, att_n, conv),
         angle_rad=np.sqrt(np.sum(att_n * att_n, axis=1)),
     )
 

@@ -18,9 +18,9 @@ _DEG = float(np.degrees(1.0))
 
 #: Attitude figures in the order of seed 000: Fig. 1 pitch, Fig. 2 yaw (heading), Fig. 3 roll.
 ATTITUDE_FIGURES = [
-    ("att_pitch.png", 1, "Pitch error (about the body right axis)"),
-    ("att_heading.png", 2, "Heading (yaw) error (about the body down axis)"),
-    ("att_roll.png", 0, "Roll error (about the body forward axis)"),
+    ("att_pitch.png", 1, "Pitch error (about the horizontal right axis)"),
+    ("att_heading.png", 2, "Heading (yaw) error (about the vertical)"),
+    ("att_roll.png", 0, "Roll error (about the horizontal forward axis)"),
 ]
 
 
@@ -54,10 +54,20 @@ def _save(fig: Figure, path) -> None:
         fig.savefig(tmp, format="png", dpi=100)
 
 
+_STYLES = ["-", "--", "-.", ":"]
+
+
+def _title(ax, title: str, what: str) -> None:
+    """The quantity as the axes title, the report title (shortened) above it."""
+    short = title if len(title) <= 80 else title[:77] + "..."
+    ax.set_title(f"{short}\n{what}" if short else what, fontsize=9)
+
+
 def _line_plot(ax, series: dict[str, ErrorSeries], values) -> None:
-    for name, s in series.items():
+    """One line per method; line styles cycle too, so that coinciding methods stay visible."""
+    for k, (name, s) in enumerate(series.items()):
         t, y = envelope(s.time, values(s))
-        ax.plot(t, y, lw=0.9, label=name)
+        ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
     ax.grid(True, alpha=0.3)
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
 
@@ -72,7 +82,7 @@ def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> li
         _line_plot(ax, series, lambda s, c=col: s.att_rph_rad[:, c] * scale)
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"truth - navigation ({unit})")
-        ax.set_title(f"{title}: {label}" if title else label, fontsize=10)
+        _title(ax, title, label)
         ax.legend(fontsize=8)
         fig.tight_layout()
         _save(fig, outdir / fname)
@@ -82,7 +92,7 @@ def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> li
     _line_plot(ax, series, lambda s: s.angle_rad * scale)
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"angle ({unit})")
-    ax.set_title(f"{title}: attitude error angle |phi|" if title else "Attitude error angle |phi|", fontsize=10)
+    _title(ax, title, "Attitude error angle |phi|")
     ax.legend(fontsize=8)
     fig.tight_layout()
     _save(fig, outdir / "att_angle.png")
@@ -95,8 +105,7 @@ def _three_panel(outdir, fname, series, attr, unit, what, title) -> str:
     for c, (ax, axis) in enumerate(zip(axes, ("east", "north", "up"))):
         _line_plot(ax, series, lambda s: getattr(s, attr)[:, c])
         ax.set_ylabel(f"{axis} ({unit})")
-    axes[0].set_title(f"{title}: {what} error, truth - navigation" if title else f"{what} error, truth - navigation",
-                      fontsize=10)
+    _title(axes[0], title, f"{what} error, truth - navigation")
     axes[0].legend(fontsize=8)
     axes[-1].set_xlabel("time (s)")
     fig.tight_layout()
