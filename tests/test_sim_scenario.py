@@ -138,3 +138,16 @@ def test_shipped_scenarios_validate_and_start_consistently(path):
     if data.get("imu", {}).get("sensor") is None:
         assert np.all(np.isfinite(short.imu.dvel_b))
     assert abs(np.linalg.norm(short.imu.dvel_b[0]) / 0.01 - 9.8) < 40.0
+
+
+def test_cli_duration_cuts_the_run_and_is_checked(tmp_path):
+    p = _write(tmp_path, SMALL)
+    res = _run(["simulate", str(p), "-o", str(tmp_path / "cut"), "--duration", "3", "--quiet"])
+    assert res.exit_code == 0, res.output
+    imu = read_imu_csv(tmp_path / "cut" / "imu.csv")
+    assert len(imu) == 150 and imu.time[-1] == 3.0
+    full = simulate(SMALL)
+    assert np.array_equal(imu.dtheta_b, full.imu.dtheta_b[:150])       # the same motion, cut
+    res = _run(["simulate", str(p), "-o", str(tmp_path / "long"), "--duration", "100", "--quiet"])
+    assert res.exit_code == 2 and "--duration: must be > 0" in res.output and "scenario's 8 s" in res.output
+    assert not (tmp_path / "long").exists()

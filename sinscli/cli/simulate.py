@@ -18,15 +18,17 @@ from .base import log, main, progress, quiet_option
               help="Random seed of the sensor and GNSS errors (default: the scenario's 'seed', else 0).")
 @click.option("--perfect", is_flag=True,
               help="Error-free IMU and GNSS whatever the scenario says (for checking algorithms on the truth).")
+@click.option("--duration", type=float, default=None,
+              help="Simulate only the first SECONDS of the scenario (default: all of it).")
 @quiet_option
-def simulate(scenario, outdir, seed, perfect, quiet):
+def simulate(scenario, outdir, seed, perfect, duration, quiet):
     """Simulate SCENARIO.yaml: IMU increments, GNSS fixes and the exact truth (see docs/simulate.md).
 
     \b
     Example:
       sins simulate configs/scenarios/vehicle_drive.yaml -o run1 --seed 7
     """
-    prepared = prepare(scenario, perfect)          # every check happens before anything is written
+    prepared = prepare(scenario, perfect, duration)   # every check happens before anything is written
     sc = prepared.scenario
     with progress(prepared.n_imu, "simulate", quiet) as bar:
         result = run_simulation(prepared, seed=seed, perfect=perfect, progress=bar.update)

@@ -1,11 +1,12 @@
 """``simulate``: a scenario -> exact truth, IMU increments with sensor errors, GNSS fixes."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from ..errors import SinsError
 from ..nav.rotation import conv_to_flu
 from ..types import GnssLog, ImuLog, NavState, Trajectory
 from . import truth as truth_mod
@@ -44,9 +45,17 @@ class Prepared:
     perfect: bool
 
 
-def prepare(scenario, perfect: bool = False) -> Prepared:
-    """Load and check everything (raises ``SinsError``) before any work or output."""
+def prepare(scenario, perfect: bool = False, duration: float | None = None) -> Prepared:
+    """Load and check everything (raises ``SinsError``) before any work or output.
+
+    ``duration`` (s) cuts the run short of the segments' total (like the scenario's ``duration``).
+    """
     sc = load_scenario(scenario)
+    if duration is not None:
+        if not 0.0 < duration <= sc.duration * (1.0 + 1e-12) or duration * sc.imu_rate < 1.0:
+            raise SinsError(f"--duration: must be > 0 (one IMU interval at least) and at most the "
+                            f"scenario's {sc.duration:g} s; got {duration:g}")
+        sc = replace(sc, duration=float(duration))
     prims = expand(sc.segments, sc.x_start, sc.source)
     sensor = {} if perfect else load_sensor(sc.sensor, sc.sensor_overrides, sc.source, sc.base_dir)
     n_imu = int(np.floor(sc.duration * sc.imu_rate + 1e-9))
@@ -54,16 +63,17 @@ def prepare(scenario, perfect: bool = False) -> Prepared:
     return Prepared(sc, prims, sensor, n_imu, tau_g, perfect)
 
 
-def simulate(scenario, seed: int | None = None, perfect: bool = False, *, nodes: int = 8,
-             progress=None) -> SimResult:
+def simulate(scenario, seed: int | None = None, perfect: bool = False, *, duration: float | None = None,
+             nodes: int = 8, progress=None) -> SimResult:
     """Simulate a scenario (mapping, YAML path, :class:`Scenario` or :class:`Prepared`).
 
     ``seed`` overrides the scenario's ``seed`` (default 0); ``perfect`` drops
     every IMU error and the GNSS noise (outages and lever arm stay: they are
     geometry, not error).  ``nodes`` Gauss-Legendre points per sub-interval;
-    ``progress(k)`` is called as k more IMU intervals are done.
+    ``progress(k)`` is called as k more IMU intervals are done; ``duration``
+    (s) cuts the run short.
     """
-    p = scenario if isinstance(scenario, Prepared) else prepare(scenario, perfect)
+    p = scenario if isinstance(scenario, Prepared) else prepare(scenario, perfect, duration)
     sc = p.scenario
     perfect = perfect or p.perfect
     seed = seed if seed is not None else (sc.seed if sc.seed is not None else DEFAULT_SEED)
