@@ -90,8 +90,8 @@ def read_le(buf: np.ndarray, starts: np.ndarray, dtype: str) -> np.ndarray:
 def decode_imu_block(block: np.ndarray, encoding: str) -> ImuBlock | None:
     """Decode an (N, L) uint8 array of same-length Imu messages, or None if they do not share one layout.
 
-    Accepted only when every row has the same ``frame_id`` (identical bytes,
-    valid UTF-8), the length that layout implies, a little-endian CDR
+    Accepted only when every row has the same ``frame_id`` length (each
+    frame_id valid UTF-8), the length that layout implies, a little-endian CDR
     encapsulation (for CDR) and nanoseconds below 1e9; anything else is left
     to the library deserializer.
     """
@@ -107,17 +107,20 @@ def decode_imu_block(block: np.ndarray, encoding: str) -> ImuBlock | None:
     data, total = imu_layout(encoding, s0)
     if not (total == length or (encoding == "cdr" and total <= length <= total + _CDR_TRAILING)):
         return None
-    frame = block[0, 16:16 + s0]
-    if encoding == "cdr":
-        if s0 < 1 or frame[-1] != 0:
+    frames = block[:, 16:16 + s0]
+    if s0 and not np.array_equal(frames, np.broadcast_to(frames[0], (n, s0))):
+        frames = np.unique(frames, axis=0)            # several frame_ids of one length
+    else:
+        frames = frames[:1]
+    for frame in frames:
+        if encoding == "cdr":
+            if s0 < 1 or frame[-1] != 0:
+                return None
+            frame = frame[:-1]
+        try:
+            bytes(frame).decode()                     # the library decodes frame_id as UTF-8
+        except UnicodeDecodeError:
             return None
-        frame = frame[:-1]
-    try:
-        bytes(frame).decode()
-    except UnicodeDecodeError:
-        return None
-    if s0 and not np.array_equal(block[:, 16:16 + s0], np.broadcast_to(block[0, 16:16 + s0], (n, s0))):
-        return None
     sec = np.ascontiguousarray(block[:, 4:8]).view("<i4" if encoding == "cdr" else "<u4")[:, 0].astype(np.int64)
     nsec = np.ascontiguousarray(block[:, 8:12]).view("<u4")[:, 0].astype(np.int64)
     if np.any(nsec >= 1_000_000_000):
@@ -164,17 +167,25 @@ def decode_imu_messages(raws: Sequence[bytes], encoding: str,
     if bulk and n:
         lengths = np.fromiter((len(r) for r in raws), dtype=np.int64, count=n)
         for length in np.unique(lengths):
-            idx = np.flatnonzero(lengths == length)
-            if idx.size < 2:
+            idx_len = np.flatnonzero(lengths == length)
+            if idx_len.size < 2 or length < 16:
                 continue
-            joined = b"".join(raws[i] for i in idx) if idx.size < n else b"".join(raws)
-            block = np.frombuffer(joined, dtype=np.uint8).reshape(idx.size, int(length))
-            dec = decode_imu_block(block, encoding)
-            if dec is None or not _spot_check(dec, [raws[idx[0]], raws[idx[-1]]], [0, idx.size - 1], deserialize):
-                continue
-            sec[idx], nsec[idx], values[idx] = dec.sec, dec.nsec, dec.values
-            todo[idx] = False
-            n_bulk += idx.size
+            joined = b"".join(raws[i] for i in idx_len) if idx_len.size < n else b"".join(raws)
+            block_len = np.frombuffer(joined, dtype=np.uint8).reshape(idx_len.size, int(length))
+            slen = np.ascontiguousarray(block_len[:, 12:16]).view("<u4")[:, 0]
+            for s in np.unique(slen):                 # CDR padding lets several frame_id lengths share a size
+                sel = np.flatnonzero(slen == s)
+                if sel.size < 2:
+                    continue
+                idx = idx_len[sel]
+                block = block_len if sel.size == idx_len.size else block_len[sel]
+                dec = decode_imu_block(block, encoding)
+                if dec is None or not _spot_check(dec, [raws[idx[0]], raws[idx[-1]]], [0, idx.size - 1],
+                                                  deserialize):
+                    continue
+                sec[idx], nsec[idx], values[idx] = dec.sec, dec.nsec, dec.values
+                todo[idx] = False
+                n_bulk += idx.size
     for i in np.flatnonzero(todo):
         sec[i], nsec[i], values[i] = imu_from_message(deserialize(raws[i]))
     return ImuBlock(sec, nsec, values, n_bulk=n_bulk)

@@ -921,7 +921,7 @@ def _header(ts, ros1: bool, t_ns: int, frame_id: str, seq: int):
 
 
 def _imu_messages(ts, ros1, imu, frame_id):
-    """sensor_msgs/Imu objects from arrays ``time`` (s), ``gyro`` (rad/s), ``accel`` (m/s^2), optional ``orientation`` xyzw."""
+    """sensor_msgs/Imu objects from ``time`` (s), ``gyro`` (rad/s), ``accel`` (m/s^2), optional ``orientation`` xyzw."""
     t_ns = _ns(imu["time"])
     gyro = np.asarray(imu["gyro"], dtype=np.float64)
     accel = np.asarray(imu["accel"], dtype=np.float64)
@@ -941,7 +941,7 @@ def _imu_messages(ts, ros1, imu, frame_id):
 
 
 def _navsat_messages(ts, ros1, gnss, frame_id="gps"):
-    """sensor_msgs/NavSatFix objects from ``time, lat, lon, height`` and optional ``status``, ``cov`` (N,9), ``cov_type``."""
+    """NavSatFix objects from ``time, lat, lon, height``, optional ``status``, ``cov`` (N,9), ``cov_type``."""
     t_ns = _ns(gnss["time"])
     n = len(t_ns)
     status = np.asarray(gnss.get("status", np.zeros(n)), dtype=np.int64)
@@ -980,7 +980,8 @@ def write_log(path, imu=None, gnss=None, vel=None, *, imu_topic="/imu/data", gns
     ``path`` suffix: ``.bag`` (ROS 1, rosbags), ``.mcap`` (``mcap`` writer,
     ``mcap_encoding`` "cdr" or "ros1"), ``.db3`` (a bare rosbag2 sqlite3 file)
     or no suffix (a ROS 2 bag directory with ``storage`` "sqlite3" or "mcap").
-    Log times are the stamps plus ``log_delay`` seconds.  Used by tests and
+    Log times are each dict's ``log_time`` (default: its ``time``, the header
+    stamps) plus ``log_delay`` seconds.  Used by tests and
     benchmarks, and by anyone who wants simulated data as a bag.
     """
     import shutil
@@ -991,14 +992,16 @@ def write_log(path, imu=None, gnss=None, vel=None, *, imu_topic="/imu/data", gns
     ts = _typestore(ros1)
     streams = []
     if imu is not None:
-        streams.append((imu_topic, "sensor_msgs/msg/Imu", _ns(np.asarray(imu["time"]) + log_delay),
+        streams.append((imu_topic, "sensor_msgs/msg/Imu",
+                        _ns(np.asarray(imu.get("log_time", imu["time"])) + log_delay),
                         _imu_messages(ts, ros1, imu, frame_id)))
     if gnss is not None:
-        streams.append((gnss_topic, "sensor_msgs/msg/NavSatFix", _ns(np.asarray(gnss["time"]) + log_delay),
+        streams.append((gnss_topic, "sensor_msgs/msg/NavSatFix",
+                        _ns(np.asarray(gnss.get("log_time", gnss["time"])) + log_delay),
                         _navsat_messages(ts, ros1, gnss)))
     if vel is not None:
         streams.append((vel_topic, "geometry_msgs/msg/TwistWithCovarianceStamped",
-                        _ns(np.asarray(vel["time"]) + log_delay), _twist_messages(ts, ros1, vel)))
+                        _ns(np.asarray(vel.get("log_time", vel["time"])) + log_delay), _twist_messages(ts, ros1, vel)))
     serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
 
     def one(i, typ, times, msgs):
@@ -1013,9 +1016,10 @@ def write_log(path, imu=None, gnss=None, vel=None, *, imu_topic="/imu/data", gns
     if suffix == ".bag":
         from rosbags.rosbag1 import Writer as Writer1
         path.unlink(missing_ok=True)
-        with Writer1(path) as w:
-            if bag_compression:
-                w.set_compression(getattr(Writer1.CompressionFormat, bag_compression.upper()))
+        w = Writer1(path)
+        if bag_compression:
+            w.set_compression(getattr(Writer1.CompressionFormat, bag_compression.upper()))
+        with w:
             conns = [w.add_connection(top, typ, typestore=ts) for top, typ, _t, _m in streams]
             for t, i, raw in merged():
                 w.write(conns[i], t, raw)
