@@ -1,6 +1,7 @@
 """Batch YAML validation (``sins compare BATCH.yaml``): each bad key is named, exit 2, nothing written."""
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
@@ -94,3 +95,17 @@ def test_shipped_batches_are_valid():
         assert spec.datasets and spec.methods
         for d in spec.datasets:
             assert d.scenario is not None and d.scenario.exists()
+
+
+def test_monte_carlo_table_rms_and_max():
+    from sinscli.report.batch import monte_carlo_table
+    from sinscli.report.errors import ROWS, ErrorTable
+    vals = np.zeros((len(ROWS), 4))
+    pos_e, max_att = ROWS.index("pos_E"), ROWS.index("max_att_deg")
+    vals[pos_e] = [3.0, -4.0, 1.0, 1.0]          # a#s0, a#s1, b#s0, b#s1
+    vals[max_att] = [0.1, 0.3, 0.2, 0.05]
+    table = ErrorTable(epoch=1.0, methods=["a#s0", "a#s1", "b#s0", "b#s1"], values=vals)
+    mc = monte_carlo_table([("a", None), ("a", None), ("b", None), ("b", None)], table)
+    assert mc.methods == ["a", "b"]
+    np.testing.assert_allclose(mc.values[pos_e], [np.sqrt(12.5), 1.0], rtol=1e-15)
+    np.testing.assert_allclose(mc.values[max_att], [0.3, 0.2], rtol=0)
