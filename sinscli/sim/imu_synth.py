@@ -29,6 +29,10 @@ def normal_gravity_n(lat: np.ndarray, h: np.ndarray) -> np.ndarray:
     return out
 
 
+# Gravity models ``g^n(lat, h)`` (n, 3) selectable by a scenario's ``gravity`` key.
+GRAVITY_MODELS = {"normal": normal_gravity_n}
+
+
 @njit(cache=True)
 def sensor_outputs(lat, h, vel_n, acc_n, cbn, w_nb_b, g_n):
     """``(w_ib^b, f^b)`` (n, 3) each from the navigation-frame kinematics at n instants.

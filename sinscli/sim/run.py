@@ -12,6 +12,7 @@ from ..types import GnssLog, ImuLog, NavState, Trajectory
 from . import truth as truth_mod
 from .errors import apply_imu_errors, gnss_seedseq, load_sensor
 from .gnss import antenna_truth, gnss_times, make_gnss
+from .imu_synth import GRAVITY_MODELS
 from .scenario import Scenario, load_scenario
 from .segments import expand
 
@@ -78,7 +79,7 @@ def simulate(scenario, seed: int | None = None, perfect: bool = False, *, durati
     perfect = perfect or p.perfect
     seed = seed if seed is not None else (sc.seed if sc.seed is not None else DEFAULT_SEED)
     td = truth_mod.generate(p.prims, sc.lat0, sc.lon0, sc.h0, sc.imu_rate, p.n_imu, extra_times=p.tau_gnss,
-                            nodes=nodes, progress=progress, t0=sc.t0)
+                            nodes=nodes, gravity=GRAVITY_MODELS[sc.gravity], progress=progress, t0=sc.t0)
     return assemble(sc, td, p.tau_gnss, {} if perfect else p.sensor, seed, perfect)
 
 

@@ -14,6 +14,7 @@ import yaml
 
 from ..errors import SinsError
 from ..nav.rotation import BODY_CONVENTIONS
+from .imu_synth import GRAVITY_MODELS
 from .segments import AXES
 
 # Segment type -> (required keys, optional keys, groups of which exactly one is required)
@@ -45,7 +46,6 @@ TOP_KEYS = {"name", "description", "seed", "duration", "start", "imu", "gnss", "
 START_KEYS = {"time", "lat", "lon", "height", "heading", "pitch", "roll", "speed"}
 IMU_KEYS = {"rate", "sensor", "gyro", "accel"}
 GNSS_KEYS = {"rate", "pos_noise", "vel_noise", "lever_arm", "outages", "velocity"}
-GRAVITY_MODELS = ("normal",)
 
 
 @dataclass
