@@ -162,6 +162,15 @@ def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: 
     lat[0], lon[0], hgt[0] = lat0, lon0, h0
     sub_dth = np.empty((M, 3))
     sub_dv = np.empty((M, 3))
+    cbn_b = np.empty((M + 1, 3, 3))
+    vel_b = np.empty((M + 1, 3))
+    w_b = np.empty((M + 1, 3))
+
+    def at_boundaries(lo, hi):          # truth at boundaries lo..hi-1 (chunked: bounded memory)
+        c_, dc_, v_, _ = evaluate(prims, starts, b[lo:hi])
+        cbn_b[lo:hi], vel_b[lo:hi], w_b[lo:hi] = c_, v_, body_rate_nb(c_, dc_)
+
+    at_boundaries(0, 1)
     done = 0
     for j0 in range(0, M, CHUNK):
         j1 = min(j0 + CHUNK, M)
@@ -178,11 +187,11 @@ def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: 
         w_ib, f_b = sensor_outputs(lat_f, h_f, vel, acc, cbn, body_rate_nb(cbn, dcbn), gravity(lat_f, h_f))
         sub_dth[j0:j1] = half[:, None] * np.einsum("jnk,n->jk", w_ib.reshape(J, nodes, 3), w)
         sub_dv[j0:j1] = half[:, None] * np.einsum("jnk,n->jk", f_b.reshape(J, nodes, 3), w)
+        at_boundaries(j0 + 1, j1 + 1)
         if progress is not None:
             now = int(owner[j1 - 1]) + 1 if j1 < M else n_imu
             progress(now - done)
             done = now
     dtheta = np.stack([np.bincount(owner, sub_dth[:, k], minlength=n_imu) for k in range(3)], axis=-1)
     dvel = np.stack([np.bincount(owner, sub_dv[:, k], minlength=n_imu) for k in range(3)], axis=-1)
-    cbn_b, dcbn_b, vel_b, _ = evaluate(prims, starts, b)
-    return TruthData(b, lat, lon, hgt, vel_b, cbn_b, body_rate_nb(cbn_b, dcbn_b), imu_idx, dtheta, dvel)
+    return TruthData(b, lat, lon, hgt, vel_b, cbn_b, w_b, imu_idx, dtheta, dvel)
