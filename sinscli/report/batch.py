@@ -346,7 +346,6 @@ def run_batch(spec: BatchSpec, outdir, jobs: int | None = None, on_progress=None
     tick = on_progress or (lambda n: None)
     err = on_error or (lambda msg: None)
     results: list[JobResult] = []
-    prepared_ok = {}
     if jobs == 1:
         executor = _InlineExecutor()
     else:
@@ -371,13 +370,14 @@ def run_batch(spec: BatchSpec, outdir, jobs: int | None = None, on_progress=None
                     err(f"job {ds.name}/{label} failed: {msg}")
                     tick(1)
                 continue
-            prepared_ok[(ds.name, seed)] = True
             for m in spec.methods:
                 label = f"{m.name}#s{seed}" if multi else m.name
                 traj_path = (data_dir(outdir, ds, seed) / f"nav_{m.name}.csv") if spec.write_trajectories else None
                 nf = executor.submit(navigate_job, prep, m, spec.interpolate, traj_path)
                 nav_futs[nf] = JobResult(ds.name, seed, m.name, label)
             del prep
+        prep_futs.clear()                    # release the prepared data held by the finished futures
+        fut = None
         for fut in cf.as_completed(nav_futs):
             job = nav_futs[fut]
             tick(1)
