@@ -125,7 +125,16 @@ class _Log:
         for t, raw in self.iter_raw(topic):
             times.append(t)
             msgs.append(deser(raw))
+        self._check_count(topic, len(msgs))
         return np.asarray(times, dtype=np.int64), msgs
+
+    def _check_count(self, topic: str, n: int) -> None:
+        """The library's iterator must yield as many messages as the log's index/statistics count
+        (an MCAP chunk without CRC whose record lengths are damaged is otherwise read short, silently)."""
+        expected = self.topics[topic].count
+        if expected and n != expected:
+            raise SinsError(f"{self.path}: topic {topic}: log is damaged: its index counts {expected} messages "
+                            f"but {n} could be read")
 
     def imu_block(self, topic: str, bulk: bool = True) -> tuple[np.ndarray, ImuBlock]:
         """All Imu messages of ``topic``: (log ns, decoded block).
@@ -141,6 +150,7 @@ class _Log:
             times.append(t)
             raws.append(raw)
         info = self.topics[topic]
+        self._check_count(topic, len(raws))
         block = ros_bulk.decode_imu_messages(raws, info.encoding, self.deserializer(topic), bulk=bulk)
         return np.asarray(times, dtype=np.int64), block
 
@@ -463,7 +473,9 @@ class _McapLog(_Log):
         ch = self.summary.channels[cid]
         schema = self.summary.schemas.get(ch.schema_id)
         decoder = None
-        with _guard(self.path, topic, "cannot build a decoder for the schema"):
+        with _guard(self.path, topic, "cannot build a decoder for the schema"), \
+                contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+            # (the schema parsers print their complaints; the SinsError line says it instead)
             for factory in self.factories:
                 decoder = factory.decoder_for(ch.message_encoding, schema)
                 if decoder is not None:
