@@ -157,3 +157,11 @@ def _check_columns(path, header):
     if missing:
         raise SinsError(f"{path}: missing trajectory column(s) {', '.join(missing)}; expected "
                         f"{', '.join(REQUIRED)} (FORMATS.md)")
+
+
+# Result formats of other modules (MCAP for Foxglove/ROS, TUM for evo, GeoJSON and KML for maps).
+from .foxglove import write_trajectory_mcap  # noqa: E402
+from .geo import write_geojson, write_kml  # noqa: E402
+from .tum import write_tum  # noqa: E402
+
+WRITERS.update({".mcap": write_trajectory_mcap, ".tum": write_tum, ".geojson": write_geojson, ".kml": write_kml})
