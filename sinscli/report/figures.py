@@ -90,9 +90,11 @@ def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> li
     fig = Figure(figsize=(8, 4))
     ax = fig.add_subplot()
     _line_plot(ax, series, lambda s: s.angle_rad * scale)
+    if any(np.max(s.angle_rad) > 0 for s in series.values() if len(s)):
+        ax.set_yscale("log")                 # methods often differ by orders of magnitude
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"angle ({unit})")
-    _title(ax, title, "Attitude error angle |phi|")
+    _title(ax, title, "Attitude error angle |phi| (log scale)")
     ax.legend(fontsize=8)
     fig.tight_layout()
     _save(fig, outdir / "att_angle.png")
