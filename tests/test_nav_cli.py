@@ -164,3 +164,11 @@ def test_shipped_config_is_valid():
     from sinscli.config import load_config
     cfg = load_config(Path(__file__).resolve().parents[1] / "configs" / "navigation.yaml")
     assert cfg["navigation"]["attitude"] == "quat"
+
+
+def test_unwired_attitude_methods_are_refused(simdir, tmp_path):
+    """Never a silently wrong trajectory: a method that is not in the loop is refused, not replaced."""
+    out = tmp_path / "o.csv"
+    r = CliRunner().invoke(main, ["navigate", str(simdir / "imu.csv"), "--init", str(simdir / "init.yaml"),
+                                  "--attitude", "dcm", "--angles", "-o", str(out), "-q"])
+    assert r.exit_code == 2 and "--angles" in r.output and not out.exists()

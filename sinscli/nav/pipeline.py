@@ -59,6 +59,9 @@ class NavOptions:
         if self.angles and self.attitude not in ("krylov", "euler"):
             raise SinsError(f"--angles: the raw angles exist only for --attitude krylov or euler, "
                             f"not {self.attitude}")
+        if self.attitude in ("krylov", "euler"):
+            raise SinsError(f"--attitude {self.attitude}: the seed 003 angle kernels exist (sinscli.nav.krylov) "
+                            f"but are not yet wired into the navigation loop; use dcm or quat")
         if self.frame != "enu":
             raise SinsError(f"frame: {self.frame!r} is not available in this version; expected enu")
 
