@@ -692,6 +692,13 @@ def read_imu(path, topic=None, time_source="header", start=None, end=None, bulk=
     if t.shape[0] < 2:
         raise SinsError(f"{where}: only one message in the requested interval; need at least two")
     _check_increasing(t, where, f"{time_source} stamp")
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    gaps = np.flatnonzero(dt > 5.0 * med)
+    if gaps.size:
+        k = int(gaps[np.argmax(dt[gaps])])
+        log.warning("%s: %d gaps longer than 5 median intervals (%.6g s); the longest is %.6g s after %.9f s",
+                    where, gaps.size, med, dt[k], t[k])
     finite = np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
     if not finite.all():
         k = int(np.flatnonzero(~finite)[0])
