@@ -40,14 +40,8 @@ def main():
     init = NavState(0.0, math.radians(30), math.radians(114), 10.0, np.zeros(3), np.eye(3))
     small = ImuLog(imu.time[:1000], imu.dtheta_b[:1000], imu.dvel_b[:1000])
     methods = [("quat", dict(attitude="quat")), ("dcm", dict(attitude="dcm")),
-               ("dcm-seed000", dict(attitude="dcm", dcm_variant="seed000"))]
-    try:
-        from sinscli.nav import krylov  # noqa: F401
-        from sinscli.nav import strapdown as sd
-        if hasattr(sd, "ATT_KRYLOV") and getattr(sd, "KRYLOV_WIRED", False):
-            methods.append(("krylov", dict(attitude="krylov")))
-    except ImportError:
-        pass
+               ("dcm-seed000", dict(attitude="dcm", dcm_variant="seed000")),
+               ("krylov", dict(attitude="krylov")), ("euler3-rk4", dict(attitude="euler"))]
     for _, kw in methods:                      # JIT warm-up
         navigate(small, init, NavOptions(**kw))
     navigate(small, init, NavOptions(attitude="quat", coning=1))
@@ -58,6 +52,10 @@ def main():
     for name, kw in methods:
         el = best_of(lambda: navigate(imu, init, NavOptions(**kw)))
         print(f"{name} samples_per_s={N / el:.0f} ratio_to_quat_coning1={base / el:.3f}")
+        if name == "quat":
+            quat_el = el
+        if name == "krylov":
+            print(f"krylov per-step cost / quat = {el / quat_el:.2f}")
     return 0
 
 

@@ -15,8 +15,14 @@ from ..io.readers import iter_imu
 from ..io.trajectory import TrajectoryWriter, write_trajectory
 from ..nav.earth import gravity
 from ..nav.pipeline import NavOptions, concat, navigate_blocks
+
 from ..nav.rotation import BODY_CONVENTIONS
 from .base import log, main, progress, quiet_option
+
+
+def _extra_columns(opts):
+    """Extra trajectory columns the options add (``--angles``)."""
+    return ("k_phi", "k_psi", "k_gamma", "k_xi", "k_set") if opts.angles else ()
 
 
 def _count_rows(path: Path) -> int:
@@ -52,16 +58,25 @@ def _count_rows(path: Path) -> int:
 @click.option("--static-start", is_flag=True, default=None,
               help="The log starts at rest: check the specific force against gravity.")
 @click.option("--angles", is_flag=True, help="Add the raw angles (krylov/euler) to the output.")
+@click.option("--euler-integrator", type=click.Choice(["euler", "rk4"]), default=None,
+              help="3-angle baseline integrator: forward Euler (the patent's) or RK4.")
+@click.option("--singularity-threshold", type=float, default=None,
+              help="|cos psi| under which the 3-angle method reports its singularity (default 0.01).")
+@click.option("--on-singularity", type=click.Choice(["continue", "stop"]), default=None,
+              help="3-angle method at its singularity: carry on (warn) or stop the run there.")
 @click.option("--imu-topic", default=None, help="IMU topic in a ROS bag / MCAP log.")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("trajectory.csv"),
               show_default=True, help="Trajectory output: .csv, .parquet, .mcap, .tum, .geojson, .kml.")
 @quiet_option
 def navigate_cmd(imu, init_path, attitude, dcm_variant, coning, subsamples, every, config_path, body,
-                 allow_gaps, static_start, angles, imu_topic, output, quiet):
+                 allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
+                 imu_topic, output, quiet):
     """Navigate IMU increments from an initial state and write the trajectory."""
     cfg = config_mod.load_config(config_path)
     cfg = config_mod.merge(cfg, "navigation", attitude=attitude, dcm_variant=dcm_variant, coning=coning,
-                           subsamples=subsamples, every=every, allow_gaps=allow_gaps)
+                           subsamples=subsamples, every=every, allow_gaps=allow_gaps,
+                           euler_integrator=euler_integrator, singularity_threshold=singularity_threshold,
+                           on_singularity=on_singularity)
     cfg = config_mod.merge(cfg, "imu", body=body, static_start=static_start)
     cfg = config_mod.merge(cfg, "ros", imu_topic=imu_topic)
     nav = cfg["navigation"]
@@ -91,7 +106,8 @@ def navigate_cmd(imu, init_path, attitude, dcm_variant, coning, subsamples, ever
     with progress(total, "navigating", quiet or total < 200_000) as bar:
         chunks = navigate_blocks(all_blocks(), init, opts, progress=bar.update)
         if streaming:
-            with TrajectoryWriter(output, conv) as writer:
+            extra = list(_extra_columns(opts))
+            with TrajectoryWriter(output, conv, extra_columns=extra) as writer:
                 for chunk in chunks:
                     writer.write(chunk)
         else:

@@ -59,9 +59,6 @@ class NavOptions:
         if self.angles and self.attitude not in ("krylov", "euler"):
             raise SinsError(f"--angles: the raw angles exist only for --attitude krylov or euler, "
                             f"not {self.attitude}")
-        if self.attitude in ("krylov", "euler"):
-            raise SinsError(f"--attitude {self.attitude}: the seed 003 angle kernels exist (sinscli.nav.krylov) "
-                            f"but are not yet wired into the navigation loop; use dcm or quat")
         if self.frame != "enu":
             raise SinsError(f"frame: {self.frame!r} is not available in this version; expected enu")
 
@@ -81,7 +78,13 @@ class Navigator:
         self.opts = opts
         self.method = opts.method_code()
         self.state = sd.new_state(init.time, init.lat, init.lon, init.height,
-                                  np.asarray(init.vel_n, dtype=float), c)
+                                  np.asarray(init.vel_n, dtype=float), c, self.method, opts.conv)
+        from .rotation import conv_to_flu
+        self._cflu = conv_to_flu(opts.conv)
+        self._integrator = 0 if opts.euler_integrator == "euler" else 1
+        self._cos_stop = opts.singularity_threshold if opts.on_singularity == "stop" else 0.0
+        self._warned_singular = False
+        self.stopped = False
         self.applied = 0
         self.first_time = None
         self.last_time = None
@@ -90,9 +93,22 @@ class Navigator:
 
     def initial_row(self) -> Trajectory:
         s = self.init
+        extra = self._angle_columns(self.state[sd.S_ANG:sd.S_ANG + 5][None, :].copy())
         return Trajectory(np.array([s.time]), np.array([s.lat]), np.array([s.lon]), np.array([s.height]),
                           np.asarray(s.vel_n, dtype=float)[None, :].copy(),
-                          np.asarray(s.Cbn, dtype=float)[None, :, :].copy())
+                          np.asarray(s.Cbn, dtype=float)[None, :, :].copy(), extra)
+
+    def _angle_columns(self, ang) -> dict:
+        """``--angles``: raw angles in degrees and the active set (krylov: 0 = A, 1 = B; euler: 3 angles)."""
+        if not self.opts.angles:
+            return {}
+        d = np.degrees(ang[:, :4])
+        cols = {"k_phi": d[:, 0], "k_psi": d[:, 1], "k_gamma": d[:, 2], "k_xi": d[:, 3],
+                "k_set": ang[:, 4].copy()}
+        if self.method == sd.ATT_EULER:
+            cols["k_xi"] = np.zeros(len(ang))
+            cols["k_set"] = np.full(len(ang), -1.0)
+        return cols
 
     def feed(self, imu: ImuLog) -> Trajectory | None:
         """Navigate one block; returns its output rows (or None when it produced none)."""
@@ -111,7 +127,7 @@ class Navigator:
             time, dth, dv = imu.time[k0:], imu.dtheta_b[k0:], imu.dvel_b[k0:]
         else:
             time, dth, dv = imu.time, imu.dtheta_b, imu.dvel_b
-        if time.shape[0] == 0:
+        if time.shape[0] == 0 or self.stopped:
             return None
         if self.first_time is None:
             self.first_time = float(time[0])
@@ -121,6 +137,8 @@ class Navigator:
             b = min(a + BLOCK, time.shape[0])
             chunks.append(self._run(np.ascontiguousarray(time[a:b]), np.ascontiguousarray(dth[a:b]),
                                     np.ascontiguousarray(dv[a:b])))
+            if self.stopped:
+                break
         self.applied += time.shape[0]
         rows = [c for c in chunks if len(c)]
         if not rows:
@@ -134,9 +152,35 @@ class Navigator:
         out_pos = np.empty((cap, 3))
         out_vel = np.empty((cap, 3))
         out_cbn = np.empty((cap, 3, 3))
-        n = sd.run(time, dth, dv, self.state, self.method, self.opts.coning, self.opts.subsamples,
-                   self.opts.every, out_t, out_pos, out_vel, out_cbn)
-        return Trajectory(out_t[:n], out_pos[:n, 0], out_pos[:n, 1], out_pos[:n, 2], out_vel[:n], out_cbn[:n])
+        out_ang = np.empty((cap, 5))
+        events = np.empty((64, sd.N_EVENT))
+        n, n_ev = sd.run(time, dth, dv, self.state, self.method, self.opts.coning, self.opts.subsamples,
+                         self.opts.every, self._cflu, self._integrator, self._cos_stop,
+                         out_t, out_pos, out_vel, out_cbn, out_ang, events)
+        self._report_angle_events(events, n_ev)
+        return Trajectory(out_t[:n], out_pos[:n, 0], out_pos[:n, 1], out_pos[:n, 2], out_vel[:n], out_cbn[:n],
+                          self._angle_columns(out_ang[:n]))
+
+    def _report_angle_events(self, events, n_ev) -> None:
+        """Log Krylov set transfers (debug) and the 3-angle singularity (warning, or stop)."""
+        st = self.state
+        if self.method == sd.ATT_KRYLOV and n_ev:
+            for e in events[:min(n_ev, len(events))]:
+                log.debug("krylov transfer at t=%.6f: set %s (%.6f, %.6f, %.6f, %.6f) deg -> set %s "
+                          "(%.6f, %.6f, %.6f, %.6f) deg", e[0], "B" if e[9] == 0 else "A",
+                          *np.degrees(e[1:5]), "B" if e[9] == 1 else "A", *np.degrees(e[5:9]))
+            if n_ev > len(events):
+                log.debug("krylov: %d more transfers in this block", n_ev - len(events))
+        if self.method == sd.ATT_EULER:
+            cmin, tmin = st[sd.S_COSMIN], st[sd.S_TCOSMIN]
+            if st[sd.S_STOPPED] > 0:
+                self.stopped = True
+                log.warning("3-angle method: |cos psi| = %.3g under the threshold %g at t = %.6f s; stopped "
+                            "there (--on-singularity stop)", cmin, self.opts.singularity_threshold, tmin)
+            elif cmin < self.opts.singularity_threshold and not self._warned_singular:
+                self._warned_singular = True
+                log.warning("3-angle method: |cos psi| = %.3g fell under the threshold %g at t = %.6f s (near "
+                            "its singularity); carrying on", cmin, self.opts.singularity_threshold, tmin)
 
     def finish(self) -> None:
         """Check that the log covered the initial time (call after the last block)."""

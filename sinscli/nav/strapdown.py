@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from .coning import CONING_COEFFS, MAX_ORDER, body_increments, fast_step
+from .krylov import (euler3_dcm_t, euler3_init, euler3_step_t, krylov_init, krylov_step_dcm_t)
 from .mechanization import (displacement, first_guess_displacement, frame_rotation, midpoint,
                             position_update, velocity_update)
 from .rotation import (m_mul, m_trans, m_vec, quat_mul_t, quat_normalize_t, quat_to_dcm_t,
@@ -63,11 +64,18 @@ S_PUPS = 94            # 3: previous interval's upsilon
 S_HAVE_PREV = 97
 S_VMM3 = 98            # 3: velocity at t_{m-3}
 S_TMM3 = 101
-STATE_SIZE = 104
+S_STOPPED = 104        # 1 when the 3-angle method stopped at its singularity
+STATE_SIZE = 106
+
+N_EVENT = 10           # transfer events: time, old 4 angles, new 4 angles, new set
 
 
-def new_state(time, lat, lon, h, vel_n, cbn):
-    """A fresh state vector at the initial time (radians, metres, ENU)."""
+def new_state(time, lat, lon, h, vel_n, cbn, method=ATT_QUAT, conv=0):
+    """A fresh state vector at the initial time (radians, metres, ENU).
+
+    For the angle methods the angles are initialized from ``Cbn`` in FLU axes
+    (KRYLOV.md 4.8; the 3-angle extraction of 2.4).
+    """
     st = np.zeros(STATE_SIZE)
     st[S_T], st[S_LAT], st[S_LON], st[S_H] = time, lat, lon, h
     st[S_VEL:S_VEL + 3] = vel_n
@@ -76,6 +84,15 @@ def new_state(time, lat, lon, h, vel_n, cbn):
     st[S_Q:S_Q + 4] = dcm_to_quat(np.ascontiguousarray(cbn, dtype=np.float64))
     st[S_TSTART] = time
     st[S_COSMIN] = 1.0
+    if method in (ATT_KRYLOV, ATT_EULER):
+        from .rotation import conv_to_flu
+        c_flu = np.asarray(cbn, dtype=np.float64) @ conv_to_flu(conv).T
+        if method == ATT_KRYLOV:
+            ang, kset, phib = krylov_init(np.ascontiguousarray(c_flu))
+            st[S_ANG:S_ANG + 4] = ang
+            st[S_KSET], st[S_PHIB] = kset, phib
+        else:
+            st[S_ANG:S_ANG + 3] = euler3_init(np.ascontiguousarray(c_flu))
     return st
 
 
@@ -206,16 +223,64 @@ def _attitude_update(st, method, phi, zeta):
                 _acc(st, S_CBN + 3 * i + j, S_CLO + 3 * i + j, -0.5 * ce[i][j])
 
 
+@njit(cache=True, inline="always")
+def _angle_update(st, method, alpha, alpha_prev, zeta, cflu, integrator, t_start, events, n_ev):
+    """Seed 003 angle methods over one interval (KRYLOV.md 4.6, 2.4), in FLU axes.
+
+    ``alpha``/``alpha_prev`` are the raw summed body increments of this and the
+    previous interval (the two-sample rate model does the coning part, so the
+    coning-compensated ``phi`` is not used); ``zeta`` enters as the navigation-
+    frame rate over a unit interval.  Writes Cbn (body convention) to the state;
+    records a transfer in ``events`` and returns the new event count.
+    """
+    a_f = m_vec(cflu, alpha)
+    p_f = m_vec(cflu, alpha_prev)
+    if method == ATT_KRYLOV:
+        ang = (st[S_ANG], st[S_ANG + 1], st[S_ANG + 2], st[S_ANG + 3])
+        new, kset, phib, moved, c_flu = krylov_step_dcm_t(ang, int(st[S_KSET]), st[S_PHIB], p_f, a_f, 1.0, zeta)
+        if moved:
+            st[S_NTRANSFER] += 1.0
+            if n_ev < events.shape[0]:
+                events[n_ev, 0] = t_start
+                for i in range(4):
+                    events[n_ev, 1 + i] = ang[i]
+                    events[n_ev, 5 + i] = new[i]
+                events[n_ev, 9] = kset
+            n_ev += 1
+        for i in range(4):
+            st[S_ANG + i] = new[i]
+        st[S_KSET], st[S_PHIB] = kset, phib
+    else:
+        ang3 = (st[S_ANG], st[S_ANG + 1], st[S_ANG + 2])
+        new3, cmin = euler3_step_t(ang3, p_f, a_f, 1.0, zeta, integrator)
+        if cmin < st[S_COSMIN]:
+            st[S_COSMIN] = cmin
+            st[S_TCOSMIN] = t_start
+        for i in range(3):
+            st[S_ANG + i] = new3[i]
+        c_flu = euler3_dcm_t(new3)
+    # C_conv^n = C_flu^n C_conv^flu
+    _set_cbn(st, m_mul(c_flu, cflu))
+    return n_ev
+
+
 @njit(cache=True)
-def run(time, dtheta_b, dvel_b, st, method, order, nsub, every,
-        out_t, out_pos, out_vel, out_cbn):
+def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integrator, cos_stop,
+        out_t, out_pos, out_vel, out_cbn, out_ang, events):
     """Navigate the samples ``time[k]`` (end of each increment interval) from state ``st``.
 
     ``order`` is the coning/sculling order K (1-4), ``nsub`` the fast samples per
     attitude update N, ``every`` the output decimation in attitude updates.
-    Writes states into the ``out_*`` arrays (capacity ``len(time) // (nsub*every) + 1``)
-    and returns the number of rows written; ``st`` is updated in place.
+    ``cflu_arr`` is ``C_conv^FLU`` of the body convention (angle methods work in
+    FLU); ``integrator`` the 3-angle integrator (0 Euler, 1 RK4); the 3-angle
+    method stops (``st[S_STOPPED] = 1``) when |cos psi| falls under ``cos_stop``
+    (pass 0 to carry on).  Writes states into the ``out_*`` arrays (capacity
+    ``len(time) // (nsub*every) + 1``; ``out_ang`` gets the raw angles and set),
+    transfer events into ``events``; returns ``(rows written, events seen)``.
     """
+    cflu = ((cflu_arr[0, 0], cflu_arr[0, 1], cflu_arr[0, 2]), (cflu_arr[1, 0], cflu_arr[1, 1], cflu_arr[1, 2]),
+            (cflu_arr[2, 0], cflu_arr[2, 1], cflu_arr[2, 2]))
+    n_ev = 0
     coeffs = CONING_COEFFS[order - 1]
     nprev_max = order - 1
     n_out = 0
@@ -247,6 +312,7 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every,
         # ---- attitude interval closes: moderate-rate update ----
         t_end = time[k]
         T = t_end - st[S_TSTART]
+        alpha_prev = _vec(st, S_PALPHA) if st[S_HAVE_PREV] > 0.0 else alpha
         phi, dv_b = body_increments(alpha, ups, beta, scul, _vec(st, S_PALPHA), _vec(st, S_PUPS),
                                     st[S_HAVE_PREV] > 0.0 and order > 1)
         _set_vec(st, S_PALPHA, alpha)
@@ -272,7 +338,10 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every,
             dR = displacement(v_mm3, v_mm2, vel, v_new, h2, h1, T, nhist)
         lat_mid, h_mid = midpoint(lat, h, dR)
         zeta = frame_rotation(lat_mid, h_mid, dR, T)
-        _attitude_update(st, method, phi, zeta)
+        if method == ATT_KRYLOV or method == ATT_EULER:
+            n_ev = _angle_update(st, method, alpha, alpha_prev, zeta, cflu, integrator, st[S_TSTART], events, n_ev)
+        else:
+            _attitude_update(st, method, phi, zeta)
         dlat, dlon, dh = position_update(lat, h, dR)
         # ---- store (compensated accumulation of every integrated state) ----
         _set_vec(st, S_VMM3, v_mm2)
@@ -303,7 +372,13 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every,
             for i in range(3):
                 for j in range(3):
                     out_cbn[n_out, i, j] = st[S_CBN + 3 * i + j]
+            for i in range(4):
+                out_ang[n_out, i] = st[S_ANG + i]
+            out_ang[n_out, 4] = st[S_KSET]
             n_out += 1
+        if method == ATT_EULER and st[S_COSMIN] < cos_stop:
+            st[S_STOPPED] = 1.0
+            break
     # save the fast-rate memory for the next chunk
     for j in range(MAX_ORDER - 1):
         for i in range(3):
@@ -315,4 +390,4 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every,
     _set_vec(st, S_BETA, beta)
     _set_vec(st, S_SCUL, scul)
     st[S_NSUB] = nsub_now
-    return n_out
+    return n_out, n_ev
