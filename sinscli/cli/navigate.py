@@ -14,6 +14,7 @@ from ..io.init_state import read_init
 from ..io.readers import iter_imu
 from ..io.trajectory import TrajectoryWriter, write_trajectory
 from ..nav.earth import gravity
+from ..nav.inertial import COLUMNS as INERTIAL_COLUMNS
 from ..nav.pipeline import NavOptions, concat, navigate_blocks
 
 from ..nav.rotation import BODY_CONVENTIONS
@@ -21,8 +22,9 @@ from .base import log, main, progress, quiet_option
 
 
 def _extra_columns(opts):
-    """Extra trajectory columns the options add (``--angles``)."""
-    return ("k_phi", "k_psi", "k_gamma", "k_xi", "k_set") if opts.angles else ()
+    """Extra trajectory columns the options add (``--angles``, ``--frame launch-inertial``)."""
+    cols = ("k_phi", "k_psi", "k_gamma", "k_xi", "k_set") if opts.angles else ()
+    return cols + (INERTIAL_COLUMNS if opts.frame == "launch-inertial" else ())
 
 
 def _count_rows(path: Path) -> int:
@@ -64,19 +66,22 @@ def _count_rows(path: Path) -> int:
               help="|cos psi| under which the 3-angle method reports its singularity (default 0.01).")
 @click.option("--on-singularity", type=click.Choice(["continue", "stop"]), default=None,
               help="3-angle method at its singularity: carry on (warn) or stop the run there.")
+@click.option("--frame", type=click.Choice(["enu", "launch-inertial"]), default=None,
+              help="Navigation frame: local ENU, or the launch-centred inertial frame (WGS-84 J2 "
+                   "gravitation; launch point from navigation.launch or the init YAML's launch:).")
 @click.option("--imu-topic", default=None, help="IMU topic in a ROS bag / MCAP log.")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("trajectory.csv"),
               show_default=True, help="Trajectory output: .csv, .parquet, .mcap, .tum, .geojson, .kml.")
 @quiet_option
 def navigate_cmd(imu, init_path, attitude, dcm_variant, coning, subsamples, every, config_path, body,
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
-                 imu_topic, output, quiet):
+                 frame, imu_topic, output, quiet):
     """Navigate IMU increments from an initial state and write the trajectory."""
     cfg = config_mod.load_config(config_path)
     cfg = config_mod.merge(cfg, "navigation", attitude=attitude, dcm_variant=dcm_variant, coning=coning,
                            subsamples=subsamples, every=every, allow_gaps=allow_gaps,
                            euler_integrator=euler_integrator, singularity_threshold=singularity_threshold,
-                           on_singularity=on_singularity)
+                           on_singularity=on_singularity, frame=frame)
     cfg = config_mod.merge(cfg, "imu", body=body, static_start=static_start)
     cfg = config_mod.merge(cfg, "ros", imu_topic=imu_topic)
     nav = cfg["navigation"]

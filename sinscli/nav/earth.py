@@ -107,3 +107,80 @@ def enu_rotation(lat, lon):
     n = np.stack([-sl * co, -sl * so, cl], axis=-1)
     u = np.stack([cl * co, cl * so, sl], axis=-1)
     return np.stack([e, n, u], axis=-2)
+
+
+# --- WGS-84 gravitation with J2 and the launch-centred inertial frame ----------------------------
+#
+# The launch-inertial frame ``i`` (docs/inertial.md): origin at the launch point at the launch
+# time t_L; x_i horizontal along the launch azimuth A (clockwise from north), y_i up along the
+# ellipsoid normal, z_i = x_i x y_i (horizontal, to the right of x_i); frozen in inertial space at
+# t_L.  ``C_e^i`` at launch is :func:`launch_axes`; at t = t_L + dt the earth has turned by
+# W dt about its polar axis, so ``C_e(t)^i = C_e(tL)^i Rz(W dt)`` with ``Rz`` the rotation of
+# :func:`ecef_to_launch_axes_py`.
+
+def gravitation_py(x, y, z):
+    """WGS-84 gravitation (attraction only, no centrifugal term) with J2, ECEF components, m/s^2.
+
+    ``G = -GM/r^3 (x (1 + c (1 - 5 z^2/r^2)), y (1 + c (1 - 5 z^2/r^2)), z (1 + c (3 - 5 z^2/r^2)))``
+    with ``c = 3/2 J2 (a/r)^2``: the gradient of ``U = GM/r (1 - J2 (a/r)^2 P2(z/r))``.
+    The field is symmetric about the polar axis, so the same formula holds in any
+    frame whose third axis is the polar axis (e.g. ECEF frozen at the launch time).
+    """
+    r2 = x * x + y * y + z * z
+    r = np.sqrt(r2)
+    k = -GM / (r2 * r)
+    c = 1.5 * J2 * A * A / r2
+    q = 5.0 * z * z / r2
+    f = k * (1.0 + c * (1.0 - q))
+    return f * x, f * y, k * z * (1.0 + c * (3.0 - q))
+
+
+def plumb_gravity_py(x, y, z):
+    """J2 gravity of the rotating earth in ECEF: ``g = G - W x (W x r)`` (gravitation + centrifugal), m/s^2.
+
+    numpy only (the simulator's ``j2`` model); the navigation kernels use :func:`gravitation`.
+    """
+    gx, gy, gz = gravitation_py(x, y, z)
+    w2 = OMEGA_IE * OMEGA_IE
+    return gx + w2 * x, gy + w2 * y, gz
+
+
+def ecef_to_launch_axes_py(x, y, z, dt, c_ei):
+    """An ECEF vector at time ``t_L + dt`` (s) in launch-inertial axes: ``C_e(tL)^i Rz(W dt) x``.
+
+    ``c_ei`` is ``C_e^i`` at launch (:func:`launch_axes`, indexable ``c_ei[i][j]``).
+    Axes only: a position needs the launch point subtracted (``r^i = R^i - R_0^i``).
+    """
+    th = OMEGA_IE * dt
+    ct, st = np.cos(th), np.sin(th)
+    x0 = ct * x - st * y
+    y0 = st * x + ct * y
+    return (c_ei[0][0] * x0 + c_ei[0][1] * y0 + c_ei[0][2] * z,
+            c_ei[1][0] * x0 + c_ei[1][1] * y0 + c_ei[1][2] * z,
+            c_ei[2][0] * x0 + c_ei[2][1] * y0 + c_ei[2][2] * z)
+
+
+def launch_to_ecef_axes_py(x, y, z, dt, c_ei):
+    """The inverse of :func:`ecef_to_launch_axes_py`: ``Rz(-W dt) C_i^e(tL) x``."""
+    x0 = c_ei[0][0] * x + c_ei[1][0] * y + c_ei[2][0] * z
+    y0 = c_ei[0][1] * x + c_ei[1][1] * y + c_ei[2][1] * z
+    z0 = c_ei[0][2] * x + c_ei[1][2] * y + c_ei[2][2] * z
+    th = OMEGA_IE * dt
+    ct, st = np.cos(th), np.sin(th)
+    return ct * x0 + st * y0, -st * x0 + ct * y0, z0
+
+
+gravitation = njit(cache=True)(gravitation_py)
+ecef_to_launch_axes = njit(cache=True)(ecef_to_launch_axes_py)
+launch_to_ecef_axes = njit(cache=True)(launch_to_ecef_axes_py)
+
+
+def launch_axes(lat, lon, azimuth):
+    """``C_e^i`` (3, 3) at launch: rows x_i, y_i, z_i in ECEF axes (radians).
+
+    ``x_i = sin A E + cos A N``, ``y_i = U``, ``z_i = x_i x y_i = cos A E - sin A N``
+    with E, N, U the rows of :func:`enu_rotation` at the launch point.
+    """
+    e, n, u = enu_rotation(lat, lon)
+    sa, ca = np.sin(azimuth), np.cos(azimuth)
+    return np.stack([sa * e + ca * n, u, ca * e - sa * n])

@@ -59,8 +59,10 @@ class NavOptions:
         if self.angles and self.attitude not in ("krylov", "euler"):
             raise SinsError(f"--angles: the raw angles exist only for --attitude krylov or euler, "
                             f"not {self.attitude}")
-        if self.frame != "enu":
-            raise SinsError(f"frame: {self.frame!r} is not available in this version; expected enu")
+        if self.frame not in ("enu", "launch-inertial"):
+            raise SinsError(f"frame: expected enu or launch-inertial, got {self.frame!r}")
+        if self.frame == "launch-inertial" and self.attitude not in ("dcm", "quat"):
+            raise SinsError(f"--frame launch-inertial: the attitude is dcm or quat, not {self.attitude}")
 
 
 class Navigator:
@@ -90,8 +92,15 @@ class Navigator:
         self.last_time = None
         self._emitted_initial = False
         self._source = "<memory>"
+        self.inertial = None
+        if opts.frame == "launch-inertial":      # the launch-inertial kernel (sinscli.nav.inertial)
+            from .inertial import LaunchInertial
+            self.inertial = LaunchInertial(init, opts.launch, self.method, opts.coning, opts.subsamples,
+                                           opts.every)
 
     def initial_row(self) -> Trajectory:
+        if self.inertial is not None:
+            return self.inertial.initial_row()
         s = self.init
         extra = self._angle_columns(self.state[sd.S_ANG:sd.S_ANG + 5][None, :].copy())
         return Trajectory(np.array([s.time]), np.array([s.lat]), np.array([s.lon]), np.array([s.height]),
@@ -146,6 +155,8 @@ class Navigator:
         return concat(rows)
 
     def _run(self, time, dth, dv) -> Trajectory:
+        if self.inertial is not None:
+            return self.inertial.run(time, dth, dv)
         per = self.opts.subsamples * self.opts.every
         cap = time.shape[0] // per + 2
         out_t = np.empty(cap)
