@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..nav.earth import earth_rate_n, gravity_py, transport_rate_n
+from ..nav.earth import earth_rate_n, enu_rotation, gravity_py, lla_to_ecef, plumb_gravity_py, transport_rate_n
 from ..nav.rotation import cross, mtv3
 from .jets import vee
 
@@ -29,8 +29,22 @@ def normal_gravity_n(lat: np.ndarray, h: np.ndarray) -> np.ndarray:
     return out
 
 
+def j2_gravity_n(lat: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """``g^n = C_e^n (G_J2(r^e) - W x (W x r^e))`` (n, 3): WGS-84 gravitation with J2 plus the
+    centrifugal term, in ENU; the field is zonal, so it is evaluated at longitude 0.
+
+    Unlike the normal gravity it has a north component and holds at any height (the launch-
+    inertial navigator's gravitation, :func:`sinscli.nav.earth.gravitation`, is the same field).
+    """
+    lat = np.asarray(lat, dtype=float)
+    zero = np.zeros_like(lat)
+    r = lla_to_ecef(lat, zero, h)
+    g = np.stack(plumb_gravity_py(r[..., 0], r[..., 1], r[..., 2]), axis=-1)
+    return np.einsum("...ij,...j->...i", enu_rotation(lat, zero), g)
+
+
 # Gravity models ``g^n(lat, h)`` (n, 3) selectable by a scenario's ``gravity`` key.
-GRAVITY_MODELS = {"normal": normal_gravity_n}
+GRAVITY_MODELS = {"normal": normal_gravity_n, "j2": j2_gravity_n}
 
 
 @njit(cache=True)
