@@ -56,26 +56,41 @@ def fast_step(alpha, upsilon, beta, scul, dth, dv, prev_dth, prev_dv, n_prev, co
 
 
 @njit(cache=True, inline="always")
+def _jacobian_coeffs(a2):
+    """``((1 - cos a)/a^2, (a - sin a)/a^3)`` for ``a^2 = a2``; series below a = 1e-2."""
+    if a2 < 1e-4:
+        c1 = 0.5 * (1.0 - a2 / 12.0 * (1.0 - a2 / 30.0 * (1.0 - a2 / 56.0)))
+        c2 = (1.0 - a2 / 20.0 * (1.0 - a2 / 42.0 * (1.0 - a2 / 72.0))) / 6.0
+        return c1, c2
+    a = np.sqrt(a2)
+    return (1.0 - np.cos(a)) / a2, (a - np.sin(a)) / (a2 * a)
+
+
+@njit(cache=True, inline="always")
 def body_increments(alpha, upsilon, beta, scul, alpha_prev, upsilon_prev, have_prev):
     """Rotation vector and velocity increment of the interval in the frame b(m-1).
 
     ``phi_m = alpha_m + beta_m`` (eq 35) and ``dv^b = int C_{b(t)}^{b0} f dt``:
 
-        dv^b = upsilon + 1/2 alpha x upsilon + scul + 1/6 alpha x (alpha x upsilon)
+        dv^b = upsilon + c1 alpha x upsilon + scul + c2 alpha x (alpha x upsilon)
                + 1/24 [alpha x (alpha x (upsilon - upsilon')) - (alpha - alpha') x (alpha x upsilon)]
 
-    The 1/6 term is the second-order rotation compensation, exact for a
-    constant rate and specific force (the first-order textbook term alone leaves
-    a drift of order (w T)^2 g per step, visible at rest over an hour); the
-    1/24 term is its next order for linearly varying rate and specific force
-    (with the previous interval's sums ``alpha'``, ``upsilon'``), together with
-    the ``int beta x f dt`` part of the rotation-vector expansion.  Without it
-    the velocity error is third order in T.
+    with ``c1 = (1 - cos a)/a^2`` (= 1/2 - a^2/24 ...) and ``c2 = (a - sin a)/a^3``
+    (= 1/6 - a^2/120 ...), ``a = |alpha|``: ``int_0^1 exp(s [alpha x]) ds upsilon``,
+    the rotation compensation in closed form, exact for a constant rate and
+    specific force at any angle.  Its 1/2 is the textbook first-order term (which
+    alone drifts at rest over an hour); the 1/6 and the a^2/24 of c1 (third order,
+    about 1e-10 m/s per step in a 0.3 rad/s turn at 100 Hz) matter at the
+    accuracy this project keeps.  The 1/24 bracket is the next order for
+    linearly varying rate and specific force (previous interval's sums
+    ``alpha'``, ``upsilon'``), with the ``int beta x f dt`` part of the
+    rotation-vector expansion.
     """
     phi = v_add(alpha, beta)
     axu = v_cross(alpha, upsilon)
-    dv_b = v_add(v_add(upsilon, v_scale(axu, 0.5)),
-                 v_add(scul, v_scale(v_cross(alpha, axu), 1.0 / 6.0)))
+    c1, c2 = _jacobian_coeffs(alpha[0] * alpha[0] + alpha[1] * alpha[1] + alpha[2] * alpha[2])
+    dv_b = v_add(v_add(upsilon, v_scale(axu, c1)),
+                 v_add(scul, v_scale(v_cross(alpha, axu), c2)))
     if have_prev:
         corr = v_sub(v_cross(alpha, v_cross(alpha, v_sub(upsilon, upsilon_prev))),
                      v_cross(v_sub(alpha, alpha_prev), axu))
