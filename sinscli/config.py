@@ -180,8 +180,8 @@ def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
     """``C_sensor^body`` from the config's ``imu.mounting`` (None -> identity).
 
     ``{roll, pitch, yaw}`` in degrees means ``C = Rz(yaw) Ry(pitch) Rx(roll)``
-    (body-fixed x-y-z... applied to sensor vectors: v_body = C v_sensor); a 3x3
-    list is taken as the matrix itself and must be a rotation.
+    with ``v_body = C v_sensor`` (active rotations about the body x, y, z axes);
+    a 3x3 list is taken as the matrix itself and must be a rotation.
     """
     if mounting is None:
         return np.eye(3)
