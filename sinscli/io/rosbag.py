@@ -569,8 +569,10 @@ class _McapLog(_Log):
                 times.append(lt)
                 keys.append(np.stack([np.full(len(offs), ci.chunk_start_offset, np.int64), offs], axis=1))
         if not blocks:
-            return np.empty(0, np.int64), ros_bulk.concat_blocks([])
+            return None
         t = np.concatenate(times)
+        if info.count and t.shape[0] != info.count:
+            return None                   # the index disagrees with the statistics: the library decides
         k = np.concatenate(keys)
         block = np.concatenate(blocks)
         order = np.lexsort((k[:, 1], k[:, 0], t))
