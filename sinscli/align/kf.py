@@ -1,0 +1,147 @@
+"""Kalman-filter fine alignment: attitude error, velocity error, gyro and accelerometer biases.
+
+State (12): ``x = [phi (3, ENU), dv (3, ENU m/s), eps (3, body rad/s), nabla (3, body m/s^2)]``
+with the computed attitude ``Cbn_c = (I - [phi x]) Cbn`` and ``dv = v_c - v``.
+Error model of the ENU strapdown equations over an alignment (position
+errors left out: they change gravity and the earth rate negligibly in
+minutes):
+
+    phi'   = -w_in^n x phi - Cbn eps               - Cbn w_g      (w_g: ARW)
+    dv'    =  f^n x phi - (2 w_ie^n + w_en^n) x dv + Cbn nabla + Cbn w_a      (w_a: VRW)
+    eps'   = 0,    nabla' = 0
+
+Measurements: ``z = v_c - v_ref`` (zero at rest, the GNSS velocity moved to
+the IMU by the lever arm when moving), ``H = [0 I 0 0]``.  The filter runs
+closed loop: after each update the attitude and velocity are corrected, the
+bias estimates are added to the ones that compensate the following IMU
+increments, and the state is reset to zero.  The navigation between updates
+is the project's (:func:`sinscli.nav.pipeline.navigate`).  No I/O here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..nav.earth import OMEGA_IE, transport_rate_n
+from ..nav.pipeline import NavOptions, navigate
+from ..nav.rotation import orthonormalize, rotvec_to_dcm, skew
+from ..types import ImuLog, NavState
+
+NX = 12
+PHI, DV, EPS, NAB = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
+
+
+def error_dynamics(cbn, f_n, lat, h, vel_n):
+    """Continuous-time error matrix ``F`` (12, 12) at one instant (module docstring)."""
+    w_ie = np.array([0.0, OMEGA_IE * np.cos(lat), OMEGA_IE * np.sin(lat)])
+    w_en = transport_rate_n(lat, h, np.asarray(vel_n, dtype=float))
+    F = np.zeros((NX, NX))
+    F[PHI, PHI] = -skew(w_ie + w_en)
+    F[PHI, EPS] = -cbn
+    F[DV, PHI] = skew(np.asarray(f_n, dtype=float))
+    F[DV, DV] = -skew(2.0 * w_ie + w_en)
+    F[DV, NAB] = cbn
+    return F
+
+
+def discretize(F, T, q_gyro, q_accel, q_bias_g=0.0, q_bias_a=0.0):
+    """``(Phi, Qd)`` over ``T`` s: ``Phi = I + F T + (F T)^2/2``, white-noise densities on the attitude
+    (``q_gyro`` rad^2/s) and velocity (``q_accel`` (m/s)^2/s) errors and bias random walks, with the
+    trapezoidal ``Qd = (Phi Q Phi^T + Q) T / 2``."""
+    FT = F * T
+    Phi = np.eye(NX) + FT + 0.5 * FT @ FT
+    q = np.zeros(NX)
+    q[PHI] = q_gyro
+    q[DV] = q_accel
+    q[EPS] = q_bias_g
+    q[NAB] = q_bias_a
+    Q = np.diag(q)
+    return Phi, 0.5 * T * (Phi @ Q @ Phi.T + Q)
+
+
+def predict(x, P, Phi, Qd):
+    return Phi @ x, Phi @ P @ Phi.T + Qd
+
+
+def update_velocity(x, P, z, r_var):
+    """Measurement update with ``H = [0 I 0 0]`` and ``R = diag(r_var)`` (Joseph form)."""
+    H = np.zeros((3, NX))
+    H[:, DV] = np.eye(3)
+    S = H @ P @ H.T + np.diag(np.broadcast_to(r_var, (3,)))
+    K = np.linalg.solve(S, H @ P).T
+    x = x + K @ (z - H @ x)
+    IKH = np.eye(NX) - K @ H
+    P = IKH @ P @ IKH.T + K @ np.diag(np.broadcast_to(r_var, (3,))) @ K.T
+    return x, 0.5 * (P + P.T)
+
+
+@dataclass
+class FineResult:
+    state: NavState                 # corrected state at the last update
+    P: np.ndarray                   # (12, 12) covariance after the last update (biases in body axes)
+    gyro_bias: np.ndarray           # (3,) rad/s, estimated
+    accel_bias: np.ndarray          # (3,) m/s^2, estimated
+    times: np.ndarray               # (n,) update epochs
+    cbn: np.ndarray                 # (n, 3, 3) corrected attitude at each update
+    sigma_phi: np.ndarray           # (n, 3) attitude 1-sigma (rad, ENU) after each update
+
+
+def fine_align(imu: ImuLog, k_updates, init: NavState, v_ref, r_var, P0, q_gyro, q_accel,
+               position=None, lever_b=None, w_ib_b=None, nav_opts: NavOptions | None = None,
+               progress=None) -> FineResult:
+    """Run the filter over ``imu`` (increments after ``init.time``) with updates after samples ``k_updates``.
+
+    ``v_ref`` (n, 3): reference velocity at each update (the antenna's when
+    ``lever_b`` is given, then ``w_ib_b`` (n, 3) is the body rate there);
+    ``r_var`` (n, 3) its variance; ``position(t) -> (lat, lon, h)`` resets the
+    position at each update (the known position at rest, GNSS when moving;
+    None keeps the navigated one).  ``P0`` (12, 12) initial covariance;
+    ``q_gyro``, ``q_accel`` noise densities.
+    """
+    opts = nav_opts or NavOptions(attitude="quat", coning=2)
+    x = np.zeros(NX)
+    P = np.array(P0, dtype=float)
+    bg = np.zeros(3)
+    ba = np.zeros(3)
+    state = init
+    k_prev = -1
+    t_prev = init.time
+    times, cbns, sig = [], [], []
+    for j, k in enumerate(k_updates):
+        sl = slice(k_prev + 1, k + 1)
+        t_seg = imu.time[sl]
+        dt = np.diff(np.concatenate([[t_prev], t_seg]))
+        dth = imu.dtheta_b[sl] - bg[None, :] * dt[:, None]
+        dv = imu.dvel_b[sl] - ba[None, :] * dt[:, None]
+        traj = navigate(ImuLog(t_seg, dth, dv, t0=t_prev, source=imu.source), state, opts)
+        T = float(t_seg[-1] - t_prev)
+        c_end = traj.Cbn[-1]
+        c_mid = orthonormalize(0.5 * (state.Cbn + c_end))
+        f_n = c_mid @ (dv.sum(axis=0) / T)
+        F = error_dynamics(c_mid, f_n, state.lat, state.height, 0.5 * (state.vel_n + traj.vel_n[-1]))
+        Phi, Qd = discretize(F, T, q_gyro, q_accel)
+        x, P = predict(x, P, Phi, Qd)
+        v_c = traj.vel_n[-1].copy()
+        if lever_b is not None:
+            v_c = v_c + c_end @ np.cross(w_ib_b[j], lever_b)
+        x, P = update_velocity(x, P, v_c - v_ref[j], r_var[j])
+        # closed loop: correct, accumulate the biases, reset
+        cbn = orthonormalize(rotvec_to_dcm(x[PHI]) @ c_end)
+        vel = traj.vel_n[-1] - x[DV]
+        bg = bg + x[EPS]
+        ba = ba + x[NAB]
+        x = np.zeros(NX)
+        if position is not None:
+            lat, lon, h = position(float(t_seg[-1]))
+        else:
+            lat, lon, h = float(traj.lat[-1]), float(traj.lon[-1]), float(traj.height[-1])
+        state = NavState(float(t_seg[-1]), lat, lon, h, vel, cbn)
+        times.append(state.time)
+        cbns.append(cbn)
+        sig.append(np.sqrt(np.maximum(np.diag(P)[PHI], 0.0)))
+        k_prev = k
+        t_prev = float(t_seg[-1])
+        if progress is not None:
+            progress(1)
+    return FineResult(state, P, bg, ba, np.array(times), np.array(cbns), np.array(sig))

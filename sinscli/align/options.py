@@ -1,0 +1,256 @@
+"""Alignment options: the ``align:`` section of a config or scenario file, validated, in SI units.
+
+Every key, its unit and default is listed in :data:`ALIGN_DEFAULTS` (and
+documented in ``docs/align.md``); errors name the file and the key.  The rest
+of a config file (``imu``, ``gnss``, ``ros``...) is the navigation config of
+:mod:`sinscli.config` and is validated there.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .. import config as config_mod
+from ..errors import SinsError
+
+METHODS = ("static", "inertial", "gnss-inertial", "kf")
+COARSE_METHODS = ("auto", "static", "inertial", "gnss-inertial")
+# Shortest interval each method accepts, s: the static mean needs a few seconds of averaging, the
+# inertial-frame fit some earth rotation between its epochs, the filter a coarse stage and updates.
+MIN_DURATION = {"static": 10.0, "inertial": 30.0, "gnss-inertial": 20.0, "kf": 60.0}
+
+DEG = math.pi / 180.0
+UG = 9.80665e-6
+
+ALIGN_DEFAULTS = {
+    "method": "inertial",          # static | inertial | gnss-inertial | kf
+    "start": None,                 # s, log time of the alignment start (default: the log's start)
+    "duration": None,              # s (default: the rest of the log)
+    "position": None,              # [lat deg, lon deg, height m] (else from the GNSS log)
+    "roll_window": None,           # s: roll from the first S seconds (seed 001 improvement)
+    "heading": None,               # deg: use this heading (e.g. from a compass or a survey)
+    "heading_sigma": None,         # deg: its 1-sigma, written to the output
+    "coning": 2,                   # coning/sculling order of the body integration (1-4)
+    "observation_interval": 1.0,   # s between the Wahba epochs of the inertial method
+    "estimate_v0": True,           # gnss-inertial: solve for v^n(0) with Cbn(0) instead of taking one noisy fix
+    "sensor": {                    # assumed sensor errors (1-sigma); null: estimated from the data
+        "gyro_bias": None,         # deg/h
+        "gyro_arw": None,          # deg/sqrt(h)
+        "accel_bias": None,        # micro-g
+        "accel_vrw": None,         # micro-g/sqrt(Hz)
+    },
+    "static_check": {              # the base counts as moving above these (1 s block means)
+        "rate": 0.2,               # deg/s deviation of the block-mean angular rate
+        "accel": 0.1,              # m/s^2 deviation of the block-mean specific force
+        "block": 1.0,              # s
+    },
+    "max_heading_sigma": 5.0,      # deg: a heading less certain than this is not observable
+    "course": {                    # heading from the GNSS course (land vehicles, no sideslip)
+        "min_speed": 0.5,          # m/s
+        "sigma_floor": 2.0,        # deg added for sideslip and mounting
+    },
+    "kf": {
+        "coarse": "auto",          # auto | static | inertial | gnss-inertial: the stage the filter starts
+                                   # from (auto: gnss-inertial with a GNSS log, else inertial)
+        "coarse_duration": None,   # s (default: half the interval, at most 120 s)
+        "update_interval": 1.0,    # s between velocity updates at rest
+        "zupt_sigma": 0.01,        # m/s: zero-velocity measurement 1-sigma at rest
+        "vel_sigma": None,         # m/s: GNSS velocity 1-sigma (default: the file's std_vel, else 0.1)
+    },
+}
+
+
+@dataclass
+class SensorSpec:
+    """Assumed 1-sigma sensor errors, SI (None: unknown, estimated from the data)."""
+    gyro_bias: float | None = None     # rad/s
+    gyro_arw: float | None = None      # rad/sqrt(s)
+    accel_bias: float | None = None    # m/s^2
+    accel_vrw: float | None = None     # m/s/sqrt(s)
+
+
+@dataclass
+class AlignOptions:
+    """All alignment choices, SI units and radians."""
+    method: str = "inertial"
+    start: float | None = None
+    duration: float | None = None
+    position: tuple | None = None          # (lat rad, lon rad, h m)
+    roll_window: float | None = None
+    heading: float | None = None           # rad
+    heading_sigma: float | None = None     # rad
+    coning: int = 2
+    obs_interval: float = 1.0
+    estimate_v0: bool = True
+    conv: int = 0
+    lever_arm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    sensor: SensorSpec = field(default_factory=SensorSpec)
+    static_rate: float = 0.2 * DEG
+    static_accel: float = 0.1
+    static_block: float = 1.0
+    max_heading_sigma: float = 5.0 * DEG
+    course_min_speed: float = 0.5
+    course_sigma_floor: float = 2.0 * DEG
+    kf_coarse: str = "auto"
+    kf_coarse_duration: float | None = None
+    kf_update_interval: float = 1.0
+    kf_zupt_sigma: float = 0.01
+    kf_vel_sigma: float | None = None
+
+
+def _fail(src, key, msg):
+    raise SinsError(f"{src}: align.{key}: {msg}")
+
+
+def _num(src, key, v, *, gt=None, ge=None, allow_none=True):
+    if v is None and allow_none:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        _fail(src, key, f"expected a number, got {v!r}")
+    if gt is not None and not v > gt:
+        _fail(src, key, f"must be > {gt:g}, got {v!r}")
+    if ge is not None and not v >= ge:
+        _fail(src, key, f"must be >= {ge:g}, got {v!r}")
+    return float(v)
+
+
+def _flag(src, key, v):
+    if not isinstance(v, bool):
+        _fail(src, key, f"expected true or false, got {v!r}")
+    return v
+
+
+def merge_section(section, src: str) -> dict:
+    """The defaults overlaid with a user ``align:`` mapping (unknown keys refused)."""
+    out = copy.deepcopy(ALIGN_DEFAULTS)
+    if section is None:
+        return out
+    if not isinstance(section, dict):
+        raise SinsError(f"{src}: align: expected a mapping of alignment keys")
+    for k, v in section.items():
+        if k not in out:
+            _fail(src, k, f"unknown key; expected one of {', '.join(sorted(out))}")
+        if isinstance(out[k], dict):
+            if v is None:
+                continue
+            if not isinstance(v, dict):
+                _fail(src, k, f"expected a mapping with keys {', '.join(out[k])}")
+            for kk, vv in v.items():
+                if kk not in out[k]:
+                    _fail(src, f"{k}.{kk}", f"unknown key; expected one of {', '.join(out[k])}")
+                out[k][kk] = vv
+        else:
+            out[k] = v
+    return out
+
+
+def parse_position(v, src: str, key: str = "position"):
+    """``(lat rad, lon rad, h m)`` from ``[lat, lon, h]`` degrees/metres or a ``"LAT,LON,H"`` string."""
+    if v is None:
+        return None
+    if isinstance(v, str):
+        parts = [p.strip() for p in v.split(",")]
+        try:
+            v = [float(p) for p in parts]
+        except ValueError:
+            raise SinsError(f"{src}: {key}: expected LAT,LON,H in degrees and metres, got {v!r}") from None
+    if not isinstance(v, (list, tuple)) or len(v) != 3 or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v):
+        raise SinsError(f"{src}: {key}: expected LAT,LON,H in degrees and metres, got {v!r}")
+    lat, lon, h = (float(x) for x in v)
+    if not -90.0 < lat < 90.0:
+        raise SinsError(f"{src}: {key}: latitude {lat:g} deg is outside (-90, 90)")
+    if abs(lat) > 89.0:
+        raise SinsError(f"{src}: {key}: latitude {lat:g} deg is within 1 deg of a pole, where the "
+                        "heading of an ENU alignment is undefined")
+    return (math.radians(lat), math.radians(lon), h)
+
+
+def build_options(d: dict, src: str, conv: int = 0, lever_arm=None) -> AlignOptions:
+    """:class:`AlignOptions` from a merged ``align`` mapping (see :func:`merge_section`)."""
+    method = d["method"]
+    if method not in METHODS:
+        _fail(src, "method", f"expected one of {', '.join(METHODS)}, got {method!r}")
+    s, sc, co, kf = d["sensor"], d["static_check"], d["course"], d["kf"]
+    if kf["coarse"] not in COARSE_METHODS:
+        _fail(src, "kf.coarse", f"expected one of {', '.join(COARSE_METHODS)}, got {kf['coarse']!r}")
+    coning = d["coning"]
+    if coning not in (1, 2, 3, 4) or isinstance(coning, bool):
+        _fail(src, "coning", f"expected 1, 2, 3 or 4, got {coning!r}")
+
+    def scaled(key, v, unit, **kw):
+        x = _num(src, key, v, **kw)
+        return None if x is None else x * unit
+
+    heading = _num(src, "heading", d["heading"])
+    return AlignOptions(
+        method=method,
+        start=_num(src, "start", d["start"]),
+        duration=_num(src, "duration", d["duration"], gt=0.0),
+        position=parse_position(d["position"], src, "align.position"),
+        roll_window=_num(src, "roll_window", d["roll_window"], gt=0.0),
+        heading=None if heading is None else math.radians(heading % 360.0),
+        heading_sigma=scaled("heading_sigma", d["heading_sigma"], DEG, ge=0.0),
+        coning=int(coning),
+        obs_interval=_num(src, "observation_interval", d["observation_interval"], gt=0.0, allow_none=False),
+        estimate_v0=_flag(src, "estimate_v0", d["estimate_v0"]),
+        conv=conv,
+        lever_arm=np.zeros(3) if lever_arm is None else np.asarray(lever_arm, dtype=float),
+        sensor=SensorSpec(gyro_bias=scaled("sensor.gyro_bias", s["gyro_bias"], DEG / 3600.0, ge=0.0),
+                          gyro_arw=scaled("sensor.gyro_arw", s["gyro_arw"], DEG / 60.0, ge=0.0),
+                          accel_bias=scaled("sensor.accel_bias", s["accel_bias"], UG, ge=0.0),
+                          accel_vrw=scaled("sensor.accel_vrw", s["accel_vrw"], UG, ge=0.0)),
+        static_rate=scaled("static_check.rate", sc["rate"], DEG, gt=0.0, allow_none=False),
+        static_accel=_num(src, "static_check.accel", sc["accel"], gt=0.0, allow_none=False),
+        static_block=_num(src, "static_check.block", sc["block"], gt=0.0, allow_none=False),
+        max_heading_sigma=scaled("max_heading_sigma", d["max_heading_sigma"], DEG, gt=0.0, allow_none=False),
+        course_min_speed=_num(src, "course.min_speed", co["min_speed"], gt=0.0, allow_none=False),
+        course_sigma_floor=scaled("course.sigma_floor", co["sigma_floor"], DEG, ge=0.0, allow_none=False),
+        kf_coarse=kf["coarse"],
+        kf_coarse_duration=_num(src, "kf.coarse_duration", kf["coarse_duration"], gt=0.0),
+        kf_update_interval=_num(src, "kf.update_interval", kf["update_interval"], gt=0.0, allow_none=False),
+        kf_zupt_sigma=_num(src, "kf.zupt_sigma", kf["zupt_sigma"], gt=0.0, allow_none=False),
+        kf_vel_sigma=_num(src, "kf.vel_sigma", kf["vel_sigma"], gt=0.0),
+    )
+
+
+def load_align_config(path) -> tuple[dict, dict]:
+    """A config YAML with an optional ``align:`` section: ``(navigation config, merged align mapping)``.
+
+    The navigation part is validated by :func:`sinscli.config.validate` exactly as
+    :func:`sinscli.config.load_config` would.
+    """
+    cfg = copy.deepcopy(config_mod.DEFAULTS)
+    if path is None:
+        return cfg, merge_section(None, "config")
+    path = Path(path)
+    if not path.exists():
+        raise SinsError(f"{path}: config file not found")
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError:
+        raise SinsError(f"{path}: is not valid YAML") from None
+    if not isinstance(data, dict):
+        raise SinsError(f"{path}: expected a mapping of sections")
+    data = dict(data)
+    align = data.pop("align", None)
+    for section, values in data.items():
+        if section not in cfg:
+            raise SinsError(f"{path}: {section}: unknown section; expected one of "
+                            f"{', '.join(sorted(list(cfg) + ['align']))}")
+        if values is None:
+            continue
+        if not isinstance(values, dict):
+            raise SinsError(f"{path}: {section}: expected a mapping of keys")
+        for key, value in values.items():
+            if key not in cfg[section]:
+                raise SinsError(f"{path}: {section}.{key}: unknown key; expected one of "
+                                f"{', '.join(sorted(cfg[section]))}")
+            cfg[section][key] = value
+    config_mod.validate(cfg, str(path))
+    return cfg, merge_section(align, str(path))
