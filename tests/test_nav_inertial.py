@@ -286,7 +286,7 @@ def test_cli_navigates_in_the_launch_frame_and_compare_reads_it(simdir, tmp_path
     ("no_launch", r"frame launch-inertial needs the launch point"),
     ("missing_key", r"navigation\.launch\.azimuth: missing"),
     ("krylov", r"--frame launch-inertial: the attitude is dcm or quat, not krylov"),
-    ("bad_init_launch", r"init launch\.height: expected a finite number, got 'high'"),
+    ("bad_init_launch", r"init\.yaml: launch\.height: expected a finite number, got 'high'"),
 ])
 def test_cli_bad_launch_input(simdir, tmp_path, case, message):
     import re

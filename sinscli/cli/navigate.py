@@ -14,7 +14,7 @@ from ..io.init_state import read_init
 from ..io.readers import iter_imu
 from ..io.trajectory import TrajectoryWriter, write_trajectory
 from ..nav.earth import gravity
-from ..nav.inertial import COLUMNS as INERTIAL_COLUMNS
+from ..nav.inertial import COLUMNS as INERTIAL_COLUMNS, launch_frame
 from ..nav.pipeline import NavOptions, concat, navigate_blocks
 
 from ..nav.rotation import BODY_CONVENTIONS
@@ -99,6 +99,9 @@ def navigate_cmd(imu, init_path, attitude, dcm_variant, coning, subsamples, ever
     t_start = first.t0 if first.t0 is not None else float(first.time[0] - (
         first.time[1] - first.time[0] if len(first) > 1 else 0.0))
     init = read_init(init_path, t_start, conv)
+    if opts.frame == "launch-inertial" and opts.launch is None and "launch" in init.extra:
+        launch_frame(init.extra["launch"], init.time, f"{init_path}: launch")   # checked naming the file
+        opts.launch = init.extra["launch"]
     if cfg["imu"]["static_start"]:
         check_static_start(first, gravity(math.sin(init.lat), init.height), conv)
 

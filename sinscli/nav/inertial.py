@@ -280,10 +280,9 @@ class LaunchInertial:
     """
 
     def __init__(self, init: NavState, launch, method: int, order: int, nsub: int, every: int):
+        src = "navigation.launch" if launch is not None or "launch" not in init.extra else "init launch"
         if launch is None:
-            launch, src = init.extra.get("launch"), "init launch"
-        else:
-            src = "navigation.launch"
+            launch = init.extra.get("launch")
         self.frame = launch_frame(launch, init.time, src)
         self.init = init
         self.method, self.order, self.nsub, self.every = method, order, nsub, every
