@@ -797,7 +797,7 @@ def read_gnss(path, topic=None, vel_topic=None, time_source="header") -> GnssLog
     covariance diagonal gives ``std_pos`` (absent when every fix says
     COVARIANCE_TYPE_UNKNOWN).  Velocity (``vel_topic``: TwistStamped,
     TwistWithCovarianceStamped or Odometry, ENU) is interpolated linearly at the
-    fix times; fixes outside the velocity topic's span get NaN velocity.
+    fix times; fixes outside the velocity topic's time span are dropped (count logged).
     """
     _check_time_source(time_source)
     path = Path(path)
@@ -857,12 +857,15 @@ def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source) -> Gn
         tv, v, sv = _velocity(lg, vtopic, time_source)
         vel = _interp_rows(t, tv, v)
         std_vel = _interp_rows(t, tv, sv) if sv is not None else None
-        miss = int(np.isnan(vel[:, 0]).sum())
-        if miss == len(t):
+        covered = ~np.isnan(vel[:, 0])
+        if not covered.any():
             raise SinsError(f"{path}: topic {vtopic}: velocity times do not overlap the fixes of {topic}")
-        if miss:
-            log.warning("%s: %d fixes lie outside the velocity topic %s; their velocity is NaN",
-                        where, miss, vtopic)
+        if not covered.all():
+            log.warning("%s: dropped %d fixes outside the time span of the velocity topic %s",
+                        where, int((~covered).sum()), vtopic)
+            t, lla, vel = t[covered], lla[covered], vel[covered]
+            std = std[covered] if std is not None else None
+            std_vel = std_vel[covered] if std_vel is not None else None
     return GnssLog(time=t, lat=lla[:, 0].copy(), lon=lla[:, 1].copy(), height=lla[:, 2].copy(),
                    vel_n=vel, std_pos=std, std_vel=std_vel, source=f"{path}:{topic}")
 
