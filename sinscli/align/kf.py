@@ -100,6 +100,10 @@ def fine_align(imu: ImuLog, k_updates, init: NavState, v_ref, r_var, P0, q_gyro,
     ``q_gyro``, ``q_accel`` noise densities.
     """
     opts = nav_opts or NavOptions(attitude="quat", coning=2)
+    # navigate in time relative to the start (large epochs such as UNIX time keep their precision)
+    t_ref = float(init.time)
+    rel_time = imu.time - t_ref
+    init = NavState(0.0, init.lat, init.lon, init.height, np.asarray(init.vel_n, dtype=float), init.Cbn)
     x = np.zeros(NX)
     P = np.array(P0, dtype=float)
     bg = np.zeros(3)
@@ -110,7 +114,7 @@ def fine_align(imu: ImuLog, k_updates, init: NavState, v_ref, r_var, P0, q_gyro,
     times, cbns, sig = [], [], []
     for j, k in enumerate(k_updates):
         sl = slice(k_prev + 1, k + 1)
-        t_seg = imu.time[sl]
+        t_seg = rel_time[sl]
         dt = np.diff(np.concatenate([[t_prev], t_seg]))
         dth = imu.dtheta_b[sl] - bg[None, :] * dt[:, None]
         dv = imu.dvel_b[sl] - ba[None, :] * dt[:, None]
@@ -133,7 +137,7 @@ def fine_align(imu: ImuLog, k_updates, init: NavState, v_ref, r_var, P0, q_gyro,
         ba = ba + x[NAB]
         x = np.zeros(NX)
         if position is not None:
-            lat, lon, h = position(float(t_seg[-1]))
+            lat, lon, h = position(float(t_seg[-1]) + t_ref)
         else:
             lat, lon, h = float(traj.lat[-1]), float(traj.lon[-1]), float(traj.height[-1])
         state = NavState(float(t_seg[-1]), lat, lon, h, vel, cbn)
@@ -144,4 +148,5 @@ def fine_align(imu: ImuLog, k_updates, init: NavState, v_ref, r_var, P0, q_gyro,
         t_prev = float(t_seg[-1])
         if progress is not None:
             progress(1)
-    return FineResult(state, P, bg, ba, np.array(times), np.array(cbns), np.array(sig))
+    state = NavState(state.time + t_ref, state.lat, state.lon, state.height, state.vel_n, state.Cbn)
+    return FineResult(state, P, bg, ba, np.array(times) + t_ref, np.array(cbns), np.array(sig))

@@ -28,11 +28,18 @@ import numpy as np
 from ..nav.earth import OMEGA_IE
 
 
-def earth_rate_heading_sigma(lat, T, gyro_bias, gyro_arw, accel_bias, g):
-    """1-sigma heading error (rad) of an earth-rate heading over ``T`` s (see the module docstring)."""
+def earth_rate_heading_sigma(lat, T, gyro_bias, gyro_arw, accel_bias, g, accel_vrw=0.0):
+    """1-sigma heading error (rad) of an earth-rate heading over ``T`` s (see the module docstring).
+
+    ``accel_vrw`` adds the term of the inertial-frame method, whose heading is the turn of the
+    gravity vector that the accelerometers see: ``2 sqrt(3) VRW / (g W_ie cos L T^1.5)`` (least
+    squares of the east-north drift of the integrated specific force, with the tilt about east
+    estimated at the same time).
+    """
     wh = OMEGA_IE * math.cos(lat)
     return math.sqrt((gyro_bias / wh) ** 2 + (gyro_arw / math.sqrt(T) / wh) ** 2
-                     + (accel_bias * math.tan(lat) / g) ** 2)
+                     + (accel_bias * math.tan(lat) / g) ** 2
+                     + (2.0 * math.sqrt(3.0) * accel_vrw / (g * wh * T ** 1.5)) ** 2)
 
 
 def tilt_sigma(T, accel_bias, accel_vrw, g):
@@ -99,9 +106,10 @@ class HeadingCheck:
     reason: str             # one line for the user
 
 
-def check_earth_rate(lat, T, b: Budget, g, max_sigma) -> HeadingCheck:
-    """Earth-rate heading observability at rest for a budget ``b``."""
-    s = earth_rate_heading_sigma(lat, T, b.gyro_bias, b.gyro_arw, b.accel_bias, g)
+def check_earth_rate(lat, T, b: Budget, g, max_sigma, accel_noise: bool = False) -> HeadingCheck:
+    """Earth-rate heading observability at rest for a budget ``b`` (``accel_noise``: inertial-frame method)."""
+    s = earth_rate_heading_sigma(lat, T, b.gyro_bias, b.gyro_arw, b.accel_bias, g,
+                                 b.accel_vrw if accel_noise else 0.0)
     wh_dph = math.degrees(OMEGA_IE * math.cos(lat)) * 3600.0
     bias_dph = math.degrees(b.gyro_bias) * 3600.0
     arw = math.degrees(b.gyro_arw) * 60.0

@@ -19,6 +19,8 @@ from .. import config as config_mod
 from ..errors import SinsError
 
 METHODS = ("static", "inertial", "gnss-inertial", "kf")
+EPOCHS = ("end", "start")
+VECTORS = ("auto", "cumulative", "increments")
 COARSE_METHODS = ("auto", "static", "inertial", "gnss-inertial")
 # Shortest interval each method accepts, s: the static mean needs a few seconds of averaging, the
 # inertial-frame fit some earth rotation between its epochs, the filter a coarse stage and updates.
@@ -33,10 +35,14 @@ ALIGN_DEFAULTS = {
     "duration": None,              # s (default: the rest of the log)
     "position": None,              # [lat deg, lon deg, height m] (else from the GNSS log)
     "roll_window": None,           # s: roll from the first S seconds (seed 001 improvement)
+    "epoch": "end",                # end: the state where navigation goes on after the interval;
+                                   # start: the attitude at the interval start, Cbn(0) (navigate through it)
     "heading": None,               # deg: use this heading (e.g. from a compass or a survey)
     "heading_sigma": None,         # deg: its 1-sigma, written to the output
     "coning": 2,                   # coning/sculling order of the body integration (1-4)
     "observation_interval": 1.0,   # s between the Wahba epochs of the inertial method
+    "vectors": "auto",             # Wahba pairs: cumulative (eq 17-18 as they are) | increments (the integrals
+                                   # over each observation interval) | auto (increments at rest, cumulative with GNSS)
     "estimate_v0": True,           # gnss-inertial: solve for v^n(0) with Cbn(0) instead of taking one noisy fix
     "sensor": {                    # assumed sensor errors (1-sigma); null: estimated from the data
         "gyro_bias": None,         # deg/h
@@ -82,10 +88,12 @@ class AlignOptions:
     duration: float | None = None
     position: tuple | None = None          # (lat rad, lon rad, h m)
     roll_window: float | None = None
+    epoch: str = "end"
     heading: float | None = None           # rad
     heading_sigma: float | None = None     # rad
     coning: int = 2
     obs_interval: float = 1.0
+    vectors: str = "auto"
     estimate_v0: bool = True
     conv: int = 0
     lever_arm: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -117,6 +125,12 @@ def _num(src, key, v, *, gt=None, ge=None, allow_none=True):
     if ge is not None and not v >= ge:
         _fail(src, key, f"must be >= {ge:g}, got {v!r}")
     return float(v)
+
+
+def _choice(src, key, v, choices):
+    if v not in choices:
+        _fail(src, key, f"expected one of {', '.join(choices)}, got {v!r}")
+    return v
 
 
 def _flag(src, key, v):
@@ -194,10 +208,12 @@ def build_options(d: dict, src: str, conv: int = 0, lever_arm=None) -> AlignOpti
         duration=_num(src, "duration", d["duration"], gt=0.0),
         position=parse_position(d["position"], src, "align.position"),
         roll_window=_num(src, "roll_window", d["roll_window"], gt=0.0),
+        epoch=_choice(src, "epoch", d["epoch"], EPOCHS),
         heading=None if heading is None else math.radians(heading % 360.0),
         heading_sigma=scaled("heading_sigma", d["heading_sigma"], DEG, ge=0.0),
         coning=int(coning),
         obs_interval=_num(src, "observation_interval", d["observation_interval"], gt=0.0, allow_none=False),
+        vectors=_choice(src, "vectors", d["vectors"], VECTORS),
         estimate_v0=_flag(src, "estimate_v0", d["estimate_v0"]),
         conv=conv,
         lever_arm=np.zeros(3) if lever_arm is None else np.asarray(lever_arm, dtype=float),

@@ -67,6 +67,7 @@ class AlignResult:
     notes: list = field(default_factory=list)
     series: Series | None = None
     roll_window: float | None = None
+    sigma_basis: str = "config"             # config | data | config+data (see observability.budget)
 
     def yaml_extra(self, conv_name: str) -> dict:
         """The keys ``sins align`` adds to the FORMATS.md initial state."""
@@ -75,7 +76,9 @@ class AlignResult:
                "body": conv_name,
                "sigma_roll": d(float(self.sigma[0])), "sigma_pitch": d(float(self.sigma[1])),
                "sigma_heading": None if not np.isfinite(self.sigma[2]) else d(float(self.sigma[2])),
-               "heading_source": self.heading_source}
+               "heading_source": self.heading_source,
+               "sigma_basis": self.sigma_basis if self.sigma_basis == "config" else
+               f"{self.sigma_basis} (lower bound: give align.sensor)"}
         if self.roll_window is not None:
             out["roll_window"] = float(self.roll_window)
         if self.gyro_bias is not None:
@@ -111,7 +114,8 @@ def select_window(imu: ImuLog, opts: AlignOptions) -> Window:
                             f"{available:.6g} s after the start {t0!r}")
         k1 = int(np.searchsorted(imu.time, t0 + opts.duration + 1e-6, side="right"))
     w = Window(t0, imu.time[k0:k1], imu.dtheta_b[k0:k1], imu.dvel_b[k0:k1], imu.source)
-    if len(w.time) < 2 or w.T < minimum * (1.0 - 1e-9):
+    step = float(np.median(np.diff(imu.time[: min(n, 1000)])))
+    if len(w.time) < 2 or w.T < minimum - 1.5 * step:
         T = w.T if len(w.time) else 0.0
         raise SinsError(f"{imu.source}: the alignment interval is {T:.4g} s; --method {opts.method} needs "
                         f"at least {minimum:g} s")
@@ -289,7 +293,15 @@ def _inertial(w: Window, opts: AlignOptions, lat: float, h: float, g: float,
         a_ep = a_all[1:]
     b_ep = beta[rows]
     centered = gnss is not None and opts.estimate_v0
-    series0 = wahba.solve_cumulative(a_ep, b_ep, centered=centered)
+    increments = opts.vectors == "increments" or (opts.vectors == "auto" and gnss is None)
+    if increments:
+        # the integral vectors of each observation interval (differences between epochs): at rest their
+        # errors (accelerometer noise, the random walk of the cumulative vectors) are independent
+        da = np.diff(np.concatenate([alpha[:1], a_ep]), axis=0)
+        db = np.diff(np.concatenate([beta[:1], b_ep]), axis=0)
+        series0 = wahba.solve_cumulative(da, db)
+    else:
+        series0 = wahba.solve_cumulative(a_ep, b_ep, centered=centered)
     cbn0 = series0[-1]
     times = times_all[rows]
     if opts.roll_window is not None:
@@ -313,7 +325,7 @@ def _inertial(w: Window, opts: AlignOptions, lat: float, h: float, g: float,
         tilt = np.array([ts, ts])
         if opts.roll_window is not None:
             tilt[0] = observability.tilt_sigma(opts.roll_window, b.accel_bias, b.accel_vrw, g)
-        hc = observability.check_earth_rate(lat, T, b, g, opts.max_heading_sigma)
+        hc = observability.check_earth_rate(lat, T, b, g, opts.max_heading_sigma, accel_noise=True)
         return _Solution(cbn0, rows, times, propagate, series0, tilt, hc, "earth-rate", budget=b)
     # moving base: error budget of the fit, per epoch (GNSS velocity noise, accelerometer and gyro errors)
     b = _budget(w, opts, False, g)
@@ -406,6 +418,9 @@ def _tilt_to_roll_pitch(P_h, heading):
 
 def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress=None) -> AlignResult:
     """Align over the selected interval (see the module docstring)."""
+    if opts.method == "kf" and opts.epoch == "start":
+        raise SinsError("--epoch start: the Kalman filter gives the attitude at the end of the interval; "
+                        "use --epoch end with --method kf")
     w = select_window(imu, opts)
     t1 = float(w.time[-1])
     moving_gnss = opts.method == "gnss-inertial" or (opts.method == "kf" and (
@@ -438,6 +453,10 @@ def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress
     else:
         sol = _inertial(wc, opts, lat, h, g, gnss)
     cbn0, cur, h_sigma, source = _resolve_heading(sol, opts, notes)
+    basis = sol.budget.source if sol.budget is not None else "config"
+    if basis != "config":
+        notes.append("sensor errors not all configured (align.sensor): the 1-sigma figures use what the data "
+                     "show and are lower bounds")
     series0 = sol.series0
     if source in ("user", "gnss-course") and series0 is not None:
         series0 = np.matmul(_rz(float(dcm_to_euler(np.ascontiguousarray(cbn0), opts.conv)[2]
@@ -449,17 +468,33 @@ def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress
         series = Series(sol.times, sol.propagate(series0) if series0 is not None else cur, series0)
         if source == "user":
             series.cbn[-1] = cbn_end
-        vel, pos = _end_velocity_position(w, opts, gnss, cbn_end, (lat, lon, h), moving_gnss)
-        state = NavState(t1, pos[0], pos[1], pos[2], vel, cbn_end)
+        if opts.epoch == "start":
+            vel, pos = _start_velocity_position(w, opts, gnss, cbn0, (lat, lon, h), moving_gnss)
+            state = NavState(w.t0, pos[0], pos[1], pos[2], vel, cbn0)
+        else:
+            vel, pos = _end_velocity_position(w, opts, gnss, cbn_end, (lat, lon, h), moving_gnss)
+            state = NavState(t1, pos[0], pos[1], pos[2], vel, cbn_end)
         return AlignResult(state, opts.method, w.t0, w.T, sigma, source, notes=notes, series=series,
-                           roll_window=opts.roll_window)
-    return _fine(w, opts, gnss, sol, cbn0, h_sigma, source, (lat, lon, h), g, notes, moving_gnss, progress)
+                           roll_window=opts.roll_window, sigma_basis=basis)
+    res = _fine(w, opts, gnss, sol, cbn0, h_sigma, source, (lat, lon, h), g, notes, moving_gnss, progress)
+    res.sigma_basis = basis
+    return res
+
+
+def _start_velocity_position(w: Window, opts, gnss, cbn0, pos0, moving_gnss):
+    if not moving_gnss:
+        return np.zeros(3), pos0
+    return _antenna_to_imu(w, opts, gnss, cbn0, w.t0, 0)
 
 
 def _end_velocity_position(w: Window, opts, gnss, cbn_end, pos0, moving_gnss):
-    t1 = float(w.time[-1])
     if not moving_gnss:
         return np.zeros(3), pos0
+    return _antenna_to_imu(w, opts, gnss, cbn_end, float(w.time[-1]), len(w.time))
+
+
+def _antenna_to_imu(w: Window, opts, gnss, cbn, t1, row):
+    """IMU velocity and position at ``t1`` from the GNSS antenna's (lever arm removed)."""
     v_g, _ = gnss_velocity(gnss)
     v_ant = np.array([np.interp(t1, gnss.time, v_g[:, i]) for i in range(3)])
     lat = math.radians(float(np.interp(t1, gnss.time, gnss.lat)))
@@ -467,9 +502,9 @@ def _end_velocity_position(w: Window, opts, gnss, cbn_end, pos0, moving_gnss):
     h = float(np.interp(t1, gnss.time, gnss.height))
     arm = np.asarray(opts.lever_arm, dtype=float)
     if np.any(arm != 0.0):
-        w_ib = _body_rate(w, np.array([len(w.time)]))[0]
-        v_ant = v_ant - cbn_end @ np.cross(w_ib, arm)
-        d = cbn_end @ arm                                   # antenna - IMU, ENU m
+        w_ib = _body_rate(w, np.array([row]))[0]
+        v_ant = v_ant - cbn @ np.cross(w_ib, arm)
+        d = cbn @ arm                                       # antenna - IMU, ENU m
         rm, rn = radii(math.sin(lat))
         lat, lon, h = lat - d[1] / (rm + h), lon - d[0] / ((rn + h) * math.cos(lat)), h - d[2]
     return v_ant, (lat, lon, h)

@@ -7,3 +7,4 @@ from . import navigate  # noqa: F401,E402
 from . import simulate  # noqa: F401,E402
 from . import info  # noqa: F401,E402
 from . import convert  # noqa: F401,E402
+from . import align  # noqa: F401,E402

@@ -1,0 +1,175 @@
+"""Monte Carlo of the alignment (seed 001 Figs. 1-3): N seeded runs of one scenario.
+
+The motion of a scenario has no randomness, so its exact truth is computed
+once (:class:`sinscli.align.sway.ScenarioRuns`) and each run draws only its
+sensor errors and GNSS noise from its seed.  Every run is aligned with each
+variant (the method without and with the roll window, and any extra methods
+asked for) and its roll, pitch and heading errors are kept against alignment
+time, both of the estimate of the start attitude ``Cbn(0)`` (what the
+attitude-determination method solves for, and where the roll window acts)
+and of the current attitude ``Cbn(t)`` (what navigation starts from).
+Statistics at the end are compared with the static-base limits of
+:mod:`.observability`.  No file I/O here.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SinsError
+from ..nav.earth import gravity
+from ..nav.rotation import dcm_to_euler_many
+from . import observability
+from .options import build_options, merge_section
+from .pipeline import align
+from .sway import ScenarioRuns, load_align_scenario, prepare_scenario
+
+MC_DEFAULTS = {"runs": 100, "seed": 0, "roll_window": 10.0, "methods": []}
+
+
+@dataclass
+class VariantErrors:
+    """Errors (deg) of one variant over all runs: (runs, epochs, 3) roll, pitch, heading."""
+    name: str
+    time: np.ndarray                   # (epochs,) s since the alignment start
+    current: np.ndarray                # (runs, epochs, 3) error of Cbn(t) estimate
+    start: np.ndarray | None           # (runs, epochs, 3) error of the Cbn(0) estimate, when the method has one
+
+
+@dataclass
+class McResult:
+    scenario: str
+    runs: int
+    seeds: list
+    variants: dict                     # name -> VariantErrors
+    theory: dict                       # variant -> {"tilt", "heading"} 1-sigma deg (static-base limits; empty moving)
+    roll_window: float | None
+    notes: list = field(default_factory=list)
+
+    def summary_rows(self):
+        """One row per variant and angle: mean, std and rms at the end (current and start attitude), theory."""
+        rows = []
+        for v in self.variants.values():
+            for which, arr in (("current", v.current), ("start", v.start)):
+                if arr is None:
+                    continue
+                end = arr[:, -1, :]
+                for i, ang in enumerate(("roll", "pitch", "heading")):
+                    lim = self.theory.get(v.name)
+                    th = None if lim is None else lim["heading" if i == 2 else "tilt"]
+                    rows.append({"variant": v.name, "attitude": which, "angle": ang,
+                                 "mean_deg": float(end[:, i].mean()), "std_deg": float(end[:, i].std(ddof=1))
+                                 if end.shape[0] > 1 else 0.0,
+                                 "rms_deg": float(np.sqrt((end[:, i] ** 2).mean())), "theory_deg": th})
+        return rows
+
+    def drift(self, name: str, t_from: float, which: str = "start", angle: int = 0) -> float:
+        """RMS over runs of the change of an error from ``t_from`` to the end (deg)."""
+        v = self.variants[name]
+        arr = v.start if which == "start" else v.current
+        j = int(np.searchsorted(v.time, t_from - 1e-9))
+        return float(np.sqrt(((arr[:, -1, angle] - arr[:, j, angle]) ** 2).mean()))
+
+
+def _euler_err(est, truth, conv):
+    e = np.degrees(dcm_to_euler_many(np.ascontiguousarray(est), conv)
+                   - dcm_to_euler_many(np.ascontiguousarray(truth), conv))
+    e[..., 2] = (e[..., 2] + 180.0) % 360.0 - 180.0
+    e[..., 0] = (e[..., 0] + 180.0) % 360.0 - 180.0
+    return e
+
+
+def sensor_budget(sensor: dict):
+    """1-sigma sensor errors (SI) of a resolved simulator sensor (``Prepared.sensor``): the rms over
+    the axes of the fixed bias, the turn-on spread and the instability, and of the random walks."""
+    def rms(d, keys):
+        tot = np.zeros(3)
+        for k in keys:
+            if k in d:
+                tot += np.asarray(d[k], dtype=float) ** 2
+        return float(np.sqrt(tot.mean()))
+    gy, ac = sensor.get("gyro", {}), sensor.get("accel", {})
+    return {"gyro_bias": rms(gy, ("bias", "bias_sigma", "bias_instability")), "gyro_arw": rms(gy, ("arw",)),
+            "accel_bias": rms(ac, ("bias", "bias_sigma", "bias_instability")), "accel_vrw": rms(ac, ("vrw",)),
+            "gyro_spread": rms(gy, ("bias_sigma", "bias_instability")),
+            "accel_spread": rms(ac, ("bias_sigma", "bias_instability"))}
+
+
+def theory_limits(lat, T, sb: dict, g, method: str = "inertial") -> dict:
+    """Static-base 1-sigma spread (deg): tilt = accelerometer bias spread / g (plus noise), heading =
+    east gyro bias spread / (W_ie cos L) plus the noise terms (gyro; and, for the inertial-frame
+    method, accelerometer) and the tan L term."""
+    tilt = observability.tilt_sigma(T, sb["accel_spread"], sb["accel_vrw"], g)
+    head = observability.earth_rate_heading_sigma(lat, T, sb["gyro_spread"], sb["gyro_arw"], sb["accel_spread"], g,
+                                                  sb["accel_vrw"] if method != "static" else 0.0)
+    return {"tilt": math.degrees(tilt), "heading": math.degrees(head)}
+
+
+def run_monte_carlo(path, runs: int | None = None, seed0: int | None = None, progress=None) -> McResult:
+    """Run the Monte Carlo of an alignment scenario file (simulator scenario + ``align`` + ``monte_carlo``)."""
+    sim_part, align_sec, sway_sec, src, base = load_align_scenario(path)
+    mc = dict(MC_DEFAULTS)
+    mc_sec = sim_part.pop("monte_carlo", None) or {}
+    if not isinstance(mc_sec, dict) or set(mc_sec) - set(MC_DEFAULTS):
+        raise SinsError(f"{src}: monte_carlo: expected a mapping with keys {', '.join(MC_DEFAULTS)}")
+    mc.update(mc_sec)
+    if runs is not None:
+        mc["runs"] = runs
+    if seed0 is not None:
+        mc["seed"] = seed0
+    n = mc["runs"]
+    if isinstance(n, bool) or not isinstance(n, int) or n < 2:
+        raise SinsError(f"{src}: monte_carlo.runs: expected a whole number >= 2, got {n!r}")
+    merged = merge_section(align_sec, src)
+    prepared = prepare_scenario(sim_part, sway_sec, src, base)
+    sc = prepared.scenario
+    if merged["position"] is None:
+        merged["position"] = [sc.start_deg["lat"], sc.start_deg["lon"], sc.h0]
+    sb = sensor_budget(prepared.sensor)
+    if all(v is None for v in merged["sensor"].values()):
+        merged["sensor"] = {"gyro_bias": math.degrees(sb["gyro_bias"]) * 3600.0,
+                            "gyro_arw": math.degrees(sb["gyro_arw"]) * 60.0,
+                            "accel_bias": sb["accel_bias"] / 9.80665e-6, "accel_vrw": sb["accel_vrw"] / 9.80665e-6}
+    base_opts = build_options(merged, src, conv=sc.conv, lever_arm=sc.gnss["lever_arm"])
+    rw = mc["roll_window"]
+    variants = [(base_opts.method, None)]
+    if rw is not None and base_opts.method != "static":
+        variants.append((f"{base_opts.method}+roll-window", rw))
+    for m in mc["methods"] or []:
+        variants.append((m, None))
+    runs_src = ScenarioRuns(prepared)
+    at_rest = all(seg["type"] == "rest" for seg in sc.segments)
+    uses_gnss = {name: name.split("+")[0] == "gnss-inertial" or (name.split("+")[0] == "kf" and not at_rest)
+                 for name, _ in variants}
+    acc = {name: {"t": None, "cur": [], "start": []} for name, _ in variants}
+    seeds = [int(mc["seed"]) + k for k in range(n)]
+    for s in seeds:
+        r = runs_src.run(s)
+        for name, window in variants:
+            o = copy.copy(base_opts)
+            o.method = name.split("+")[0]
+            o.roll_window = window
+            res = align(r.imu, o, r.gnss if uses_gnss[name] else None)
+            ser = res.series
+            idx = np.searchsorted(r.truth.time, ser.time - 1e-9 * max(1.0, abs(float(ser.time[0]))))
+            a = acc[name]
+            if a["t"] is None:
+                a["t"] = ser.time - res.t0
+            a["cur"].append(_euler_err(ser.cbn, r.truth.Cbn[idx], sc.conv))
+            if ser.cbn0 is not None:
+                k0 = int(np.searchsorted(r.truth.time, res.t0 - 1e-9))
+                a["start"].append(_euler_err(ser.cbn0, np.broadcast_to(r.truth.Cbn[k0], ser.cbn0.shape), sc.conv))
+        if progress is not None:
+            progress(1)
+    out = {}
+    for name, _ in variants:
+        a = acc[name]
+        out[name] = VariantErrors(name, a["t"], np.array(a["cur"]), np.array(a["start"]) if a["start"] else None)
+    lat = sc.lat0
+    g = float(gravity(math.sin(lat), sc.h0))
+    T = float(next(iter(out.values())).time[-1])
+    theory = {name: theory_limits(lat, T, sb, g, name.split("+")[0]) for name in out} if at_rest else {}
+    return McResult(sc.name, n, seeds, out, theory, rw)

@@ -1,0 +1,175 @@
+"""``sins align``: IMU (+GNSS) log -> initial state YAML; ``--monte-carlo N --scenario S``: seed 001 Figs. 1-3."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+import numpy as np
+
+from ..errors import SinsError
+from ..io.atomic import atomic_path
+from ..io.init_state import write_init_yaml
+from ..nav.rotation import BODY_CONVENTIONS, dcm_to_euler_many
+from .base import log, main, progress, quiet_option
+
+
+def _parse_heading(value):
+    try:
+        return float(value)
+    except ValueError:
+        raise SinsError(f"--heading: expected degrees, got {value!r}") from None
+
+
+@main.command("align")
+@click.argument("imu", required=False, type=click.Path(path_type=Path))
+@click.option("--gnss", "gnss_path", type=click.Path(path_type=Path), default=None,
+              help="GNSS log (CSV or ROS bag/MCAP): position, and velocity for gnss-inertial / kf on the move.")
+@click.option("--method", type=click.Choice(["static", "inertial", "gnss-inertial", "kf"]), default=None,
+              help="static (analytic, at rest) | inertial (seed 001, static or swaying base) | gnss-inertial "
+                   "(moving, GNSS velocity) | kf (Kalman fine alignment after a coarse stage). Default: config.")
+@click.option("--start", type=float, default=None, help="Alignment start, log time (s). Default: the log's start.")
+@click.option("--duration", type=float, default=None, help="Alignment interval (s). Default: the rest of the log.")
+@click.option("--position", default=None, help="LAT,LON,H (deg, deg, m) when there is no GNSS log.")
+@click.option("--roll-window", type=float, default=None,
+              help="Roll from the first S seconds, pitch and heading from the whole interval (seed 001).")
+@click.option("--heading", default=None, help="Heading (deg) to use instead of the estimated one.")
+@click.option("--epoch", type=click.Choice(["end", "start"]), default=None,
+              help="State written for the interval's end (default) or start (Cbn(0)).")
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
+              help="Config YAML: imu/gnss/ros sections of the navigation config plus an 'align' section.")
+@click.option("--body", type=click.Choice(sorted(BODY_CONVENTIONS)), default=None, help="Body axes convention.")
+@click.option("--imu-topic", default=None, help="IMU topic in a ROS bag / MCAP log.")
+@click.option("--gnss-topic", default=None, help="NavSatFix topic in a ROS bag / MCAP log.")
+@click.option("--series", type=click.Path(path_type=Path), default=None,
+              help="CSV of the attitude estimate against alignment time.")
+@click.option("--plot", type=click.Path(path_type=Path), default=None, help="PNG of the attitude against time.")
+@click.option("--monte-carlo", "mc_runs", type=click.IntRange(min=2), default=None,
+              help="Run N seeded simulations of --scenario and write the error statistics and figures to -o DIR.")
+@click.option("--scenario", type=click.Path(path_type=Path), default=None,
+              help="Alignment scenario (simulator scenario + align + monte_carlo sections), for --monte-carlo.")
+@click.option("--seed", type=click.IntRange(min=0), default=None, help="First seed of the Monte Carlo runs.")
+@click.option("-o", "--output", type=click.Path(path_type=Path), required=True,
+              help="Initial-state YAML (or, with --monte-carlo, the output directory).")
+@quiet_option
+def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, heading, epoch, config_path, body,
+              imu_topic, gnss_topic, series, plot, mc_runs, scenario, seed, output, quiet):
+    """Initial alignment: the attitude (and state) where navigation starts, with its 1-sigma.
+
+    \b
+    Examples:
+      sins align imu.csv --method static --position 30,114,50 -o init.yaml
+      sins align imu.csv --method inertial --roll-window 10 --position 30,114,50 -o init.yaml
+      sins align imu.csv --gnss gnss.csv --method gnss-inertial --duration 100 -o init.yaml
+      sins align log.bag --gnss log.bag --config configs/align/husky.yaml -o init.yaml
+      sins align --monte-carlo 100 --scenario configs/align/seed001_static.yaml -o mc
+    """
+    if mc_runs is not None or scenario is not None:
+        if mc_runs is None or scenario is None:
+            raise SinsError("--monte-carlo N and --scenario FILE go together")
+        _monte_carlo(scenario, mc_runs, seed, output, quiet)
+        return
+    if imu is None:
+        raise SinsError("give an IMU log (or --monte-carlo N --scenario FILE)")
+    from ..align.options import build_options, load_align_config, parse_position
+    from ..align.pipeline import align
+    from ..config import merge
+    from ..io.readers import read_gnss, read_imu
+
+    cfg, al = load_align_config(config_path)
+    cfg = merge(cfg, "imu", body=body)
+    cfg = merge(cfg, "ros", imu_topic=imu_topic, gnss_topic=gnss_topic)
+    for key, value in (("method", method), ("start", start), ("duration", duration),
+                       ("roll_window", roll_window), ("epoch", epoch)):
+        if value is not None:
+            al[key] = value
+    if heading is not None:
+        al["heading"] = _parse_heading(heading)
+    conv_name = cfg["imu"]["body"]
+    conv = BODY_CONVENTIONS[conv_name]
+    opts = build_options(al, str(config_path) if config_path else "command line", conv=conv,
+                         lever_arm=cfg["gnss"]["lever_arm"])
+    if position is not None:
+        opts.position = parse_position(position, "--position")
+    imu_log = read_imu(imu, cfg)
+    gnss = read_gnss(gnss_path, cfg) if gnss_path is not None else None
+    with progress(1, "aligning", quiet) as bar:
+        res = align(imu_log, opts, gnss, progress=None)
+        bar.update(1)
+    for note in res.notes:
+        click.echo(f"sins: note: {note}", err=True)
+    # every output is written after the alignment succeeded, each atomically
+    write_init_yaml(output, res.state, conv, res.yaml_extra(conv_name))
+    eul = None
+    if series is not None or plot is not None:
+        eul = np.degrees(dcm_to_euler_many(np.ascontiguousarray(res.series.cbn), conv))
+    if series is not None:
+        _write_series(series, res, eul, conv)
+    if plot is not None:
+        from ..align.figures import plot_series
+        plot_series(plot, res.series.time - res.t0, eul, title=f"sins align --method {res.method}",
+                    sigma_deg=np.degrees(res.sigma))
+    r, p, h = np.degrees(dcm_to_euler_many(res.state.Cbn[None], conv)[0])
+    s = np.degrees(res.sigma)
+    hs = f"{s[2]:.3g}" if np.isfinite(s[2]) else "unknown"
+    if not quiet:
+        click.echo(f"aligned ({res.method}, {res.duration:.4g} s, heading from {res.heading_source}): roll {r:.4f}, "
+                   f"pitch {p:.4f}, heading {h:.4f} deg; 1-sigma {s[0]:.3g}, {s[1]:.3g}, {hs} deg -> {output}",
+                   err=True)
+    log.info("wrote %s", output)
+
+
+def _write_series(path, res, eul, conv):
+    from ..io.csvcore import write_table_csv
+    data = {"time": res.series.time, "roll": eul[:, 0], "pitch": eul[:, 1], "heading": eul[:, 2]}
+    if res.series.cbn0 is not None:
+        e0 = np.degrees(dcm_to_euler_many(np.ascontiguousarray(res.series.cbn0), conv))
+        data.update({"roll_start": e0[:, 0], "pitch_start": e0[:, 1], "heading_start": e0[:, 2]})
+    with atomic_path(path, suffix=".csv") as tmp:
+        write_table_csv(tmp, data)
+
+
+def _monte_carlo(scenario, runs, seed, outdir, quiet):
+    from ..align.figures import plot_monte_carlo
+    from ..align.montecarlo import run_monte_carlo
+    from ..io.csvcore import write_table_csv
+
+    if outdir.exists() and not outdir.is_dir():
+        raise SinsError(f"{outdir}: exists and is not a directory (--monte-carlo writes a directory)")
+    with progress(runs, "monte carlo", quiet) as bar:
+        mc = run_monte_carlo(scenario, runs, seed, progress=bar.update)
+    outdir.mkdir(parents=True, exist_ok=True)
+    rows = mc.summary_rows()
+    cols = ["variant", "attitude", "angle", "mean_deg", "std_deg", "rms_deg", "theory_deg"]
+    with atomic_path(outdir / "summary.csv", suffix=".csv") as tmp:
+        lines = [",".join(cols)] + [",".join("" if r[c] is None else (r[c] if isinstance(r[c], str) else repr(r[c]))
+                                             for c in cols) for r in rows]
+        Path(tmp).write_text("\n".join(lines) + "\n")
+    md = [f"# Monte Carlo: {mc.scenario}, {mc.runs} runs (seeds {mc.seeds[0]}..{mc.seeds[-1]})", "",
+          "Errors at the end of the interval, degrees (estimate minus truth); theory: static-base 1-sigma.", "",
+          "| variant | attitude | angle | mean | std | rms | theory |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        th = "" if r["theory_deg"] is None else f"{r['theory_deg']:.3g}"
+        md.append(f"| {r['variant']} | {r['attitude']} | {r['angle']} | {r['mean_deg']:.3g} | {r['std_deg']:.3g} | "
+                  f"{r['rms_deg']:.3g} | {th} |")
+    if mc.roll_window is not None:
+        for name in mc.variants:
+            if mc.variants[name].start is not None:
+                md.append("")
+                md.append(f"{name}: rms change of the start-attitude roll error from {mc.roll_window:g} s to the end: "
+                          f"{mc.drift(name, mc.roll_window):.3g} deg")
+    with atomic_path(outdir / "summary.md", suffix=".md") as tmp:
+        Path(tmp).write_text("\n".join(md) + "\n")
+    data = {"seed": np.array(mc.seeds, dtype=float)}
+    for name, v in mc.variants.items():
+        for i, ang in enumerate(("roll", "pitch", "heading")):
+            data[f"{name}:{ang}"] = v.current[:, -1, i]
+    with atomic_path(outdir / "runs.csv", suffix=".csv") as tmp:
+        write_table_csv(tmp, data)
+    figs = plot_monte_carlo(outdir, mc)
+    if not quiet:
+        click.echo(f"monte carlo {mc.scenario}: {mc.runs} runs -> {outdir} (summary.csv, summary.md, runs.csv, "
+                   f"{', '.join(Path(f).name for f in figs)})", err=True)
+    for r in rows:
+        if r["attitude"] == "current" and r["theory_deg"] is not None:
+            log.info("%s %s: std %.3g deg, theory %.3g deg", r["variant"], r["angle"], r["std_deg"], r["theory_deg"])
