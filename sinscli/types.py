@@ -71,3 +71,12 @@ class Trajectory:
 
     def __len__(self) -> int:
         return int(self.time.shape[0])
+
+
+def time_tolerance(t: float) -> float:
+    """Tolerance for "the same time stamp": a few float64 spacings of ``t`` (s).
+
+    Relative to the value's float resolution, not to its size: UNIX-epoch stamps
+    (~1.4e9 s, resolution 2.4e-7 s) get ~2e-6 s, never a whole second.
+    """
+    return 8.0 * float(np.spacing(max(abs(float(t)), 1.0)))

@@ -172,3 +172,23 @@ def test_unwired_attitude_methods_are_refused(simdir, tmp_path):
     r = CliRunner().invoke(main, ["navigate", str(simdir / "imu.csv"), "--init", str(simdir / "init.yaml"),
                                   "--attitude", "dcm", "--angles", "-o", str(out), "-q"])
     assert r.exit_code == 2 and "--angles" in r.output and not out.exists()
+
+
+def test_unix_epoch_time_base(simdir, tmp_path):
+    """Stamps of ~1.4e9 s: every sample after the initial time is applied (no tolerance of whole seconds)."""
+    import yaml
+    base = 1432235497.988949
+    imu = (simdir / "imu.csv").read_text().splitlines()
+    rows = [imu[0]] + [",".join([repr(float(r.split(",")[0]) + base)] + r.split(",")[1:]) for r in imu[1:]]
+    (tmp_path / "imu.csv").write_text("\n".join(rows) + "\n")
+    init = yaml.safe_load((simdir / "init.yaml").read_text())
+    init["time"] = init["time"] + base
+    (tmp_path / "init.yaml").write_text(yaml.safe_dump(init))
+    out = tmp_path / "nav.csv"
+    r = run(["navigate", str(tmp_path / "imu.csv"), "--init", str(tmp_path / "init.yaml"), "-o", str(out), "-q"])
+    assert r.exit_code == 0, r.output
+    nav = read_trajectory(out)
+    ref = read_trajectory(simdir / "truth.csv")
+    assert len(nav) == len(rows)          # header -> initial row, then one row per sample
+    assert np.abs(nav.time - (ref.time + base)).max() < 1e-6
+    assert np.abs(np.degrees(nav.lat - ref.lat)).max() < 1e-9

@@ -88,7 +88,7 @@ def _locate_bad_cell(path: Path, cols: list[str], exc: Exception) -> str:
     return f"{path}: cannot parse as CSV: {first}"
 
 
-def iter_numeric_columns(path, columns: dict[str, str], block_bytes: int = 1 << 26):
+def iter_numeric_columns(path, columns: dict[str, str], block_bytes: int = 1 << 24):
     """Stream the named columns as float64 in blocks: yields ``(first_line_number, {name: array})``.
 
     Same checks and messages as :func:`read_numeric_columns`; memory stays at
@@ -97,9 +97,10 @@ def iter_numeric_columns(path, columns: dict[str, str], block_bytes: int = 1 << 
     path = Path(path)
     file_cols = list(dict.fromkeys(columns.values()))
     try:
+        # no threaded read-ahead: the reader would run ahead of the navigator and buffer the file
         reader = pacsv.open_csv(
             path,
-            read_options=pacsv.ReadOptions(use_threads=True, block_size=block_bytes),
+            read_options=pacsv.ReadOptions(use_threads=False, block_size=block_bytes),
             convert_options=pacsv.ConvertOptions(
                 include_columns=file_cols, column_types={c: pa.float64() for c in file_cols},
                 strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[]))

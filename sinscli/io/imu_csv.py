@@ -72,8 +72,8 @@ class TimeChecker:
     first block); messages give file line numbers (header = line 1).
     """
 
-    def __init__(self, path, allow_gaps=False, what="time"):
-        self.path, self.allow_gaps, self.what = path, allow_gaps, what
+    def __init__(self, path, allow_gaps=False, what="time", row_label="line"):
+        self.path, self.allow_gaps, self.what, self.row = path, allow_gaps, what, row_label
         self.prev = None
         self.nominal = None
 
@@ -91,14 +91,14 @@ class TimeChecker:
             if bad.any():
                 k = int(np.argmax(bad))
                 how = "repeats" if dt[k] == 0 else "goes backwards"
-                raise SinsError(f"{path}: line {line0 + k + 1}, column '{self.what}': time {float(full[k + 1])!r} "
+                raise SinsError(f"{path}: {self.row} {line0 + k + 1}, {self.what}: time {float(full[k + 1])!r} "
                                 f"{how} (previous row {float(full[k])!r}); time must strictly increase")
             if self.nominal is None:
                 self.nominal = float(np.median(dt))
             gaps = np.nonzero(dt > GAP_FACTOR * self.nominal)[0]
             for k in gaps:
                 if not self.allow_gaps:
-                    raise SinsError(f"{path}: line {line0 + k + 1}: gap of {dt[k]:.6g} s before time "
+                    raise SinsError(f"{path}: {self.row} {line0 + k + 1}: gap of {dt[k]:.6g} s before time "
                                     f"{float(full[k + 1])!r} ({dt[k] / self.nominal:.1f} nominal intervals of "
                                     f"{self.nominal:.6g} s; at most {GAP_FACTOR:g} allowed); use --allow-gaps "
                                     f"to bridge it")
@@ -109,10 +109,10 @@ class TimeChecker:
 
 def check_time(path, time, allow_gaps=False, what="time"):
     """Check a whole time column (see :class:`TimeChecker`)."""
-    TimeChecker(path, allow_gaps, what).check(np.asarray(time, dtype=float), 2)
+    TimeChecker(path, allow_gaps, f"column '{what}'").check(np.asarray(time, dtype=float), 2)
 
 
-def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=1 << 26):
+def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=1 << 24):
     """Stream an IMU CSV (either form) as :class:`ImuLog` blocks of increments, SI units, body axes.
 
     ``cfg`` is the config's ``imu`` section (column mapping, units, mounting).
@@ -126,7 +126,7 @@ def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=1 << 26):
     form, cols = _resolve_columns(path, header, cfg_imu)
     units = {**DEFAULTS["imu"]["units"], **(cfg_imu.get("units") or {})}
     c_sb = mounting_matrix(cfg_imu.get("mounting"))
-    checker = TimeChecker(path, allow_gaps, what=cols["time"])
+    checker = TimeChecker(path, allow_gaps, what=f"column '{cols['time']}'")
     last = None       # last rate sample (time, gyro, accel) of the previous block
     rows = 0
     for line, data in iter_numeric_columns(path, cols, block_bytes):

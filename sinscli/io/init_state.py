@@ -9,7 +9,7 @@ import yaml
 
 from ..errors import SinsError
 from ..nav.rotation import dcm_to_euler, euler_to_dcm
-from ..types import NavState
+from ..types import NavState, time_tolerance
 from .atomic import atomic_path
 
 INIT_KEYS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading"]
@@ -32,7 +32,7 @@ def read_init(path, t_start: float | None = None, conv: int = 0) -> NavState:
     if t_start is None:
         k = 0
     else:
-        idx = np.nonzero(traj.time <= t_start + 1e-9 * max(1.0, abs(t_start)))[0]
+        idx = np.nonzero(traj.time <= t_start + time_tolerance(t_start))[0]
         if idx.size == 0:
             raise SinsError(f"{path}: no row at or before the IMU start time {t_start!r} "
                             f"(the trajectory starts at {traj.time[0]!r})")

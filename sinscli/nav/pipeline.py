@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SinsError
-from ..types import ImuLog, NavState, Trajectory
+from ..types import ImuLog, NavState, Trajectory, time_tolerance
 from . import strapdown as sd
 
 log = logging.getLogger("sins")
@@ -123,7 +123,7 @@ class Navigator:
         """Navigate one block; returns its output rows (or None when it produced none)."""
         self._source = imu.source
         t_init = self.init.time
-        tol = 1e-9 * max(1.0, abs(t_init))
+        tol = time_tolerance(t_init)
         if self.first_time is None and len(imu):
             start = imu.t0 if imu.t0 is not None else imu.time[0] - (
                 imu.time[1] - imu.time[0] if len(imu) > 1 else 0.0)
