@@ -321,10 +321,12 @@ def _inertial(w: Window, opts: AlignOptions, lat: float, h: float, g: float,
     if gnss is None:
         moving, _, _ = _rest_statistics(w, opts)
         b = _budget(w, opts, not moving, g)
-        ts = observability.tilt_sigma(T, b.accel_bias, b.accel_vrw, g)
+        # the gyro bias turns the fitted gravity directions by ~eps T / 2 (the drift the roll window removes)
+        ts = math.hypot(observability.tilt_sigma(T, b.accel_bias, b.accel_vrw, g), b.gyro_bias * T / 2.0)
         tilt = np.array([ts, ts])
         if opts.roll_window is not None:
-            tilt[0] = observability.tilt_sigma(opts.roll_window, b.accel_bias, b.accel_vrw, g)
+            S = opts.roll_window
+            tilt[0] = math.hypot(observability.tilt_sigma(S, b.accel_bias, b.accel_vrw, g), b.gyro_bias * S / 2.0)
         hc = observability.check_earth_rate(lat, T, b, g, opts.max_heading_sigma, accel_noise=True)
         return _Solution(cbn0, rows, times, propagate, series0, tilt, hc, "earth-rate", budget=b)
     # moving base: error budget of the fit, per epoch (GNSS velocity noise, accelerometer and gyro errors)

@@ -93,9 +93,7 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
         opts.position = parse_position(position, "--position")
     imu_log = read_imu(imu, cfg)
     gnss = read_gnss(gnss_path, cfg) if gnss_path is not None else None
-    with progress(1, "aligning", quiet) as bar:
-        res = align(imu_log, opts, gnss, progress=None)
-        bar.update(1)
+    res = align(imu_log, opts, gnss)          # well under a second for minutes of data: no progress bar
     for note in res.notes:
         click.echo(f"sins: note: {note}", err=True)
     # every output is written after the alignment succeeded, each atomically

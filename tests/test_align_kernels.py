@@ -1,0 +1,104 @@
+"""Alignment kernels against closed forms: Wahba (SVD vs q-method), the navigation-frame integral of
+seed 001 eqs 20-21, and exact alignment on error-free data (static and swaying base)."""
+import math
+
+import numpy as np
+import pytest
+
+from sinscli.align import coarse, inertial, sway, wahba
+from sinscli.align.options import AlignOptions, SensorSpec
+from sinscli.align.pipeline import align
+from sinscli.nav.earth import OMEGA_IE, gravity
+from sinscli.nav.rotation import attitude_error_many, rotvec_to_dcm
+
+LAT = math.radians(30.0)
+POS = (LAT, math.radians(114.0), 50.0)
+SPEC = SensorSpec(1e-9, 1e-9, 1e-7, 1e-7)
+
+
+def _err_deg(c_true, c_est):
+    return np.degrees(np.abs(attitude_error_many(np.asarray(c_true)[None], np.asarray(c_est)[None])[0]))
+
+
+def test_wahba_svd_and_q_method_agree_with_the_rotation():
+    rng = np.random.default_rng(3)
+    c = rotvec_to_dcm(rng.normal(size=3))
+    a = rng.normal(size=(7, 3)) * np.array([1.0, 10.0, 100.0])
+    b = a @ c.T
+    assert np.abs(wahba.solve(a, b) - c).max() < 1e-12
+    assert np.abs(wahba.q_method(a, b) - c).max() < 1e-12
+    # with noise both methods solve the same problem: the same optimum
+    bn = b + 0.05 * rng.normal(size=b.shape)
+    w = rng.uniform(0.5, 2.0, size=7)
+    assert np.abs(wahba.solve(a, bn, w) - wahba.q_method(a, bn, w)).max() < 1e-12
+    assert 1e-4 < np.abs(wahba.solve(a, bn) - c).max() < 0.05
+    # cumulative: the last row is the whole solution, the centered fit ignores a common offset
+    assert np.abs(wahba.solve_cumulative(a, bn)[-1] - wahba.solve(a, bn)).max() < 1e-12
+    off = b + np.array([3.0, -2.0, 1.0])
+    assert np.abs(wahba.solve_cumulative(a, off, centered=True)[-1] - c).max() < 1e-12
+    assert np.abs(wahba.solve_cumulative(a, off)[-1] - c).max() > 1e-3
+
+
+def test_nav_side_gravity_integral_is_the_closed_form():
+    """At rest beta_v(t) = -int_0^t exp([w_ie s x]) g^n ds, with
+    int exp = t I + (1 - cos wt)/w [u x] + (t - sin(wt)/w) [u x]^2."""
+    M, T = 3000, 0.1
+    dt = np.full(M, T)
+    lat = np.full(M + 1, LAT)
+    h = np.full(M + 1, 50.0)
+    cnn0 = np.empty((M + 1, 3, 3))
+    beta = np.empty((M + 1, 3))
+    inertial.nav_side(dt, lat, h, np.zeros((M + 1, 3)), cnn0, beta)
+    w = np.array([0.0, OMEGA_IE * math.cos(LAT), OMEGA_IE * math.sin(LAT)])
+    wn = np.linalg.norm(w)
+    u = w / wn
+    ux = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+    g = np.array([0.0, 0.0, -gravity(math.sin(LAT), 50.0)])
+    for k in (1, 100, M):
+        t = k * T
+        integral = t * np.eye(3) + (1 - math.cos(wn * t)) / wn * ux + (t - math.sin(wn * t) / wn) * ux @ ux
+        assert np.abs(beta[k] - (-integral @ g)).max() < 1e-9 * t * 10.0
+        assert np.abs(cnn0[k] - rotvec_to_dcm(w * t)).max() < 1e-13
+
+
+@pytest.fixture(scope="module")
+def perfect_static():
+    sc = {"name": "s", "start": {"lat": 30, "lon": 114, "height": 50, "heading": 123.0, "pitch": 2.0, "roll": -3.0},
+          "imu": {"rate": 50}, "gnss": {"rate": 1}, "segments": [{"type": "rest", "duration": 120}]}
+    return sway.ScenarioRuns(sway.prepare_scenario(sc, None, "t", None)).run(0, perfect=True)
+
+
+def test_error_free_static_base_is_aligned_exactly(perfect_static):
+    r = perfect_static
+    for method in ("static", "inertial"):
+        res = align(r.imu, AlignOptions(method=method, position=POS, sensor=SPEC))
+        assert _err_deg(r.truth.Cbn[-1], res.state.Cbn).max() < 1e-8, method
+    w_mean, f_mean = coarse.mean_rates(r.imu.time, r.imu.dtheta_b, r.imu.dvel_b, r.imu.t0)
+    assert _err_deg(r.truth.Cbn[0], coarse.triad(f_mean, w_mean, LAT)).max() < 1e-8
+
+
+def test_error_free_swaying_base_is_aligned_exactly():
+    sw = {"roll": {"amplitude": 5, "freq": 0.15}, "pitch": {"amplitude": 5, "freq": 0.11, "phase": 60},
+          "heading": {"amplitude": 1, "freq": 0.07}, "heave": {"amplitude": 0.5, "freq": 0.12}}
+    sc = {"name": "s", "start": {"lat": 30, "lon": 114, "height": 50, "heading": 30},
+          "imu": {"rate": 50}, "gnss": {"rate": 1}, "segments": [{"type": "rest", "duration": 120}]}
+    r = sway.ScenarioRuns(sway.prepare_scenario(sc, sw, "t", None)).run(0, perfect=True)
+    # the sway is there: +-5 deg roll and pitch, +-0.5 m heave
+    from sinscli.nav.rotation import dcm_to_euler_many
+    eul = np.degrees(dcm_to_euler_many(r.truth.Cbn, 0))
+    assert 9.5 < np.ptp(eul[:, 0]) < 10.01 and 9.5 < np.ptp(eul[:, 1]) < 10.01
+    assert 0.99 < np.ptp(r.truth.height) < 1.01
+    # exact but for the heave velocity, which the method takes as zero (a moored base): ~1e-6 deg in 120 s
+    res = align(r.imu, AlignOptions(method="inertial", position=POS, sensor=SPEC))
+    assert _err_deg(r.truth.Cbn[-1], res.state.Cbn).max() < 1e-5
+    start = align(r.imu, AlignOptions(method="inertial", position=POS, sensor=SPEC, epoch="start"))
+    assert _err_deg(r.truth.Cbn[0], start.state.Cbn).max() < 1e-5
+    assert start.state.time == r.imu.t0
+
+
+def test_sway_scenario_keys_are_checked():
+    from sinscli.errors import SinsError
+    with pytest.raises(SinsError, match="sway.yaw: unknown key"):
+        sway.sway_waves({"yaw": {"amplitude": 1}}, "f.yaml")
+    with pytest.raises(SinsError, match="sway.roll.freq: must be >= 0"):
+        sway.sway_waves({"roll": {"amplitude": 1, "freq": -1}}, "f.yaml")
