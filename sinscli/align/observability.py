@@ -113,9 +113,10 @@ def check_earth_rate(lat, T, b: Budget, g, max_sigma, accel_noise: bool = False)
     wh_dph = math.degrees(OMEGA_IE * math.cos(lat)) * 3600.0
     bias_dph = math.degrees(b.gyro_bias) * 3600.0
     arw = math.degrees(b.gyro_arw) * 60.0
+    sd = math.degrees(s)
+    sig = f"{sd:.3g} deg" if sd <= 180.0 else "over 180 deg (no heading information)"
     what = (f"gyro bias {bias_dph:.3g} deg/h and random walk {arw:.3g} deg/sqrt(h) ({b.source}) against "
-            f"the horizontal earth rate {wh_dph:.3g} deg/h give a heading 1-sigma of "
-            f"{math.degrees(s):.3g} deg in {T:.4g} s")
+            f"the horizontal earth rate {wh_dph:.3g} deg/h give a heading 1-sigma of {sig} in {T:.4g} s")
     if s > max_sigma:
         return HeadingCheck(False, s, f"heading is not observable from earth rate: {what} "
                                       f"(> {math.degrees(max_sigma):.3g} deg, align.max_heading_sigma)")

@@ -20,7 +20,7 @@ from ..nav.pipeline import NavOptions
 from ..nav.rotation import dcm_to_euler, dcm_to_euler_many, euler_to_dcm, rotvec_to_dcm
 from ..types import GnssLog, ImuLog, NavState
 from . import coarse, inertial, kf, observability, wahba
-from .options import DEG, MIN_DURATION, AlignOptions
+from .options import MIN_DURATION, AlignOptions
 
 
 @dataclass
@@ -216,7 +216,7 @@ def _epoch_rows(time_rel: np.ndarray, interval: float) -> np.ndarray:
 
 def _rest_statistics(w: Window, opts: AlignOptions):
     """Motion statistics and the means used by the data-driven error budget."""
-    dw, df, _, nb = coarse.motion_statistics(w.time, w.dtheta_b, w.dvel_b, w.t0, opts.static_block)
+    dw, df, _, _ = coarse.motion_statistics(w.time, w.dtheta_b, w.dvel_b, w.t0, opts.static_block)
     moving = dw > opts.static_rate or df > opts.static_accel
     return moving, dw, df
 

@@ -1,7 +1,6 @@
 """``sins align``: IMU (+GNSS) log -> initial state YAML; ``--monte-carlo N --scenario S``: seed 001 Figs. 1-3."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import click
