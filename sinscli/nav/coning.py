@@ -36,6 +36,40 @@ CONING_COEFFS = np.array([
 ])
 
 
+@njit(cache=True)
+def load_memory(st, i_dth, i_dv):
+    """The fast-rate sample memory (previous increments, newest first) from a state vector."""
+    prev_dth = np.empty((MAX_ORDER - 1, 3))
+    prev_dv = np.empty((MAX_ORDER - 1, 3))
+    for j in range(MAX_ORDER - 1):
+        for i in range(3):
+            prev_dth[j, i] = st[i_dth + 3 * j + i]
+            prev_dv[j, i] = st[i_dv + 3 * j + i]
+    return prev_dth, prev_dv
+
+
+@njit(cache=True)
+def save_memory(st, i_dth, i_dv, prev_dth, prev_dv):
+    """Store the sample memory back into the state vector (for the next block)."""
+    for j in range(MAX_ORDER - 1):
+        for i in range(3):
+            st[i_dth + 3 * j + i] = prev_dth[j, i]
+            st[i_dv + 3 * j + i] = prev_dv[j, i]
+
+
+@njit(cache=True, inline="always")
+def push_sample(prev_dth, prev_dv, dth, dv, n_prev):
+    """Shift the memory back by one sample, put (dth, dv) first; returns the new count of valid samples."""
+    for j in range(MAX_ORDER - 2, 0, -1):
+        for i in range(3):
+            prev_dth[j, i] = prev_dth[j - 1, i]
+            prev_dv[j, i] = prev_dv[j - 1, i]
+    for i in range(3):
+        prev_dth[0, i] = dth[i]
+        prev_dv[0, i] = dv[i]
+    return min(n_prev + 1, MAX_ORDER - 1)
+
+
 @njit(cache=True, inline="always")
 def fast_step(alpha, upsilon, beta, scul, dth, dv, prev_dth, prev_dv, n_prev, coeffs):
     """One fast-rate update of the interval sums; returns new (alpha, upsilon, beta, scul).

@@ -21,7 +21,7 @@ Attitude methods (``ATT_*``):
 import numpy as np
 from numba import njit
 
-from .coning import CONING_COEFFS, MAX_ORDER, body_increments, fast_step
+from .coning import CONING_COEFFS, body_increments, fast_step, load_memory, push_sample, save_memory
 from .krylov import (euler3_dcm_t, euler3_init, euler3_step_t, krylov_init, krylov_step_dcm_t)
 from .mechanization import (displacement, first_guess_displacement, frame_rotation, midpoint,
                             position_update, velocity_update)
@@ -284,12 +284,7 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
     coeffs = CONING_COEFFS[order - 1]
     nprev_max = order - 1
     n_out = 0
-    prev_dth = np.empty((MAX_ORDER - 1, 3))
-    prev_dv = np.empty((MAX_ORDER - 1, 3))
-    for j in range(MAX_ORDER - 1):
-        for i in range(3):
-            prev_dth[j, i] = st[S_PDTH + 3 * j + i]
-            prev_dv[j, i] = st[S_PDV + 3 * j + i]
+    prev_dth, prev_dv = load_memory(st, S_PDTH, S_PDV)
     n_prev = int(st[S_NPREV])
     alpha, ups, beta, scul = _vec(st, S_ALPHA), _vec(st, S_UPS), _vec(st, S_BETA), _vec(st, S_SCUL)
     nsub_now = int(st[S_NSUB])
@@ -298,14 +293,7 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
         dv = (dvel_b[k, 0], dvel_b[k, 1], dvel_b[k, 2])
         alpha, ups, beta, scul = fast_step(alpha, ups, beta, scul, dth, dv, prev_dth, prev_dv,
                                            min(n_prev, nprev_max), coeffs)
-        for j in range(MAX_ORDER - 2, 0, -1):
-            for i in range(3):
-                prev_dth[j, i] = prev_dth[j - 1, i]
-                prev_dv[j, i] = prev_dv[j - 1, i]
-        for i in range(3):
-            prev_dth[0, i] = dth[i]
-            prev_dv[0, i] = dv[i]
-        n_prev = min(n_prev + 1, MAX_ORDER - 1)
+        n_prev = push_sample(prev_dth, prev_dv, dth, dv, n_prev)
         nsub_now += 1
         if nsub_now < nsub:
             continue
@@ -380,10 +368,7 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
             st[S_STOPPED] = 1.0
             break
     # save the fast-rate memory for the next chunk
-    for j in range(MAX_ORDER - 1):
-        for i in range(3):
-            st[S_PDTH + 3 * j + i] = prev_dth[j, i]
-            st[S_PDV + 3 * j + i] = prev_dv[j, i]
+    save_memory(st, S_PDTH, S_PDV, prev_dth, prev_dv)
     st[S_NPREV] = n_prev
     _set_vec(st, S_ALPHA, alpha)
     _set_vec(st, S_UPS, ups)
