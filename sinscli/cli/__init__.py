@@ -1,10 +1,3 @@
-"""Command-line wiring: each command lives in its own module and registers on ``main``."""
+"""Command-line wiring: each command lives in its own module (listed in ``base.COMMANDS``),
+registers itself on ``main`` and is imported when first used."""
 from .base import main  # noqa: F401
-
-# One import per command module (each adds its command to ``main``).
-from . import compare  # noqa: F401,E402
-from . import navigate  # noqa: F401,E402
-from . import simulate  # noqa: F401,E402
-from . import info  # noqa: F401,E402
-from . import convert  # noqa: F401,E402
-from . import align  # noqa: F401,E402

@@ -11,8 +11,23 @@ from ..errors import SinsError
 log = logging.getLogger("sins")
 
 
+# command name -> module under sinscli.cli that defines it; imported on first use, so that
+# `sins navigate` does not pay for the simulator, reports or alignment at start-up.
+COMMANDS = {"navigate": "navigate", "align": "align", "simulate": "simulate", "compare": "compare",
+            "info": "info", "convert": "convert"}
+
+
 class _Group(click.Group):
-    """A click group that turns :class:`SinsError` into one line on stderr and exit 2."""
+    """A click group that loads its commands lazily and turns :class:`SinsError` into one line and exit 2."""
+
+    def list_commands(self, ctx):
+        return sorted(set(COMMANDS) | set(self.commands))
+
+    def get_command(self, ctx, name):
+        if name not in self.commands and name in COMMANDS:
+            import importlib
+            importlib.import_module(f"{__package__}.{COMMANDS[name]}")   # registers on ``main``
+        return self.commands.get(name)
 
     def invoke(self, ctx):
         try:
