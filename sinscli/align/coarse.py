@@ -45,10 +45,11 @@ def mean_rates(time, dtheta_b, dvel_b, t0):
     return dtheta_b.sum(axis=0) / T, dvel_b.sum(axis=0) / T
 
 
-def cumulative_triad(time, dtheta_b, dvel_b, t0, lat):
-    """The static solution over (t0, time[k]] for every k (n, 3, 3): alignment against time."""
-    T = (np.asarray(time, dtype=float) - t0)[:, None]
-    return triad(np.cumsum(dvel_b, axis=0) / T, np.cumsum(dtheta_b, axis=0) / T, lat)
+def cumulative_triad(time, dtheta_b, dvel_b, t0, lat, rows=None):
+    """The static solution over (t0, time[k]] for the samples k in ``rows`` (all when None): (n, 3, 3)."""
+    k = np.arange(len(time)) if rows is None else np.asarray(rows)
+    T = (np.asarray(time, dtype=float)[k] - t0)[:, None]
+    return triad(np.cumsum(dvel_b, axis=0)[k] / T, np.cumsum(dtheta_b, axis=0)[k] / T, lat)
 
 
 def block_means(time, dtheta_b, dvel_b, t0, block: float):

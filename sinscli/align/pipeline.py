@@ -240,7 +240,7 @@ def _static(w: Window, opts: AlignOptions, lat: float, g: float) -> _Solution:
     cbn = coarse.triad(f_mean, w_mean, lat)
     rows = _epoch_rows(w.time - w.t0, opts.obs_interval)
     times = w.all_times[rows]
-    series = coarse.cumulative_triad(w.time, w.dtheta_b, w.dvel_b, w.t0, lat)[rows - 1]
+    series = coarse.cumulative_triad(w.time, w.dtheta_b, w.dvel_b, w.t0, lat, rows - 1)
     b = _budget(w, opts, True, g)
     T = w.T
     ts = observability.tilt_sigma(T, b.accel_bias, b.accel_vrw, g)

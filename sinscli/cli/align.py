@@ -150,8 +150,9 @@ def _monte_carlo(scenario, runs, seed, outdir, quiet):
         md.append(f"| {r['variant']} | {r['attitude']} | {r['angle']} | {r['mean_deg']:.3g} | {r['std_deg']:.3g} | "
                   f"{r['rms_deg']:.3g} | {th} |")
     if mc.roll_window is not None:
-        for name in mc.variants:
-            if mc.variants[name].start is not None:
+        base = next(iter(mc.variants))
+        for name in (base, f"{base}+roll-window"):
+            if name in mc.variants and mc.variants[name].start is not None:
                 md.append("")
                 md.append(f"{name}: rms change of the start-attitude roll error from {mc.roll_window:g} s to the end: "
                           f"{mc.drift(name, mc.roll_window):.3g} deg")
