@@ -72,9 +72,15 @@ CHOICES = {
 UNIT_CHOICES = {"gyro": GYRO_UNITS, "accel": ACCEL_UNITS, "dtheta": ANGLE_UNITS, "dvel": VEL_UNITS}
 
 
-def load_config(path=None) -> dict:
-    """Load and validate a config YAML (or the defaults when ``path`` is None)."""
+def load_config(path=None, extra_sections=()) -> dict:
+    """Load and validate a config YAML (or the defaults when ``path`` is None).
+
+    ``extra_sections`` names sections that another stage validates itself (e.g.
+    ``align``): they are accepted and returned raw under their name (None when absent).
+    """
     cfg = copy.deepcopy(DEFAULTS)
+    for name in extra_sections:
+        cfg[name] = None
     if path is None:
         return cfg
     path = Path(path)
@@ -89,8 +95,12 @@ def load_config(path=None) -> dict:
     if not isinstance(data, dict):
         raise SinsError(f"{path}: expected a mapping of sections {sorted(DEFAULTS)}")
     for section, values in data.items():
+        if section in extra_sections:
+            cfg[section] = values
+            continue
         if section not in DEFAULTS:
-            raise SinsError(f"{path}: {section}: unknown section; expected one of {', '.join(sorted(DEFAULTS))}")
+            raise SinsError(f"{path}: {section}: unknown section; expected one of "
+                            f"{', '.join(sorted([*DEFAULTS, *extra_sections]))}")
         if values is None:
             continue
         if not isinstance(values, dict):

@@ -150,3 +150,20 @@ def test_error_of_the_attitude_error_function_is_consistent(rest_runs):
     phi = np.degrees(attitude_error_many(c_true[None], res.state.Cbn[None])[0])
     e = euler_err_deg(c_true, res.state.Cbn)
     assert abs(abs(phi[2]) - abs(e[2])) < 0.01 * abs(e[2]) + 1e-4
+
+
+def test_end_attitude_is_at_the_last_sample_not_the_last_fix(vehicle_runs):
+    """With 1 Hz GNSS the fit's epochs are fix times; the written state is at the window's last sample,
+    and its attitude must be carried there (a window ending 0.5 s after a fix, the vehicle turning)."""
+    r = vehicle_runs[0]
+    rate = np.linalg.norm(r.imu.dtheta_b, axis=1) / np.diff(np.concatenate([[r.imu.t0], r.imu.time]))
+    turning = np.nonzero((rate > np.radians(3.0)) & (r.imu.time > 55.0))[0]     # the second turn
+    t_mid = float(r.imu.time[turning[len(turning) // 2]])
+    start = float(r.imu.t0) + 2.0
+    duration = math.floor(t_mid) + 0.5 - start           # the window ends half way between two fixes
+    res = align(r.imu, AlignOptions(method="gnss-inertial", start=start, duration=duration, sensor=NAV_SPEC,
+                                    lever_arm=np.array(VEHICLE["gnss"]["lever_arm"])), r.gnss)
+    e = euler_err_deg(_truth_at(r, res.state.time), res.state.Cbn)
+    yaw_rate = np.degrees(rate[int(np.argmin(np.abs(r.imu.time - res.state.time)))])
+    assert yaw_rate > 3.0                               # the test bites: 0.5 s of turn is > 1.5 deg
+    assert abs(e[2]) < 0.5 and abs(e[0]) < 0.05 and abs(e[1]) < 0.05, (e, yaw_rate)

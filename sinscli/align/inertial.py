@@ -23,7 +23,7 @@ over each step, eq 23).  No I/O here: plain arrays in, arrays out.
 import numpy as np
 from numba import njit
 
-from ..nav.coning import CONING_COEFFS, MAX_ORDER, body_increments, fast_step
+from ..nav.coning import CONING_COEFFS, MAX_ORDER, body_increments, fast_step, push_sample
 from ..nav.earth import OMEGA_IE, gravity, transport_rate_n
 from ..nav.mechanization import gamma_delta
 from ..nav.rotation import (m_mul, m_vec, orthonormalize_t, rotvec_to_dcm_t, v_add, v_cross, v_scale,
@@ -80,14 +80,7 @@ def body_side(dtheta_b, dvel_b, order, out_cbb0, out_alpha):
         if order == 1:
             phi = a
         a_prev, u_prev, have_prev = a, u, True
-        for j in range(MAX_ORDER - 2, 0, -1):
-            for i in range(3):
-                prev_dth[j, i] = prev_dth[j - 1, i]
-                prev_dv[j, i] = prev_dv[j - 1, i]
-        for i in range(3):
-            prev_dth[0, i] = dth[i]
-            prev_dv[0, i] = dv[i]
-        n_prev = min(n_prev + 1, MAX_ORDER - 1)
+        n_prev = push_sample(prev_dth, prev_dv, dth, dv, n_prev)
         alpha = v_add(alpha, m_vec(c, dv_b))
         c = m_mul(c, rotvec_to_dcm_t(phi))
         if (k + 1) % _ORTHO_EVERY == 0:

@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import SinsError
 from ..nav.earth import gravity
 from ..nav.rotation import dcm_to_euler_many
+from ..types import time_tolerance
 from . import observability
 from .options import build_options, merge_section
 from .pipeline import align
@@ -154,7 +155,7 @@ def run_monte_carlo(path, runs: int | None = None, seed0: int | None = None, pro
             o.roll_window = window
             res = align(r.imu, o, r.gnss if uses_gnss[name] else None)
             ser = res.series
-            idx = np.searchsorted(r.truth.time, ser.time - 1e-9 * max(1.0, abs(float(ser.time[0]))))
+            idx = np.searchsorted(r.truth.time, ser.time - time_tolerance(float(ser.time[0])))
             a = acc[name]
             if a["t"] is None:
                 a["t"] = ser.time - res.t0

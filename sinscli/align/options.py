@@ -10,10 +10,8 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
-import yaml
 
 from .. import config as config_mod
 from ..errors import SinsError
@@ -238,35 +236,8 @@ def build_options(d: dict, src: str, conv: int = 0, lever_arm=None) -> AlignOpti
 def load_align_config(path) -> tuple[dict, dict]:
     """A config YAML with an optional ``align:`` section: ``(navigation config, merged align mapping)``.
 
-    The navigation part is validated by :func:`sinscli.config.validate` exactly as
-    :func:`sinscli.config.load_config` would.
+    The navigation part is loaded and validated by :func:`sinscli.config.load_config`.
     """
-    cfg = copy.deepcopy(config_mod.DEFAULTS)
-    if path is None:
-        return cfg, merge_section(None, "config")
-    path = Path(path)
-    if not path.exists():
-        raise SinsError(f"{path}: config file not found")
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError:
-        raise SinsError(f"{path}: is not valid YAML") from None
-    if not isinstance(data, dict):
-        raise SinsError(f"{path}: expected a mapping of sections")
-    data = dict(data)
-    align = data.pop("align", None)
-    for section, values in data.items():
-        if section not in cfg:
-            raise SinsError(f"{path}: {section}: unknown section; expected one of "
-                            f"{', '.join(sorted(list(cfg) + ['align']))}")
-        if values is None:
-            continue
-        if not isinstance(values, dict):
-            raise SinsError(f"{path}: {section}: expected a mapping of keys")
-        for key, value in values.items():
-            if key not in cfg[section]:
-                raise SinsError(f"{path}: {section}.{key}: unknown key; expected one of "
-                                f"{', '.join(sorted(cfg[section]))}")
-            cfg[section][key] = value
-    config_mod.validate(cfg, str(path))
-    return cfg, merge_section(align, str(path))
+    cfg = config_mod.load_config(path, extra_sections=("align",))
+    align = cfg.pop("align")
+    return cfg, merge_section(align, str(path) if path is not None else "config")

@@ -18,7 +18,7 @@ from ..errors import SinsError
 from ..nav.earth import gravity, radii
 from ..nav.pipeline import NavOptions
 from ..nav.rotation import dcm_to_euler, dcm_to_euler_many, euler_to_dcm, rotvec_to_dcm
-from ..types import GnssLog, ImuLog, NavState
+from ..types import GnssLog, ImuLog, NavState, time_tolerance
 from . import coarse, inertial, kf, observability, wahba
 from .options import MIN_DURATION, AlignOptions
 
@@ -95,7 +95,7 @@ def select_window(imu: ImuLog, opts: AlignOptions) -> Window:
     if n < 2:
         raise SinsError(f"{imu.source}: the IMU log has {n} sample(s); alignment needs an interval")
     log_t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
-    tol = 1e-9 * max(1.0, abs(log_t0))
+    tol = time_tolerance(log_t0)
     if opts.start is None:
         t0, k0 = log_t0, 0
     else:
@@ -204,6 +204,7 @@ class _Solution:
     vel_ep: np.ndarray | None = None     # (n, 3) GNSS velocity at the epochs (course)
     sig_v: float = 0.1
     budget: observability.Budget | None = None
+    at_end: object = None                # cbn0 -> attitude at the last sample of the window (None: last epoch)
 
 
 def _epoch_rows(time_rel: np.ndarray, interval: float) -> np.ndarray:
@@ -317,6 +318,10 @@ def _inertial(w: Window, opts: AlignOptions, lat: float, h: float, g: float,
     def propagate(c0):
         return inertial.attitude_at(c0, cbb0[rows], cnn0[rows])
 
+    def at_end(c0):
+        # the GNSS epochs may end up to a fix interval before the window's last sample
+        return inertial.attitude_at(c0, cbb0[-1:], cnn0[-1:])[0]
+
     T = w.T
     if gnss is None:
         moving, _, _ = _rest_statistics(w, opts)
@@ -328,7 +333,7 @@ def _inertial(w: Window, opts: AlignOptions, lat: float, h: float, g: float,
             S = opts.roll_window
             tilt[0] = math.hypot(observability.tilt_sigma(S, b.accel_bias, b.accel_vrw, g), b.gyro_bias * S / 2.0)
         hc = observability.check_earth_rate(lat, T, b, g, opts.max_heading_sigma, accel_noise=True)
-        return _Solution(cbn0, rows, times, propagate, series0, tilt, hc, "earth-rate", budget=b)
+        return _Solution(cbn0, rows, times, propagate, series0, tilt, hc, "earth-rate", budget=b, at_end=at_end)
     # moving base: error budget of the fit, per epoch (GNSS velocity noise, accelerometer and gyro errors)
     b = _budget(w, opts, False, g)
     t_ep = times - w.t0
@@ -352,7 +357,7 @@ def _inertial(w: Window, opts: AlignOptions, lat: float, h: float, g: float,
     else:
         hc = observability.HeadingCheck(True, hs, f"heading from earth rate and motion: {what}")
     vel_ep = vel_s[rows]
-    return _Solution(cbn0, rows, times, propagate, series0, np.array([ts, ts]), hc, "gnss-motion",
+    return _Solution(cbn0, rows, times, propagate, series0, np.array([ts, ts]), hc, "gnss-motion", at_end=at_end,
                      vel_ep=vel_ep, sig_v=max(sig_v, 1e-3), budget=b)
 
 
@@ -466,7 +471,7 @@ def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress
     if opts.method != "kf":
         r_s, p_s = sol.tilt_sigma
         sigma = np.array([r_s, p_s, h_sigma])
-        cbn_end = cur[-1]
+        cbn_end = sol.at_end(cbn0) if sol.at_end is not None else cur[-1]
         series = Series(sol.times, sol.propagate(series0) if series0 is not None else cur, series0)
         if source == "user":
             series.cbn[-1] = cbn_end
