@@ -7,10 +7,10 @@ at each 1 s update and runs a 12-state filter, so it is the slowest.  Run:
 ``python benchmarks/bench_align.py``.
 """
 import math
-import time
 
 import numpy as np
 
+from bench_navigate import best_of   # same folder: one timing helper for the benchmarks
 from sinscli.align.options import AlignOptions, SensorSpec
 from sinscli.align.pipeline import align
 from sinscli.nav.pipeline import NavOptions, navigate
@@ -27,15 +27,6 @@ def make_log():
           "imu": {"rate": RATE, "sensor": {"gyro": {"bias": 0.01, "arw": 0.001}, "accel": {"bias": 50, "vrw": 10}}},
           "segments": [{"type": "rest", "duration": SECONDS}]}
     return simulate(sc, seed=1)
-
-
-def best_of(fn, repeat=2):
-    best = math.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main():

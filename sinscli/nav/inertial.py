@@ -33,14 +33,14 @@ from numba import njit
 
 from ..errors import SinsError
 from ..types import NavState, Trajectory
-from .coning import CONING_COEFFS, body_increments, fast_step, load_memory, push_sample, save_memory
+from .coning import body_increments
 from .earth import (OMEGA_IE, ecef_to_lla, ecef_to_launch_axes_py, enu_rotation, gravitation,
                     launch_axes, launch_to_ecef_axes_py, lla_to_ecef)
 from .mechanization import displacement
 from .rotation import m_tvec, m_vec, v_add, v_scale
-from .strapdown import (S_ALPHA, S_BETA, S_HAVE_MM2, S_HAVE_PREV, S_NOUT, S_NPREV, S_NSUB, S_PALPHA,
-                        S_PDTH, S_PDV, S_PUPS, S_SCUL, S_T, S_TMM2, S_TMM3, S_TSTART, S_UPS, S_VEL,
-                        S_VLO, S_VMM2, S_VMM3, STATE_SIZE, _acc, _attitude_update, _cbn, _set_vec, _vec)
+from .strapdown import (S_HAVE_MM2, S_HAVE_PREV, S_NOUT, S_PALPHA, S_PUPS, S_T, S_TMM2, S_TMM3, S_TSTART,
+                        S_VEL, S_VLO, S_VMM2, S_VMM3, STATE_SIZE, _acc, _attitude_update, _cbn, _set_vec, _vec,
+                        fast_sample, load_fast, save_fast)
 from .strapdown import new_state as _enu_new_state
 
 # Extra trajectory columns of the launch-inertial frame (m, m/s).
@@ -180,19 +180,11 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, out_t, out_r, ou
     ``r^i`` (m), ``v^i`` (m/s) and ``C_b^i`` of every ``every``-th attitude update and
     returns the number of rows written; ``st`` (:func:`new_state`) is updated in place.
     """
-    coeffs = CONING_COEFFS[order - 1]
-    nprev_max = order - 1
     n_out = 0
-    prev_dth, prev_dv = load_memory(st, S_PDTH, S_PDV)
-    n_prev = int(st[S_NPREV])
-    alpha, ups, beta, scul = _vec(st, S_ALPHA), _vec(st, S_UPS), _vec(st, S_BETA), _vec(st, S_SCUL)
-    nsub_now = int(st[S_NSUB])
+    prev_dth, prev_dv, n_prev, sums, nsub_now = load_fast(st)
     for k in range(time.shape[0]):
-        dth = (dtheta_b[k, 0], dtheta_b[k, 1], dtheta_b[k, 2])
-        dv = (dvel_b[k, 0], dvel_b[k, 1], dvel_b[k, 2])
-        alpha, ups, beta, scul = fast_step(alpha, ups, beta, scul, dth, dv, prev_dth, prev_dv,
-                                           min(n_prev, nprev_max), coeffs)
-        n_prev = push_sample(prev_dth, prev_dv, dth, dv, n_prev)
+        sums, n_prev = fast_sample(dtheta_b, dvel_b, k, sums, prev_dth, prev_dv, n_prev, order)
+        alpha, ups, beta, scul = sums
         nsub_now += 1
         if nsub_now < nsub:
             continue
@@ -230,10 +222,7 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, out_t, out_r, ou
             _acc(st, S_R + i, S_RLO + i, dR[i])
         st[S_T] = t_end
         st[S_TSTART] = t_end
-        alpha = _ZERO3
-        ups = _ZERO3
-        beta = _ZERO3
-        scul = _ZERO3
+        sums = (_ZERO3, _ZERO3, _ZERO3, _ZERO3)
         nsub_now = 0
         st[S_NOUT] += 1.0
         if st[S_NOUT] >= every:
@@ -247,13 +236,7 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, out_t, out_r, ou
                 for j in range(3):
                     out_cbi[n_out, i, j] = c[i][j]
             n_out += 1
-    save_memory(st, S_PDTH, S_PDV, prev_dth, prev_dv)
-    st[S_NPREV] = n_prev
-    _set_vec(st, S_ALPHA, alpha)
-    _set_vec(st, S_UPS, ups)
-    _set_vec(st, S_BETA, beta)
-    _set_vec(st, S_SCUL, scul)
-    st[S_NSUB] = nsub_now
+    save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now)
     return n_out
 
 

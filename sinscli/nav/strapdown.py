@@ -25,7 +25,7 @@ from .coning import CONING_COEFFS, body_increments, fast_step, load_memory, push
 from .krylov import (euler3_dcm_t, euler3_init, euler3_step_t, krylov_init, krylov_step_dcm_t)
 from .mechanization import (displacement, first_guess_displacement, frame_rotation, midpoint,
                             position_update, velocity_update)
-from .rotation import (m_mul, m_trans, m_vec, quat_mul_t, quat_normalize_t, quat_to_dcm_t,
+from .rotation import (m_mul, m_trans, m_vec, quat_mul_t, quat_to_dcm_t,
                        rotvec_to_dcm_delta_t, rotvec_to_quat_delta_t, v_add, v_scale)
 
 ATT_DCM, ATT_DCM_SEED000, ATT_QUAT, ATT_KRYLOV, ATT_EULER = 0, 1, 2, 3, 4
@@ -118,6 +118,36 @@ def _set_cbn(st, c):
     for i in range(3):
         for j in range(3):
             st[S_CBN + 3 * i + j] = c[i][j]
+
+
+@njit(cache=True, inline="always")
+def load_fast(st):
+    """The fast-rate state of a block's start: sample memory, its count, the interval sums, samples so far."""
+    prev_dth, prev_dv = load_memory(st, S_PDTH, S_PDV)
+    sums = (_vec(st, S_ALPHA), _vec(st, S_UPS), _vec(st, S_BETA), _vec(st, S_SCUL))
+    return prev_dth, prev_dv, int(st[S_NPREV]), sums, int(st[S_NSUB])
+
+
+@njit(cache=True, inline="always")
+def fast_sample(dtheta_b, dvel_b, k, sums, prev_dth, prev_dv, n_prev, order):
+    """Sample k at the fast rate: coning/sculling sums (eqs 41-47), then the sample memory."""
+    dth = (dtheta_b[k, 0], dtheta_b[k, 1], dtheta_b[k, 2])
+    dv = (dvel_b[k, 0], dvel_b[k, 1], dvel_b[k, 2])
+    sums = fast_step(sums[0], sums[1], sums[2], sums[3], dth, dv, prev_dth, prev_dv,
+                     min(n_prev, order - 1), CONING_COEFFS[order - 1])
+    return sums, push_sample(prev_dth, prev_dv, dth, dv, n_prev)
+
+
+@njit(cache=True, inline="always")
+def save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now):
+    """Store the fast-rate state for the next block (inverse of :func:`load_fast`)."""
+    save_memory(st, S_PDTH, S_PDV, prev_dth, prev_dv)
+    st[S_NPREV] = n_prev
+    _set_vec(st, S_ALPHA, sums[0])
+    _set_vec(st, S_UPS, sums[1])
+    _set_vec(st, S_BETA, sums[2])
+    _set_vec(st, S_SCUL, sums[3])
+    st[S_NSUB] = nsub_now
 
 
 @njit(cache=True, inline="always")
@@ -281,19 +311,11 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
     cflu = ((cflu_arr[0, 0], cflu_arr[0, 1], cflu_arr[0, 2]), (cflu_arr[1, 0], cflu_arr[1, 1], cflu_arr[1, 2]),
             (cflu_arr[2, 0], cflu_arr[2, 1], cflu_arr[2, 2]))
     n_ev = 0
-    coeffs = CONING_COEFFS[order - 1]
-    nprev_max = order - 1
     n_out = 0
-    prev_dth, prev_dv = load_memory(st, S_PDTH, S_PDV)
-    n_prev = int(st[S_NPREV])
-    alpha, ups, beta, scul = _vec(st, S_ALPHA), _vec(st, S_UPS), _vec(st, S_BETA), _vec(st, S_SCUL)
-    nsub_now = int(st[S_NSUB])
+    prev_dth, prev_dv, n_prev, sums, nsub_now = load_fast(st)
     for k in range(time.shape[0]):
-        dth = (dtheta_b[k, 0], dtheta_b[k, 1], dtheta_b[k, 2])
-        dv = (dvel_b[k, 0], dvel_b[k, 1], dvel_b[k, 2])
-        alpha, ups, beta, scul = fast_step(alpha, ups, beta, scul, dth, dv, prev_dth, prev_dv,
-                                           min(n_prev, nprev_max), coeffs)
-        n_prev = push_sample(prev_dth, prev_dv, dth, dv, n_prev)
+        sums, n_prev = fast_sample(dtheta_b, dvel_b, k, sums, prev_dth, prev_dv, n_prev, order)
+        alpha, ups, beta, scul = sums
         nsub_now += 1
         if nsub_now < nsub:
             continue
@@ -346,10 +368,8 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
         v_new = _vec(st, S_VEL)
         st[S_T] = t_end
         st[S_TSTART] = t_end
-        alpha = (0.0, 0.0, 0.0)
-        ups = (0.0, 0.0, 0.0)
-        beta = (0.0, 0.0, 0.0)
-        scul = (0.0, 0.0, 0.0)
+        z = (0.0, 0.0, 0.0)
+        sums = (z, z, z, z)
         nsub_now = 0
         st[S_NOUT] += 1.0
         if st[S_NOUT] >= every:
@@ -367,12 +387,5 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
         if method == ATT_EULER and st[S_COSMIN] < cos_stop:
             st[S_STOPPED] = 1.0
             break
-    # save the fast-rate memory for the next chunk
-    save_memory(st, S_PDTH, S_PDV, prev_dth, prev_dv)
-    st[S_NPREV] = n_prev
-    _set_vec(st, S_ALPHA, alpha)
-    _set_vec(st, S_UPS, ups)
-    _set_vec(st, S_BETA, beta)
-    _set_vec(st, S_SCUL, scul)
-    st[S_NSUB] = nsub_now
+    save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now)
     return n_out, n_ev
