@@ -72,11 +72,16 @@ CHOICES = {
 UNIT_CHOICES = {"gyro": GYRO_UNITS, "accel": ACCEL_UNITS, "dtheta": ANGLE_UNITS, "dvel": VEL_UNITS}
 
 
-def load_config(path=None, extra_sections=()) -> dict:
+# sections that belong to another stage, which validates them itself (`sins align`); one config
+# file can then serve every command
+STAGE_SECTIONS = ("align",)
+
+
+def load_config(path=None, extra_sections=STAGE_SECTIONS) -> dict:
     """Load and validate a config YAML (or the defaults when ``path`` is None).
 
-    ``extra_sections`` names sections that another stage validates itself (e.g.
-    ``align``): they are accepted and returned raw under their name (None when absent).
+    ``extra_sections`` (default: the ``align`` section) are accepted and returned raw
+    under their name (None when absent) for the stage that validates them.
     """
     cfg = copy.deepcopy(DEFAULTS)
     for name in extra_sections:

@@ -192,3 +192,17 @@ def test_unix_epoch_time_base(simdir, tmp_path):
     assert len(nav) == len(rows)          # header -> initial row, then one row per sample
     assert np.abs(nav.time - (ref.time + base)).max() < 1e-6
     assert np.abs(np.degrees(nav.lat - ref.lat)).max() < 1e-9
+
+
+def test_one_config_serves_align_and_navigate(simdir, tmp_path):
+    """A config with an align: section (configs/align/*.yaml) is accepted by sins navigate."""
+    cfg = tmp_path / "both.yaml"
+    cfg.write_text("imu:\n  body: flu\nalign:\n  method: static\n  duration: 30\n")
+    out = tmp_path / "o.csv"
+    r = run(["navigate", str(simdir / "imu.csv"), "--init", str(simdir / "init.yaml"), "--config", str(cfg),
+             "-o", str(out), "-q"])
+    assert r.exit_code == 0, r.output
+    cfg.write_text("imu:\n  body: flu\nalignment:\n  method: static\n")
+    r = CliRunner().invoke(main, ["navigate", str(simdir / "imu.csv"), "--init", str(simdir / "init.yaml"),
+                                  "--config", str(cfg), "-o", str(out), "-q"])
+    assert r.exit_code == 2 and "alignment: unknown section" in r.output
