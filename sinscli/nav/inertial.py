@@ -33,14 +33,13 @@ from numba import njit
 
 from ..errors import SinsError
 from ..types import NavState, Trajectory
-from .coning import body_increments
 from .earth import (OMEGA_IE, ecef_to_lla, ecef_to_launch_axes_py, enu_rotation, gravitation,
                     launch_axes, launch_to_ecef_axes_py, lla_to_ecef)
 from .mechanization import displacement
 from .rotation import m_tvec, m_vec, v_add, v_scale
-from .strapdown import (S_HAVE_MM2, S_HAVE_PREV, S_NOUT, S_PALPHA, S_PUPS, S_T, S_TMM2, S_TMM3, S_TSTART,
+from .strapdown import (S_HAVE_MM2, S_NOUT, S_T, S_TMM2, S_TMM3, S_TSTART,
                         S_VEL, S_VLO, S_VMM2, S_VMM3, STATE_SIZE, _acc, _attitude_update, _cbn, _set_vec, _vec,
-                        fast_sample, load_fast, save_fast)
+                        close_interval, fast_sample, load_fast, save_fast)
 from .strapdown import new_state as _enu_new_state
 
 # Extra trajectory columns of the launch-inertial frame (m, m/s).
@@ -184,20 +183,13 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, out_t, out_r, ou
     prev_dth, prev_dv, n_prev, sums, nsub_now = load_fast(st)
     for k in range(time.shape[0]):
         sums, n_prev = fast_sample(dtheta_b, dvel_b, k, sums, prev_dth, prev_dv, n_prev, order)
-        alpha, ups, beta, scul = sums
         nsub_now += 1
         if nsub_now < nsub:
             continue
         # ---- attitude interval closes ----
         t_end = time[k]
         T = t_end - st[S_TSTART]
-        phi, dv_b = body_increments(alpha, ups, beta, scul, _vec(st, S_PALPHA), _vec(st, S_PUPS),
-                                    st[S_HAVE_PREV] > 0.0 and order > 1)
-        _set_vec(st, S_PALPHA, alpha)
-        _set_vec(st, S_PUPS, ups)
-        st[S_HAVE_PREV] = 1.0
-        if order == 1:
-            phi = alpha
+        phi, dv_b, _ = close_interval(st, sums, order)
         dv_i = m_vec(_cbn(st), dv_b)                  # C_b^i(t_{m-1}) dv^{b(m-1)}
         vel = _vec(st, S_VEL)
         r = _vec(st, S_R)

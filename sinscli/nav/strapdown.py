@@ -139,6 +139,26 @@ def fast_sample(dtheta_b, dvel_b, k, sums, prev_dth, prev_dv, n_prev, order):
 
 
 @njit(cache=True, inline="always")
+def close_interval(st, sums, order):
+    """Body rotation vector and velocity increment of the closing attitude interval (eq 35 and
+    :func:`sinscli.nav.coning.body_increments`); keeps its sums for the next interval's rate model.
+
+    Order 1 is seed 000's fixed axis: ``phi = alpha``.  Returns ``(phi, dv_b, alpha_prev)``,
+    ``alpha_prev`` being the previous interval's angle sum (this one's at the start).
+    """
+    alpha, ups, beta, scul = sums
+    have = st[S_HAVE_PREV] > 0.0
+    alpha_prev = _vec(st, S_PALPHA) if have else alpha
+    phi, dv_b = body_increments(alpha, ups, beta, scul, _vec(st, S_PALPHA), _vec(st, S_PUPS), have and order > 1)
+    _set_vec(st, S_PALPHA, alpha)
+    _set_vec(st, S_PUPS, ups)
+    st[S_HAVE_PREV] = 1.0
+    if order == 1:
+        phi = alpha
+    return phi, dv_b, alpha_prev
+
+
+@njit(cache=True, inline="always")
 def save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now):
     """Store the fast-rate state for the next block (inverse of :func:`load_fast`)."""
     save_memory(st, S_PDTH, S_PDV, prev_dth, prev_dv)
@@ -315,21 +335,13 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
     prev_dth, prev_dv, n_prev, sums, nsub_now = load_fast(st)
     for k in range(time.shape[0]):
         sums, n_prev = fast_sample(dtheta_b, dvel_b, k, sums, prev_dth, prev_dv, n_prev, order)
-        alpha, ups, beta, scul = sums
         nsub_now += 1
         if nsub_now < nsub:
             continue
         # ---- attitude interval closes: moderate-rate update ----
         t_end = time[k]
         T = t_end - st[S_TSTART]
-        alpha_prev = _vec(st, S_PALPHA) if st[S_HAVE_PREV] > 0.0 else alpha
-        phi, dv_b = body_increments(alpha, ups, beta, scul, _vec(st, S_PALPHA), _vec(st, S_PUPS),
-                                    st[S_HAVE_PREV] > 0.0 and order > 1)
-        _set_vec(st, S_PALPHA, alpha)
-        _set_vec(st, S_PUPS, ups)
-        st[S_HAVE_PREV] = 1.0
-        if order == 1:
-            phi = alpha
+        phi, dv_b, alpha_prev = close_interval(st, sums, order)
         cbn = _cbn(st)
         dv_n0 = m_vec(cbn, dv_b)
         vel = _vec(st, S_VEL)
@@ -349,7 +361,7 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
         lat_mid, h_mid = midpoint(lat, h, dR)
         zeta = frame_rotation(lat_mid, h_mid, dR, T)
         if method == ATT_KRYLOV or method == ATT_EULER:
-            n_ev = _angle_update(st, method, alpha, alpha_prev, zeta, cflu, integrator, st[S_TSTART], events, n_ev)
+            n_ev = _angle_update(st, method, sums[0], alpha_prev, zeta, cflu, integrator, st[S_TSTART], events, n_ev)
         else:
             _attitude_update(st, method, phi, zeta)
         dlat, dlon, dh = position_update(lat, h, dR)
