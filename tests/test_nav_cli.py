@@ -206,3 +206,21 @@ def test_one_config_serves_align_and_navigate(simdir, tmp_path):
     r = CliRunner().invoke(main, ["navigate", str(simdir / "imu.csv"), "--init", str(simdir / "init.yaml"),
                                   "--config", str(cfg), "-o", str(out), "-q"])
     assert r.exit_code == 2 and "alignment: unknown section" in r.output
+
+
+def test_gap_rule_applies_to_ros_logs(tmp_path):
+    """The CSV gap rule holds for bags too: refused by default (file, topic, message named), bridged
+    with --allow-gaps."""
+    from sinscli.io.rosbag import write_log
+    t = np.concatenate([np.arange(0, 1, 0.01), np.arange(1.5, 2, 0.01)]) + 1000.0
+    n = len(t)
+    bag = tmp_path / "gap.bag"
+    write_log(bag, imu={"time": t, "gyro": np.zeros((n, 3)), "accel": np.tile([0.0, 0.0, 9.8], (n, 1))})
+    init = tmp_path / "init.yaml"
+    init.write_text(INIT.replace("time: 0.0", "time: 1000.0"))
+    out = tmp_path / "o.csv"
+    r = CliRunner().invoke(main, ["navigate", str(bag), "--init", str(init), "-o", str(out), "-q"])
+    assert r.exit_code == 2 and "topic /imu/data: message 100: gap of 0.51 s" in r.output and not out.exists()
+    r = CliRunner().invoke(main, ["navigate", str(bag), "--init", str(init), "-o", str(out), "-q",
+                                  "--allow-gaps"])
+    assert r.exit_code == 0 and len(read_trajectory(out)) == n

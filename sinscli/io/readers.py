@@ -3,11 +3,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import SinsError
 from ..types import ImuLog
-from .imu_csv import TimeChecker, apply_mounting, concat_imu, iter_imu_csv
+from .imu_csv import apply_mounting, concat_imu, iter_imu_csv
 
 
 def _is_log(path) -> bool:
@@ -27,10 +25,8 @@ def iter_imu(path, cfg: dict, allow_gaps: bool = False):
         from ..config import mounting_matrix
         from . import rosbag
         ros = cfg["ros"]
-        imu = rosbag.read_imu(path, topic=ros.get("imu_topic"), time_source=ros.get("time", "header"))
-        # the same gap rule as for CSV logs; rows are messages, the first one starts the first interval
-        TimeChecker(imu.source, allow_gaps, what=f"{ros.get('time', 'header')} time", row_label="message").check(
-            np.concatenate([[imu.t0], imu.time]) if imu.t0 is not None else imu.time, 1)
+        imu = rosbag.read_imu(path, topic=ros.get("imu_topic"), time_source=ros.get("time", "header"),
+                              allow_gaps=allow_gaps)
         yield apply_mounting(imu, mounting_matrix(cfg["imu"].get("mounting")))
         return
     yield from iter_imu_csv(path, cfg["imu"], allow_gaps)

@@ -657,14 +657,17 @@ def read_imu_block(path, topic=None, bulk=True):
     return topic, t, block
 
 
-def read_imu(path, topic=None, time_source="header", start=None, end=None, bulk=True) -> ImuLog:
+def read_imu(path, topic=None, time_source="header", start=None, end=None, bulk=True,
+             allow_gaps=True) -> ImuLog:
     """Read a ``sensor_msgs/Imu`` topic as increments (rates integrated by ``rates_to_increments``).
 
     Axes stay as in the message; the caller applies mounting and body convention.
     ``start``/``end`` (s, same time source) keep samples with ``start <= t <= end``.
+    Gaps over 5 nominal intervals follow the CSV rule (:class:`sinscli.io.imu_csv.TimeChecker`):
+    refused unless ``allow_gaps``, which bridges them with a warning naming each.
     ``source`` is ``"file:topic"``.
     """
-    from .imu_csv import rates_to_increments
+    from .imu_csv import TimeChecker, rates_to_increments
     _check_time_source(time_source)
     path = Path(path)
     topic, log_ns, block = read_imu_block(path, topic, bulk=bulk)
@@ -694,13 +697,7 @@ def read_imu(path, topic=None, time_source="header", start=None, end=None, bulk=
     if t.shape[0] < 2:
         raise SinsError(f"{where}: only one message in the requested interval; need at least two")
     _check_increasing(t, where, f"{time_source} stamp")
-    dt = np.diff(t)
-    med = float(np.median(dt))
-    gaps = np.flatnonzero(dt > 5.0 * med)
-    if gaps.size:
-        k = int(gaps[np.argmax(dt[gaps])])
-        log.warning("%s: %d gaps longer than 5 median intervals (%.6g s); the longest is %.6g s after %.9f s",
-                    where, gaps.size, med, dt[k], t[k])
+    TimeChecker(where, allow_gaps, what=f"{time_source} stamp", row_label="message").check(t, 0)
     finite = np.isfinite(gyro).all(axis=1) & np.isfinite(accel).all(axis=1)
     if not finite.all():
         k = int(np.flatnonzero(~finite)[0])
