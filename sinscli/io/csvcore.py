@@ -34,6 +34,26 @@ def read_header(path) -> list[str]:
     return [c.strip() for c in next(csv.reader([first]))]
 
 
+def _convert_options(file_cols):
+    """Only the wanted columns, all parsed as float64; no string is taken as null."""
+    return pacsv.ConvertOptions(include_columns=file_cols, column_types={c: pa.float64() for c in file_cols},
+                                strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[])
+
+
+def _finite_columns(path, columns: dict[str, str], column, first_line: int) -> dict[str, np.ndarray]:
+    """``{our name: float64 array}`` via ``column(file name)``; SinsError at the first NaN or infinity."""
+    out = {}
+    for ours, theirs in columns.items():
+        arr = column(theirs).to_numpy().astype(np.float64, copy=False)
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise SinsError(f"{path}: line {first_line + k}, column '{theirs}': value {float(arr[k])!r} "
+                            f"is not a finite number")
+        out[ours] = arr
+    return out
+
+
 def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]:
     """Read the named file columns as float64; ``columns`` maps our name -> file column name.
 
@@ -47,25 +67,13 @@ def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]
             path,
             read_options=pacsv.ReadOptions(use_threads=True, block_size=1 << 24),
             parse_options=pacsv.ParseOptions(newlines_in_values=False),
-            convert_options=pacsv.ConvertOptions(
-                include_columns=file_cols,
-                column_types={c: pa.float64() for c in file_cols},
-                strings_can_be_null=False, quoted_strings_can_be_null=False,
-                null_values=[]),
+            convert_options=_convert_options(file_cols),
         )
     except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as exc:
         raise SinsError(_locate_bad_cell(path, file_cols, exc)) from None
     if table.num_rows == 0:
         raise SinsError(f"{path}: no data rows after the header")
-    out = {}
-    for ours, theirs in columns.items():
-        arr = table.column(theirs).to_numpy().astype(np.float64, copy=False)
-        bad = ~np.isfinite(arr)
-        if bad.any():
-            k = int(np.argmax(bad))
-            raise SinsError(f"{path}: line {k + 2}, column '{theirs}': value {float(arr[k])!r} is not a finite number")
-        out[ours] = arr
-    return out
+    return _finite_columns(path, columns, table.column, 2)
 
 
 def _locate_bad_cell(path: Path, cols: list[str], exc: Exception) -> str:
@@ -101,9 +109,7 @@ def iter_numeric_columns(path, columns: dict[str, str], block_bytes: int = 1 << 
         reader = pacsv.open_csv(
             path,
             read_options=pacsv.ReadOptions(use_threads=False, block_size=block_bytes),
-            convert_options=pacsv.ConvertOptions(
-                include_columns=file_cols, column_types={c: pa.float64() for c in file_cols},
-                strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[]))
+            convert_options=_convert_options(file_cols))
     except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as exc:
         raise SinsError(_locate_bad_cell(path, file_cols, exc)) from None
     line = 2
@@ -117,16 +123,7 @@ def iter_numeric_columns(path, columns: dict[str, str], block_bytes: int = 1 << 
             raise SinsError(_locate_bad_cell(path, file_cols, exc)) from None
         if batch.num_rows == 0:
             continue
-        out = {}
-        for ours, theirs in columns.items():
-            arr = batch.column(batch.schema.get_field_index(theirs)).to_numpy().astype(np.float64, copy=False)
-            bad = ~np.isfinite(arr)
-            if bad.any():
-                k = int(np.argmax(bad))
-                raise SinsError(f"{path}: line {line + k}, column '{theirs}': value {float(arr[k])!r} "
-                                f"is not a finite number")
-            out[ours] = arr
-        yield line, out
+        yield line, _finite_columns(path, columns, batch.column, line)
         line += batch.num_rows
         total += batch.num_rows
     if total == 0:
