@@ -227,12 +227,6 @@ def mm3(a, b):
 
 
 @njit(cache=True)
-def mv3(a, v):
-    """3x3 matrix times 3-vector ``a v``."""
-    return np.array(m_vec(m_from_array(a), (v[0], v[1], v[2])))
-
-
-@njit(cache=True)
 def mtv3(a, v):
     """Transposed 3x3 matrix times 3-vector ``a^T v``."""
     return np.array(m_tvec(m_from_array(a), (v[0], v[1], v[2])))

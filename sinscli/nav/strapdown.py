@@ -51,10 +51,8 @@ S_NOUT = 58            # attitude updates since the last output
 S_ANG = 59             # 4 angles (krylov / 3-angle methods)
 S_KSET = 63
 S_PHIB = 64
-S_PDTH_ATT = 65        # previous interval's body rotation (two-sample rate model), 3
 S_COSMIN = 68          # smallest |cos| of the 3-angle method so far
 S_TCOSMIN = 69
-S_NTRANSFER = 70
 S_QLO = 72             # 4: compensated-summation residues (see _acc)
 S_CLO = 76             # 9
 S_VLO = 85             # 3
@@ -289,7 +287,6 @@ def _angle_update(st, method, alpha, alpha_prev, zeta, cflu, integrator, t_start
         ang = (st[S_ANG], st[S_ANG + 1], st[S_ANG + 2], st[S_ANG + 3])
         new, kset, phib, moved, c_flu = krylov_step_dcm_t(ang, int(st[S_KSET]), st[S_PHIB], p_f, a_f, 1.0, zeta)
         if moved:
-            st[S_NTRANSFER] += 1.0
             if n_ev < events.shape[0]:
                 events[n_ev, 0] = t_start
                 for i in range(4):
