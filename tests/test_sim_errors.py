@@ -6,7 +6,8 @@ from sinscli.errors import SinsError
 from sinscli.nav.earth import enu_rotation, lla_to_ecef
 from sinscli.sim import simulate
 from sinscli.sim.run import prepare
-from sinscli.sim.errors import ACCEL_UNITS, GYRO_UNITS, corrupt, gauss_markov, load_sensor, quantize
+from sinscli.sensors import ACCEL_UNITS, GYRO_UNITS, load_sensor
+from sinscli.sim.errors import corrupt, gauss_markov, quantize
 
 DEG = np.pi / 180.0
 

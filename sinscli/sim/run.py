@@ -8,9 +8,10 @@ import numpy as np
 
 from ..errors import SinsError
 from ..nav.rotation import conv_to_flu
+from ..sensors import load_sensor
 from ..types import GnssLog, ImuLog, NavState, Trajectory
 from . import truth as truth_mod
-from .errors import apply_imu_errors, gnss_seedseq, load_sensor
+from .errors import apply_imu_errors, gnss_seedseq
 from .gnss import antenna_truth, gnss_times, make_gnss
 from .imu_synth import GRAVITY_MODELS
 from .scenario import Scenario, load_scenario

@@ -197,7 +197,7 @@ def validate(data: dict, src: str, base_dir: Path) -> Scenario:
 
 
 def _sensor_keys(which):
-    from .errors import ACCEL_UNITS, GYRO_UNITS
+    from ..sensors import ACCEL_UNITS, GYRO_UNITS
     return set(GYRO_UNITS if which == "gyro" else ACCEL_UNITS)
 
 

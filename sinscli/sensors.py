@@ -1,0 +1,117 @@
+"""The one description of an IMU's errors: ``sinscli/data/sensors/*.yaml`` presets or a user file.
+
+The same YAML (schema of the presets: ``gyro``/``accel`` sections with ``bias_sigma``,
+``bias_instability``, ``bias_tau``, ``arw``/``vrw``, ``scale_factor_sigma``,
+``misalignment_sigma``, ``quantization``; units in the comments of each preset) serves
+``sins simulate`` (the errors drawn), ``sins align`` (the sigma budget) and the fusion filter
+(process noise).  Presets are package data, read through :mod:`importlib.resources`, so they are
+found from any working directory once the package is installed.
+"""
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .errors import SinsError
+
+DEG = np.pi / 180.0
+G0 = 9.80665                      # m/s^2 per g (unit conversion only)
+ARCSEC = DEG / 3600.0
+
+# key -> factor to SI (rad/s, rad/sqrt(s), m/s^2, m/s/sqrt(s), dimensionless, rad, s)
+GYRO_UNITS = {
+    "bias": DEG / 3600.0,                  # deg/h, fixed value(s)
+    "bias_sigma": DEG / 3600.0,            # deg/h, turn-on bias drawn per run
+    "bias_instability": DEG / 3600.0,      # deg/h, Gauss-Markov steady-state sigma
+    "bias_tau": 1.0,                       # s, Gauss-Markov correlation time
+    "arw": DEG / 60.0,                     # deg/sqrt(h) -> rad/sqrt(s)
+    "scale_factor": 1e-6,                  # ppm
+    "scale_factor_sigma": 1e-6,            # ppm
+    "misalignment": ARCSEC,                # arcsec (6 values or one)
+    "misalignment_sigma": ARCSEC,          # arcsec
+    "quantization": 1.0,                   # rad per count
+}
+ACCEL_UNITS = {
+    "bias": 1e-6 * G0,                     # micro-g
+    "bias_sigma": 1e-6 * G0,               # micro-g
+    "bias_instability": 1e-6 * G0,         # micro-g
+    "bias_tau": 1.0,                       # s
+    "vrw": 1e-6 * G0,                      # micro-g/sqrt(Hz) -> m/s/sqrt(s)
+    "scale_factor": 1e-6,                  # ppm
+    "scale_factor_sigma": 1e-6,            # ppm
+    "misalignment": ARCSEC,                # arcsec
+    "misalignment_sigma": ARCSEC,          # arcsec
+    "quantization": 1.0,                   # m/s per count
+}
+PRESETS = ("navigation", "tactical", "mems")
+
+
+def preset_text(name: str) -> str:
+    """The YAML text of a shipped preset (``navigation``, ``tactical``, ``mems``), from the package data."""
+    return resources.files("sinscli").joinpath("data", "sensors", f"{name.lower()}.yaml").read_text(encoding="utf-8")
+
+
+def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path) -> dict:
+    """Resolve a sensor spec (None, preset name, YAML path or mapping) plus overrides.
+
+    Returns ``{"gyro": {key: SI value(s)}, "accel": {...}}``.
+    """
+    data: dict = {}
+    where = src
+    if spec is None:
+        data = {}
+    elif isinstance(spec, dict):
+        data = spec
+    elif isinstance(spec, str):
+        preset = spec.lower() in PRESETS
+        path = Path(f"<preset {spec.lower()}>") if preset else Path(spec)
+        if not preset and not path.is_absolute():
+            path = base_dir / path
+        try:
+            data = yaml.safe_load(preset_text(spec) if preset else path.read_text(encoding="utf-8")) or {}
+        except OSError:
+            raise SinsError(f"{src}: imu.sensor: no sensor preset or file {spec!r} "
+                            f"(presets: {', '.join(PRESETS)})") from None
+        except yaml.YAMLError as exc:
+            raise SinsError(f"{path}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
+        where = str(path)
+        if not isinstance(data, dict):
+            raise SinsError(f"{path}: expected a mapping with 'gyro' and 'accel'")
+    else:
+        raise SinsError(f"{src}: imu.sensor: expected a preset name, a file or a mapping; got {spec!r}")
+    out = {}
+    for which, units in (("gyro", GYRO_UNITS), ("accel", ACCEL_UNITS)):
+        merged = dict(data.get(which) or {})
+        merged.update((overrides or {}).get(which) or {})
+        out[which] = _convert(merged, units, where, which)
+    for k in data:
+        if k not in ("gyro", "accel", "name", "description"):
+            raise SinsError(f"{where}: {k}: unknown key; expected gyro, accel, name, description")
+    return out
+
+
+def _convert(d: dict, units: dict, where: str, which: str) -> dict:
+    out = {}
+    for k, v in d.items():
+        if k not in units:
+            raise SinsError(f"{where}: {which}.{k}: unknown key; expected one of {', '.join(units)}")
+        n = 6 if k.startswith("misalignment") else 3
+        if isinstance(v, (list, tuple)):
+            if len(v) != n:
+                raise SinsError(f"{where}: {which}.{k}: expected {n} numbers or one; got {len(v)}")
+            arr = np.array(v, dtype=float)
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            arr = np.full(n, float(v))
+        else:
+            raise SinsError(f"{where}: {which}.{k}: expected a number; got {v!r}")
+        if k in ("bias_tau",) and np.any(arr <= 0.0):
+            raise SinsError(f"{where}: {which}.{k}: must be > 0")
+        if (k.endswith("sigma") or k in ("arw", "vrw", "bias_instability", "quantization")) and np.any(arr < 0):
+            raise SinsError(f"{where}: {which}.{k}: must be >= 0")
+        out[k] = arr * units[k]
+    if "bias_instability" in out and "bias_tau" not in out:
+        raise SinsError(f"{where}: {which}.bias_tau: required with bias_instability (s)")
+    return out
