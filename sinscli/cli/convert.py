@@ -9,7 +9,7 @@ import click
 from ..errors import SinsError
 from ..io.gnss_csv import write_gnss_csv
 from ..io.imu_csv import write_imu_csv
-from ..io import rosbag
+from ..io import ros
 from .base import log, main, progress, quiet_option
 
 
@@ -21,7 +21,7 @@ from .base import log, main, progress, quiet_option
 @click.option("--gnss-topic", default=None, help="sensor_msgs/NavSatFix topic (default: the only one).")
 @click.option("--vel-topic", default=None,
               help="GNSS velocity topic (TwistStamped, TwistWithCovarianceStamped or Odometry), ENU.")
-@click.option("--time", "time_source", type=click.Choice(list(rosbag.TIME_SOURCES)), default="header",
+@click.option("--time", "time_source", type=click.Choice(list(ros.TIME_SOURCES)), default="header",
               show_default=True, help="Sample times from the message header stamps or the log (receive) times.")
 @click.option("--start", type=float, default=None, help="Keep IMU samples from this time (s).")
 @click.option("--end", type=float, default=None, help="Keep IMU samples up to this time (s).")
@@ -35,10 +35,10 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, time_source,
     Example:
       sins convert husky_imu_gps.bag -o husky/ --time header
     """
-    topics = rosbag.log_topics(log_path)
+    topics = ros.log_topics(log_path)
     types = set(topics.values())
-    want_imu = imu_topic is not None or rosbag.IMU_TYPE in types
-    want_gnss = gnss_topic is not None or vel_topic is not None or rosbag.NAVSAT_TYPE in types
+    want_imu = imu_topic is not None or ros.IMU_TYPE in types
+    want_gnss = gnss_topic is not None or vel_topic is not None or ros.NAVSAT_TYPE in types
     if not (want_imu or want_gnss):
         listing = ", ".join(f"{n} ({t})" for n, t in sorted(topics.items())) or "none"
         raise SinsError(f"{log_path}: no sensor_msgs/Imu or sensor_msgs/NavSatFix topic; topics: {listing}")
@@ -46,10 +46,10 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, time_source,
     imu = gnss = None
     with progress(steps * 2, "convert", quiet) as bar:
         if want_imu:
-            imu = rosbag.read_imu(log_path, topic=imu_topic, time_source=time_source, start=start, end=end)
+            imu = ros.read_imu(log_path, topic=imu_topic, time_source=time_source, start=start, end=end)
             bar.update(1)
         if want_gnss:
-            gnss = rosbag.read_gnss(log_path, topic=gnss_topic, vel_topic=vel_topic, time_source=time_source)
+            gnss = ros.read_gnss(log_path, topic=gnss_topic, vel_topic=vel_topic, time_source=time_source)
             bar.update(1)
         written = []
         try:

@@ -19,9 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError
+from ..nav.earth import local_enu_to_lla
+from ..nav.rotation import body_flu_in_enu, cbn_from_flu, quat_to_dcm_many
 from ..types import Trajectory
 from .atomic import atomic_path
-from .tum import body_flu_in_enu, cbn_from_flu, local_enu_to_lla, trajectory_enu_quat
+from .local_frame import trajectory_enu_quat
 
 TOPIC_FIX, TOPIC_POSE, TOPIC_ODOM = "/sins/fix", "/sins/pose", "/sins/odom"
 FRAME_ENU, FRAME_BODY = "enu", "base_link"
@@ -193,7 +195,6 @@ def read_trajectory_mcap(path, conv: int = 0) -> Trajectory:
     lon = np.radians([fx["longitude"] for fx in fixes])
     h = np.array([fx["altitude"] for fx in fixes], dtype=np.float64)
     q = np.array([[p["pose"]["orientation"][k] for k in ("w", "x", "y", "z")] for p in poses])
-    from ..nav.rotation import quat_to_dcm_many
     c_flu = quat_to_dcm_many(np.ascontiguousarray(q))
     vb = np.array([(o.twist.twist.linear.x, o.twist.twist.linear.y, o.twist.twist.linear.z) for o in odoms])
     vel = np.einsum("nij,nj->ni", c_flu, vb)

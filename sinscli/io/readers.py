@@ -1,4 +1,4 @@
-"""Pick the reader for an IMU or GNSS log: CSV here, ROS bags and MCAP in :mod:`sinscli.io.rosbag`."""
+"""Pick the reader for an IMU or GNSS log: CSV here, ROS bags and MCAP in :mod:`sinscli.io.ros`."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,10 +10,10 @@ from .imu_csv import apply_mounting, concat_imu, iter_imu_csv
 
 def _is_log(path) -> bool:
     try:
-        from . import rosbag
+        from .ros import is_log
     except ImportError:
         return False
-    return rosbag.is_log(path)
+    return is_log(path)
 
 
 def iter_imu(path, cfg: dict, allow_gaps: bool = False):
@@ -23,10 +23,10 @@ def iter_imu(path, cfg: dict, allow_gaps: bool = False):
         raise SinsError(f"{path}: file not found")
     if _is_log(path):
         from ..config import mounting_matrix
-        from . import rosbag
+        from .ros import read_imu as read_ros_imu
         ros = cfg["ros"]
-        imu = rosbag.read_imu(path, topic=ros.get("imu_topic"), time_source=ros.get("time", "header"),
-                              allow_gaps=allow_gaps)
+        imu = read_ros_imu(path, topic=ros.get("imu_topic"), time_source=ros.get("time", "header"),
+                           allow_gaps=allow_gaps)
         yield apply_mounting(imu, mounting_matrix(cfg["imu"].get("mounting")))
         return
     yield from iter_imu_csv(path, cfg["imu"], allow_gaps)
@@ -43,9 +43,9 @@ def read_gnss(path, cfg: dict):
     if not path.exists():
         raise SinsError(f"{path}: file not found")
     if _is_log(path):
-        from . import rosbag
+        from .ros import read_gnss as read_ros_gnss
         ros = cfg["ros"]
-        return rosbag.read_gnss(path, topic=ros.get("gnss_topic"), vel_topic=ros.get("vel_topic"),
-                                time_source=ros.get("time", "header"))
+        return read_ros_gnss(path, topic=ros.get("gnss_topic"), vel_topic=ros.get("vel_topic"),
+                             time_source=ros.get("time", "header"))
     from .gnss_csv import read_gnss_csv
     return read_gnss_csv(path, cfg["gnss"])

@@ -14,50 +14,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError
-from ..nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef
-from ..nav.rotation import conv_to_flu, dcm_to_quat_many, quat_to_dcm_many
+from ..nav.earth import local_enu_to_lla
+from ..nav.rotation import cbn_from_flu, quat_to_dcm_many
 from ..types import Trajectory
 from .atomic import atomic_path
+from .local_frame import trajectory_enu_quat
 
 _ORIGIN_RE = re.compile(r"origin_lat_deg=(\S+)\s+origin_lon_deg=(\S+)\s+origin_height_m=(\S+)")
-
-
-def lla_to_local_enu(lat, lon, h, lat0: float, lon0: float, h0: float) -> np.ndarray:
-    """ENU coordinates (N, 3) in metres of geodetic points (radians, metres) about an origin point."""
-    d = lla_to_ecef(np.asarray(lat), np.asarray(lon), np.asarray(h)) - lla_to_ecef(lat0, lon0, h0)
-    return d @ enu_rotation(lat0, lon0).T
-
-
-def local_enu_to_lla(enu, lat0: float, lon0: float, h0: float):
-    """Inverse of :func:`lla_to_local_enu`: ``(lat, lon, h)`` in radians and metres."""
-    xyz = lla_to_ecef(lat0, lon0, h0) + np.asarray(enu) @ enu_rotation(lat0, lon0)
-    return ecef_to_lla(xyz)
-
-
-def body_flu_in_enu(cbn: np.ndarray, conv: int) -> np.ndarray:
-    """``C_FLU^n = Cbn C_{conv}^{FLU T}`` (N, 3, 3): the attitude of the FLU body axes."""
-    return np.einsum("nij,kj->nik", np.asarray(cbn, dtype=np.float64), conv_to_flu(conv))
-
-
-def cbn_from_flu(c_flu_n: np.ndarray, conv: int) -> np.ndarray:
-    """Inverse of :func:`body_flu_in_enu`: ``Cbn = C_FLU^n C_{conv}^{FLU}``."""
-    return np.einsum("nij,jk->nik", np.asarray(c_flu_n, dtype=np.float64), conv_to_flu(conv))
-
-
-def trajectory_enu_quat(traj: Trajectory, conv: int):
-    """``(origin (lat, lon, h), enu (N, 3), q_xyzw (N, 4))`` of a trajectory for local-frame formats."""
-    if len(traj) == 0:
-        raise SinsError(f"{traj.source}: trajectory is empty; nothing to write")
-    fields = np.column_stack([traj.time, traj.lat, traj.lon, traj.height,
-                              np.asarray(traj.Cbn, dtype=np.float64).reshape(-1, 9)])
-    if not np.isfinite(fields).all():
-        k = int(np.flatnonzero(~np.isfinite(fields).all(axis=1))[0])
-        raise SinsError(f"{traj.source}: row {k} (time {float(traj.time[k])!r}) has a non-finite time, position "
-                        "or attitude; cannot write a local-frame trajectory")
-    origin = (float(traj.lat[0]), float(traj.lon[0]), float(traj.height[0]))
-    enu = lla_to_local_enu(traj.lat, traj.lon, traj.height, *origin)
-    q = dcm_to_quat_many(np.ascontiguousarray(body_flu_in_enu(traj.Cbn, conv)))
-    return origin, enu, q[:, [1, 2, 3, 0]]
 
 
 def _fmt(a: np.ndarray) -> list[str]:

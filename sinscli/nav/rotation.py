@@ -453,3 +453,17 @@ def attitude_error_many(cbn_true, cbn_est):
     for k in range(n):
         out[k] = dcm_to_rotvec(mm3(cbn_true[k], cbn_est[k].T.copy()))
     return out
+
+
+# ---------------------------------------------------------------------------
+# Body-convention changes of DCM stacks: plain numpy (einsum), not kernels.
+# ---------------------------------------------------------------------------
+
+def body_flu_in_enu(cbn: np.ndarray, conv: int) -> np.ndarray:
+    """``C_FLU^n = Cbn C_{conv}^{FLU T}`` (N, 3, 3): the attitude of the FLU body axes."""
+    return np.einsum("nij,kj->nik", np.asarray(cbn, dtype=np.float64), conv_to_flu(conv))
+
+
+def cbn_from_flu(c_flu_n: np.ndarray, conv: int) -> np.ndarray:
+    """Inverse of :func:`body_flu_in_enu`: ``Cbn = C_FLU^n C_{conv}^{FLU}``."""
+    return np.einsum("nij,jk->nik", np.asarray(c_flu_n, dtype=np.float64), conv_to_flu(conv))
