@@ -11,7 +11,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from .errors import SinsError
 
@@ -88,15 +87,11 @@ def load_config(path=None, extra_sections=STAGE_SECTIONS) -> dict:
         cfg[name] = None
     if path is None:
         return cfg
+    from .io.inputs import load_yaml
     path = Path(path)
-    if not path.exists():
-        raise SinsError(f"{path}: config file not found")
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark else ""
-        raise SinsError(f"{path}:{where} is not valid YAML") from None
+    data = load_yaml(path, "config file")
+    if data is None:
+        data = {}
     if not isinstance(data, dict):
         raise SinsError(f"{path}: expected a mapping of sections {sorted(DEFAULTS)}")
     for section, values in data.items():

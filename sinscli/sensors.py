@@ -13,9 +13,9 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from .errors import SinsError
+from .io.inputs import load_yaml, parse_yaml
 
 DEG = np.pi / 180.0
 G0 = 9.80665                      # m/s^2 per g (unit conversion only)
@@ -70,13 +70,10 @@ def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path) -> dict:
         path = Path(f"<preset {spec.lower()}>") if preset else Path(spec)
         if not preset and not path.is_absolute():
             path = base_dir / path
-        try:
-            data = yaml.safe_load(preset_text(spec) if preset else path.read_text(encoding="utf-8")) or {}
-        except OSError:
+        if not preset and not path.exists():
             raise SinsError(f"{src}: imu.sensor: no sensor preset or file {spec!r} "
-                            f"(presets: {', '.join(PRESETS)})") from None
-        except yaml.YAMLError as exc:
-            raise SinsError(f"{path}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
+                            f"(presets: {', '.join(PRESETS)})")
+        data = (parse_yaml(preset_text(spec), str(path)) if preset else load_yaml(path, "sensor file")) or {}
         where = str(path)
         if not isinstance(data, dict):
             raise SinsError(f"{path}: expected a mapping with 'gyro' and 'accel'")

@@ -11,6 +11,7 @@ from ..errors import SinsError
 from ..nav.rotation import dcm_to_euler, euler_to_dcm
 from ..types import NavState, time_tolerance
 from .atomic import atomic_path
+from .inputs import load_yaml
 
 INIT_KEYS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading"]
 
@@ -51,10 +52,7 @@ def _check_lat(path, lat_deg, where):
 
 
 def _read_init_yaml(path: Path, conv: int) -> NavState:
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError:
-        raise SinsError(f"{path}: is not valid YAML") from None
+    data = load_yaml(path, "init file")
     if not isinstance(data, dict):
         raise SinsError(f"{path}: expected a mapping with keys {', '.join(INIT_KEYS)}")
     missing = [k for k in INIT_KEYS if k not in data]

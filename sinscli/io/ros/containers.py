@@ -24,9 +24,9 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 import numpy as np
-import yaml
 
 from ...errors import SinsError
+from ..inputs import load_yaml
 from . import decode
 from .decode import ImuBlock
 
@@ -188,7 +188,7 @@ class _RosbagsLog(_Log):
 
     def _metadata(self) -> dict:
         with guard(self.path, None, "cannot read metadata.yaml"):
-            meta = yaml.safe_load((self.path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+            meta = load_yaml(self.path / "metadata.yaml", "bag metadata")["rosbag2_bagfile_information"]
         return meta
 
     def close(self):
