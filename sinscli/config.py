@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import SinsError
+from .errors import SinsError, num
 
 GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
 ACCEL_UNITS = {"m/s^2": 1.0, "g": 9.80665, "mg": 9.80665e-3}
@@ -50,6 +50,14 @@ DEFAULTS = {
         "on_singularity": "continue",       # continue | stop
         "launch": None,           # {lat, lon, height, azimuth} deg/m for launch-inertial
     },
+    "limits": {                   # physically impossible inputs are refused at the reader (line, column)
+        "rate": 100.0,            # rad/s: angular rate, or an increment's |dtheta| / dt
+        "specific_force": 980.665,    # m/s^2 (100 g): specific force, or |dvel| / dt
+        "speed": 10000.0,         # m/s: GNSS, init and trajectory velocity (each component and the norm)
+        "height_min": -20000.0,   # m: ellipsoidal height range of GNSS, init and trajectory rows
+        "height_max": 1.0e8,
+        "time": 1.0e10,           # s: largest time stamp magnitude (a stamp in ns instead of s is refused)
+    },
     "ros": {
         "imu_topic": None,
         "gnss_topic": None,
@@ -68,6 +76,8 @@ CHOICES = {
     ("navigation", "on_singularity"): ["continue", "stop"],
     ("ros", "time"): ["header", "log"],
 }
+MAX_COUNT = 2 ** 31 - 1          # largest subsamples / every (the kernels count in int64)
+MAX_LEVER_ARM = 1000.0           # m, each lever-arm component
 UNIT_CHOICES = {"gyro": GYRO_UNITS, "accel": ACCEL_UNITS, "dtheta": ANGLE_UNITS, "dvel": VEL_UNITS}
 
 
@@ -140,8 +150,8 @@ def validate(cfg: dict, src: str) -> None:
     nav = cfg["navigation"]
     for key in ("subsamples", "every"):
         v = nav[key]
-        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-            _fail(src, f"navigation.{key}", f"expected a whole number >= 1, got {v!r}")
+        if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= MAX_COUNT:
+            _fail(src, f"navigation.{key}", f"expected a whole number from 1 to {MAX_COUNT}, got {num(v)}")
     if not isinstance(nav["allow_gaps"], bool):
         _fail(src, "navigation.allow_gaps", f"expected true or false, got {nav['allow_gaps']!r}")
     thr = nav["singularity_threshold"]
@@ -152,7 +162,7 @@ def validate(cfg: dict, src: str) -> None:
         if not isinstance(launch, dict) or set(launch) - {"lat", "lon", "height", "azimuth"}:
             _fail(src, "navigation.launch", "expected a mapping with keys lat, lon, height, azimuth")
         for k, v in launch.items():
-            if not isinstance(v, (int, float)):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 _fail(src, f"navigation.launch.{k}", f"expected a number, got {v!r}")
     imu = cfg["imu"]
     units = imu["units"]
@@ -180,10 +190,20 @@ def validate(cfg: dict, src: str) -> None:
     if not isinstance(imu["static_start"], bool):
         _fail(src, "imu.static_start", f"expected true or false, got {imu['static_start']!r}")
     mounting_matrix(imu["mounting"], src)
+    lim = cfg["limits"]
+    for k, v in lim.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or \
+                (k != "height_min" and v <= 0):
+            _fail(src, f"limits.{k}", f"expected a finite number{'' if k == 'height_min' else ' > 0'}, got {v!r}")
+        lim[k] = float(v)
+    if not lim["height_min"] < lim["height_max"]:
+        _fail(src, "limits.height_min", f"must be below limits.height_max ({lim['height_max']!r})")
     arm = cfg["gnss"]["lever_arm"]
     if (not isinstance(arm, (list, tuple)) or len(arm) != 3
-            or not all(isinstance(x, (int, float)) for x in arm)):
-        _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres, got {arm!r}")
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and abs(x) <= MAX_LEVER_ARM
+                       for x in arm)):
+        _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres (at most {MAX_LEVER_ARM:g} "
+                                     f"each), got {arm!r}")
 
 
 def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
@@ -198,12 +218,12 @@ def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
     if isinstance(mounting, dict):
         bad = set(mounting) - {"roll", "pitch", "yaw"}
         if bad:
-            _fail(src, f"imu.mounting.{sorted(bad)[0]}", "unknown key; expected roll, pitch, yaw (degrees)")
+            _fail(src, f"imu.mounting.{sorted(map(str, bad))[0]}", "unknown key; expected roll, pitch, yaw (degrees)")
         ang = {}
         for k in ("roll", "pitch", "yaw"):
             v = mounting.get(k, 0.0)
-            if not isinstance(v, (int, float)) or isinstance(v, bool):
-                _fail(src, f"imu.mounting.{k}", f"expected a number of degrees, got {v!r}")
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not abs(v) <= 360.0:
+                _fail(src, f"imu.mounting.{k}", f"expected a number of degrees in [-360, 360], got {v!r}")
             ang[k] = math.radians(v)
         cr, sr = math.cos(ang["roll"]), math.sin(ang["roll"])
         cp, sp = math.cos(ang["pitch"]), math.sin(ang["pitch"])
@@ -218,6 +238,7 @@ def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
         m = None
     if m is None or m.shape != (3, 3):
         _fail(src, "imu.mounting", "expected {roll, pitch, yaw} in degrees or a 3x3 rotation matrix")
-    if np.abs(m @ m.T - np.eye(3)).max() > 1e-6 or np.linalg.det(m) < 0:
+    if not np.all(np.abs(m) <= 1.0 + 1e-6) or not np.abs(m @ m.T - np.eye(3)).max() <= 1e-6 \
+            or not np.linalg.det(m) > 0:
         _fail(src, "imu.mounting", "the 3x3 matrix is not a rotation (orthonormal, det +1) within 1e-6")
     return m

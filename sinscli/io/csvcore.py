@@ -15,23 +15,65 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pacsv
 
-from ..errors import SinsError
+from ..errors import SinsError, num, quote
+from .inputs import input_file
+
+
+MAX_LINE_BYTES = 128 * 1024      # a numeric CSV line is far shorter; the header is refused beyond this
+MAX_COLUMNS = 1024               # header columns (bounds the header work: no parse of 100,000 columns)
 
 
 def read_header(path) -> list[str]:
-    """Column names of a CSV file, with clear errors for missing or empty files."""
-    path = Path(path)
-    if not path.exists():
-        raise SinsError(f"{path}: file not found")
-    if path.is_dir():
-        raise SinsError(f"{path}: is a directory, expected a CSV file")
+    """Column names of a CSV file (whitespace around names accepted), with clear errors for a missing,
+    empty or non-regular file, a header that is not UTF-8, too long, too wide, or names a column twice."""
+    path = input_file(path, "CSV file")
     if path.stat().st_size == 0:
         raise SinsError(f"{path}: file is empty, expected a header row and data rows")
-    with open(path, newline="", encoding="utf-8", errors="replace") as fh:
-        first = fh.readline()
-    if not first.strip():
+    with open(path, "rb") as fh:
+        first = fh.readline(MAX_LINE_BYTES + 1)
+    if len(first) > MAX_LINE_BYTES:
+        raise SinsError(f"{path}: line 1: the header is longer than {MAX_LINE_BYTES} bytes (it starts "
+                        f"{quote(first[:40].decode('utf-8', 'replace'))}); expected a CSV header row")
+    if first.startswith(b"\xef\xbb\xbf"):
+        first = first[3:]
+    try:
+        text = first.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        k = first[:exc.start].count(b",")
+        raise SinsError(f"{path}: line 1, header column {k + 1}: byte 0x{first[exc.start]:02x} is not UTF-8 "
+                        f"(save the file as UTF-8)") from None
+    if not text.strip():
         raise SinsError(f"{path}: first line is empty, expected a header row")
-    return [c.strip() for c in next(csv.reader([first]))]
+    names = [c.strip() for c in next(csv.reader([text]))]
+    if len(names) > MAX_COLUMNS:
+        raise SinsError(f"{path}: line 1: the header has {len(names)} columns; at most {MAX_COLUMNS} are read")
+    seen = set()
+    for k, c in enumerate(names):
+        if not c:
+            raise SinsError(f"{path}: line 1, header column {k + 1}: empty column name")
+        if c in seen:
+            raise SinsError(f"{path}: line 1, header column {k + 1}: column {quote(c)} appears twice")
+        seen.add(c)
+    return names
+
+
+def name_list(names, n: int = 6) -> str:
+    """Column names for a message: the first ``n``, quoted and cut, then how many more."""
+    names = list(names)
+    more = f", ... ({len(names) - n} more)" if len(names) > n else ""
+    return ", ".join(quote(c, 40) for c in names[:n]) + more
+
+
+def _read_options(path, file_cols, **kw):
+    """pyarrow read options with the header names of :func:`read_header` (stripped), so that the
+    names asked for are exactly the file's; a name the header lacks is refused here, naming it."""
+    header = read_header(path)
+    missing = [c for c in file_cols if c not in header]
+    if missing:
+        raise SinsError(f"{path}: no column {quote(missing[0])} in the header (columns: "
+                        f"{', '.join(header[:12])}{', ...' if len(header) > 12 else ''}); check the column names "
+                        f"and the config's column mapping")
+    return pacsv.ReadOptions(column_names=header, skip_rows=1, **kw)
 
 
 def _convert_options(file_cols):
@@ -48,7 +90,7 @@ def _finite_columns(path, columns: dict[str, str], column, first_line: int) -> d
         bad = ~np.isfinite(arr)
         if bad.any():
             k = int(np.argmax(bad))
-            raise SinsError(f"{path}: line {first_line + k}, column '{theirs}': value {float(arr[k])!r} "
+            raise SinsError(f"{path}: line {first_line + k}, column {quote(theirs)}: value {num(arr[k])} "
                             f"is not a finite number")
         out[ours] = arr
     return out
@@ -65,7 +107,7 @@ def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]
     try:
         table = pacsv.read_csv(
             path,
-            read_options=pacsv.ReadOptions(use_threads=True, block_size=1 << 24),
+            read_options=_read_options(path, file_cols, use_threads=True, block_size=1 << 24),
             parse_options=pacsv.ParseOptions(newlines_in_values=False),
             convert_options=_convert_options(file_cols),
         )
@@ -77,12 +119,22 @@ def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]
 
 
 def _locate_bad_cell(path: Path, cols: list[str], exc: Exception) -> str:
-    """Find the first cell that does not parse as a float (slow path, only on error)."""
-    with open(path, newline="", encoding="utf-8", errors="replace") as fh:
-        reader = csv.reader(fh)
-        header = [c.strip() for c in next(reader)]
-        idx = {c: header.index(c) for c in cols if c in header}
-        for lineno, row in enumerate(reader, start=2):
+    """Find the first cell that does not parse as a float (slow path, only on error; lines are read
+    with a bound, so a giant line is reported, not parsed)."""
+    header = read_header(path)
+    idx = {c: header.index(c) for c in cols if c in header}
+    with open(path, "rb") as fh:
+        fh.readline(MAX_LINE_BYTES + 1)
+        lineno = 1
+        while True:
+            raw = fh.readline(MAX_LINE_BYTES + 1)
+            if not raw:
+                break
+            lineno += 1
+            if len(raw) > MAX_LINE_BYTES:
+                return f"{path}: line {lineno}: longer than {MAX_LINE_BYTES} bytes; expected {len(header)} numbers"
+            line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
+            row = next(csv.reader([line]), [])
             if not row or all(not x.strip() for x in row):
                 return f"{path}: line {lineno}: empty row, expected {len(header)} comma-separated values"
             if len(row) != len(header):
@@ -91,7 +143,7 @@ def _locate_bad_cell(path: Path, cols: list[str], exc: Exception) -> str:
                 try:
                     float(row[i])
                 except ValueError:
-                    return f"{path}: line {lineno}, column '{c}': {row[i].strip()!r} is not a number"
+                    return f"{path}: line {lineno}, column {quote(c)}: {quote(row[i].strip())} is not a number"
     first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
     return f"{path}: cannot parse as CSV: {first}"
 
@@ -108,7 +160,7 @@ def iter_numeric_columns(path, columns: dict[str, str], block_bytes: int = 1 << 
         # no threaded read-ahead: the reader would run ahead of the navigator and buffer the file
         reader = pacsv.open_csv(
             path,
-            read_options=pacsv.ReadOptions(use_threads=False, block_size=block_bytes),
+            read_options=_read_options(path, file_cols, use_threads=False, block_size=block_bytes),
             convert_options=_convert_options(file_cols))
     except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as exc:
         raise SinsError(_locate_bad_cell(path, file_cols, exc)) from None

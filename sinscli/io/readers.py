@@ -26,10 +26,10 @@ def iter_imu(path, cfg: dict, allow_gaps: bool = False):
         from .ros import read_imu as read_ros_imu
         ros = cfg["ros"]
         imu = read_ros_imu(path, topic=ros.get("imu_topic"), time_source=ros.get("time", "header"),
-                           allow_gaps=allow_gaps)
+                           allow_gaps=allow_gaps, limits=cfg.get("limits"))
         yield apply_mounting(imu, mounting_matrix(cfg["imu"].get("mounting")))
         return
-    yield from iter_imu_csv(path, cfg["imu"], allow_gaps)
+    yield from iter_imu_csv(path, cfg["imu"], allow_gaps, limits=cfg.get("limits"))
 
 
 def read_imu(path, cfg: dict, allow_gaps: bool = False) -> ImuLog:
@@ -46,6 +46,6 @@ def read_gnss(path, cfg: dict):
         from .ros import read_gnss as read_ros_gnss
         ros = cfg["ros"]
         return read_ros_gnss(path, topic=ros.get("gnss_topic"), vel_topic=ros.get("vel_topic"),
-                             time_source=ros.get("time", "header"))
+                             time_source=ros.get("time", "header"), limits=cfg.get("limits"))
     from .gnss_csv import read_gnss_csv
-    return read_gnss_csv(path, cfg["gnss"])
+    return read_gnss_csv(path, cfg["gnss"], limits=cfg.get("limits"))

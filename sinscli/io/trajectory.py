@@ -9,10 +9,13 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 
 from ..errors import SinsError
+from .inputs import input_file
 from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, quat_to_dcm_many
 from ..types import Trajectory
+from . import limits as limits_mod
 from .atomic import atomic_path
 from .csvcore import CsvTableWriter, read_header, read_numeric_columns
 
@@ -20,6 +23,7 @@ BASE_COLUMNS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll
                 "qw", "qx", "qy", "qz"]
 DCM_COLUMNS = [f"c{i}{j}" for i in range(1, 4) for j in range(1, 4)]
 REQUIRED = BASE_COLUMNS
+ROTATION_TOL = 1e-3          # a read attitude (c11..c33, or the quaternion's norm) is a rotation within this
 
 # suffix -> writer(path, traj, conv); filled by format modules (MCAP, TUM, GeoJSON, KML).
 WRITERS: dict = {}
@@ -115,12 +119,15 @@ def write_trajectory(path, traj: Trajectory, conv: int = 0) -> None:
     WRITERS[suffix](path, traj, conv)
 
 
-def read_trajectory(path) -> Trajectory:
-    """Read a trajectory CSV or Parquet.  ``c11..c33`` are used when present, else the quaternion."""
-    path = Path(path)
+def read_trajectory(path, limits=None) -> Trajectory:
+    """Read a trajectory CSV or Parquet.  ``c11..c33`` are used when present, else the quaternion.
+
+    Rows beyond the physical ``limits`` (the config's section; default: the defaults), Euler angles
+    out of range and an attitude that is not a rotation are refused naming the row and column.
+    """
+    lim = limits_mod.resolve(limits)
+    path = input_file(path, "trajectory file")
     if path.suffix.lower() == ".parquet":
-        if not path.exists():
-            raise SinsError(f"{path}: file not found")
         import pyarrow.parquet as pq
         try:
             table = pq.read_table(path)
@@ -128,27 +135,48 @@ def read_trajectory(path) -> Trajectory:
             raise SinsError(f"{path}: cannot read as Parquet ({type(exc).__name__})") from None
         header = table.column_names
         _check_columns(path, header)
-        data = {c: table.column(c).to_numpy().astype(float) for c in header}
+        try:
+            data = {c: table.column(c).to_numpy().astype(float) for c in header}
+        except (TypeError, ValueError, pa.ArrowException) as exc:
+            raise SinsError(f"{path}: a column is not numeric ({type(exc).__name__})") from None
         for c, a in data.items():
             if not np.all(np.isfinite(a)):
                 k = int(np.argmax(~np.isfinite(a)))
                 raise SinsError(f"{path}: row {k + 1}, column '{c}': value is not a finite number")
+        first, row = 1, "row"
     else:
         header = read_header(path)
         _check_columns(path, header)
         data = read_numeric_columns(path, {c: c for c in header})
+        first, row = 2, "line"
     from .imu_csv import check_time
+    limits_mod.check_time(path, data["time"], lim, "time", first, row)
     check_time(path, data["time"], allow_gaps=True)
+    limits_mod.check_position(path, data["lat"], data["lon"], data["height"], lim, first=first, row=row)
+    vel = np.column_stack([data["vel_e"], data["vel_n"], data["vel_u"]])
+    limits_mod.check_velocity(path, vel, lim, ["vel_e", "vel_n", "vel_u"], first, row)
+    a = limits_mod.ANGLE_RANGE
+    for c, lo, hi in (("roll", -a, a), ("pitch", -90.0, 90.0), ("heading", -a, a)):
+        limits_mod.check_range(path, data[c], lo, hi, c, None, " deg", c, first, row)
     d2r = math.radians(1.0)
     if all(c in data for c in DCM_COLUMNS):
         cbn = np.stack([np.stack([data[f"c{i}{j}"] for j in range(1, 4)], axis=-1) for i in range(1, 4)],
                        axis=-2)
+        limits_mod.check_abs(path, cbn.reshape(-1, 9), 1.0 + ROTATION_TOL, "direction cosine", None, "",
+                             DCM_COLUMNS, first, row)
+        err = np.abs(np.einsum("nij,nkj->nik", cbn, cbn) - np.eye(3)).max(axis=(1, 2))
+        limits_mod.check_abs(path, err, ROTATION_TOL, "departure of c11..c33 from a rotation (|C C^T - I|)",
+                             None, "", "c11..c33", first, row)
     else:
         q = np.column_stack([data["qw"], data["qx"], data["qy"], data["qz"]])
-        cbn = quat_to_dcm_many(q / np.linalg.norm(q, axis=1, keepdims=True))
+        limits_mod.check_abs(path, q, 1.0 + ROTATION_TOL, "quaternion element", None, "",
+                             ["qw", "qx", "qy", "qz"], first, row)
+        norm = np.linalg.norm(q, axis=1)
+        limits_mod.check_abs(path, norm - 1.0, ROTATION_TOL, "departure of the quaternion norm from 1", None, "",
+                             "qw..qz", first, row)
+        cbn = quat_to_dcm_many(q / norm[:, None])
     extra = {c: data[c] for c in data if c not in BASE_COLUMNS and c not in DCM_COLUMNS}
-    return Trajectory(data["time"], data["lat"] * d2r, data["lon"] * d2r, data["height"],
-                      np.column_stack([data["vel_e"], data["vel_n"], data["vel_u"]]), cbn, extra,
+    return Trajectory(data["time"], data["lat"] * d2r, data["lon"] * d2r, data["height"], vel, cbn, extra,
                       source=str(path))
 
 

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import SinsError
+from .. import limits as limits_mod
 from ...types import GnssLog
 from .containers import _Log, choose_topic, guard, open_log
 from .decode import NAVSAT_TYPE, VEL_TYPES, check_increasing, check_time_source, message_times
@@ -23,7 +24,7 @@ def _quat_xyzw_to_dcm(q: np.ndarray) -> np.ndarray:
     return quat_to_dcm_many(wxyz / n[:, None])
 
 
-def _velocity(lg: _Log, topic: str, time_source: str):
+def _velocity(lg: _Log, topic: str, time_source: str, lim: dict):
     """(time s, vel (N,3), std (N,3) or None) from a TwistStamped / TwistWithCovarianceStamped / Odometry topic.
 
     Odometry twist is in the child (body) frame: it is turned into the parent frame with the pose
@@ -64,6 +65,7 @@ def _velocity(lg: _Log, topic: str, time_source: str):
     if not np.isfinite(v).all():
         k = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise SinsError(f"{where}: message {k} has a non-finite velocity")
+    limits_mod.check_velocity(where, v, lim, ("x", "y", "z"), 0, "message")
     check_increasing(t, where, f"{time_source} stamp")
     return t, v, std
 
@@ -76,7 +78,7 @@ def _interp_rows(t_out, t_in, y):
     return out
 
 
-def read_gnss(path, topic=None, vel_topic=None, time_source="header") -> GnssLog:
+def read_gnss(path, topic=None, vel_topic=None, time_source="header", limits=None) -> GnssLog:
     """Read a ``sensor_msgs/NavSatFix`` topic (and optionally a velocity topic) as a :class:`GnssLog`.
 
     Fixes with status "no fix" (-1) are dropped (count logged).  The ENU position
@@ -84,6 +86,7 @@ def read_gnss(path, topic=None, vel_topic=None, time_source="header") -> GnssLog
     COVARIANCE_TYPE_UNKNOWN).  Velocity (``vel_topic``: TwistStamped,
     TwistWithCovarianceStamped or Odometry, ENU) is interpolated linearly at the
     fix times; fixes outside the velocity topic's time span are dropped (count logged).
+    Positions and velocities beyond ``limits`` (the config's section) are refused naming the message.
     """
     check_time_source(time_source)
     path = Path(path)
@@ -91,10 +94,10 @@ def read_gnss(path, topic=None, vel_topic=None, time_source="header") -> GnssLog
         topic = choose_topic(lg, topic, NAVSAT_TYPE, "GNSS", "--gnss-topic")
         where = f"{path}: topic {topic}"
         with guard(path, topic, "cannot decode sensor_msgs/NavSatFix messages"):
-            return _read_navsat(lg, topic, where, vel_topic, time_source)
+            return _read_navsat(lg, topic, where, vel_topic, time_source, limits_mod.resolve(limits))
 
 
-def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source) -> GnssLog:
+def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source, lim: dict) -> GnssLog:
     """The body of :func:`read_gnss` on an open log."""
     path = lg.path
     log_ns, msgs = lg.decode_all(topic)
@@ -116,9 +119,8 @@ def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source) -> Gn
     if bad.any():
         k = int(keep[np.flatnonzero(bad)[0]])
         raise SinsError(f"{where}: message {k} has a fix with NaN or infinite latitude/longitude/altitude")
-    if np.any(np.abs(lla[:, 0]) > 90) or np.any(np.abs(lla[:, 1]) > 180):
-        k = int(keep[np.flatnonzero((np.abs(lla[:, 0]) > 90) | (np.abs(lla[:, 1]) > 180))[0]])
-        raise SinsError(f"{where}: message {k} has latitude/longitude out of range")
+    limits_mod.check_position(where, lla[:, 0], lla[:, 1], lla[:, 2], lim, ("latitude", "longitude", "altitude"),
+                              keep, "message")
     check_increasing(t, where, f"{time_source} stamp")
     ctype = np.array([int(m.position_covariance_type) for m in msgs])
     cov = np.array([np.asarray(m.position_covariance, dtype=np.float64) for m in msgs]).reshape(-1, 9)
@@ -140,7 +142,7 @@ def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source) -> Gn
     vel = std_vel = None
     if vel_topic is not None:
         vtopic = choose_topic(lg, vel_topic, VEL_TYPES, "GNSS velocity", "--vel-topic")
-        tv, v, sv = _velocity(lg, vtopic, time_source)
+        tv, v, sv = _velocity(lg, vtopic, time_source, lim)
         vel = _interp_rows(t, tv, v)
         std_vel = _interp_rows(t, tv, sv) if sv is not None else None
         covered = ~np.isnan(vel[:, 0])
