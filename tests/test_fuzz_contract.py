@@ -248,6 +248,9 @@ def _csv_mutation(text: str, rng) -> tuple[str, bytes]:
         if sub == 2:
             return "CRLF", body.replace("\n", "\r\n").encode()
         return "semicolons", body.replace(",", ";").encode()
+    if what == 9 and rng.random() < 0.3:            # every value zero (an IMU that reads nothing)
+        out = [lines[0]] + [",".join([ln.split(",")[0]] + ["0"] * (len(ln.split(",")) - 1)) for ln in lines[1:]]
+        return "every value but the time zero", ("\n".join(out) + "\n").encode()
     if what == 9:                                   # scale: all values of a column times a big factor
         c = int(rng.integers(1, len(header)))
         f = float(10.0 ** int(rng.integers(3, 12)))

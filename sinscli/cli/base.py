@@ -122,6 +122,9 @@ def main(ctx, debug, verbose):
     level = logging.DEBUG if debug else logging.INFO if verbose else logging.WARNING
     logging.basicConfig(level=level, format="sins: %(levelname)s: %(message)s", stream=sys.stderr)
     logging.getLogger("sins").setLevel(level)
+    from .. import NUMBA_CACHE_NOTE
+    if NUMBA_CACHE_NOTE:
+        log.warning(NUMBA_CACHE_NOTE)
 
 
 def progress(length: int, label: str, quiet: bool):

@@ -1,12 +1,12 @@
 """``sins convert LOG -o DIR``: a ROS bag / MCAP log to ``imu.csv`` (increments) and ``gnss.csv``."""
 from __future__ import annotations
 
-import contextlib
 from pathlib import Path
 
 import click
 
 from ..errors import SinsError
+from ..io.atomic import prepare_output, staged_dir
 from ..io.gnss_csv import write_gnss_csv
 from ..io.imu_csv import write_imu_csv
 from ..io import ros
@@ -35,13 +35,16 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, time_source,
     Example:
       sins convert husky_imu_gps.bag -o husky/ --time header
     """
+    prepare_output(outdir, directory=True)
     topics = ros.log_topics(log_path)
     types = set(topics.values())
     want_imu = imu_topic is not None or ros.IMU_TYPE in types
     want_gnss = gnss_topic is not None or vel_topic is not None or ros.NAVSAT_TYPE in types
+    listing = ", ".join(f"{n} ({t})" for n, t in sorted(topics.items())) or "none"
     if not (want_imu or want_gnss):
-        listing = ", ".join(f"{n} ({t})" for n, t in sorted(topics.items())) or "none"
         raise SinsError(f"{log_path}: no sensor_msgs/Imu or sensor_msgs/NavSatFix topic; topics: {listing}")
+    if not want_imu:
+        log.warning("%s: no sensor_msgs/Imu topic (topics: %s): writing gnss.csv only", log_path, listing)
     steps = int(want_imu) + int(want_gnss)
     imu = gnss = None
     with progress(steps * 2, "convert", quiet) as bar:
@@ -51,21 +54,13 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, time_source,
         if want_gnss:
             gnss = ros.read_gnss(log_path, topic=gnss_topic, vel_topic=vel_topic, time_source=time_source)
             bar.update(1)
-        written = []
-        try:
+        with staged_dir(outdir) as tmp:          # both files, or neither
             if imu is not None:
-                write_imu_csv(outdir / "imu.csv", imu)
-                written.append(outdir / "imu.csv")
+                write_imu_csv(tmp / "imu.csv", imu)
                 bar.update(1)
             if gnss is not None:
-                write_gnss_csv(outdir / "gnss.csv", gnss)
-                written.append(outdir / "gnss.csv")
+                write_gnss_csv(tmp / "gnss.csv", gnss)
                 bar.update(1)
-        except BaseException:
-            for p in written:
-                with contextlib.suppress(OSError):
-                    p.unlink()
-            raise
     if imu is not None:
         log.info("%s: %d IMU increments from %s (first interval starts at %.9f s)",
                  outdir / "imu.csv", len(imu), imu.source, imu.t0)

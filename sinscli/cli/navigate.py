@@ -12,7 +12,7 @@ from ..errors import SinsError
 from ..io.imu_csv import check_static_start
 from ..io.init_state import read_init
 from ..io.readers import iter_imu
-from ..io.trajectory import TrajectoryWriter, write_trajectory
+from ..io.trajectory import TrajectoryWriter, check_trajectory_output, write_trajectory
 from ..nav.earth import gravity
 from ..nav.inertial import COLUMNS as INERTIAL_COLUMNS, launch_frame
 from ..nav.pipeline import NavOptions, concat, navigate_blocks
@@ -77,6 +77,7 @@ def navigate_cmd(imu, init_path, attitude, dcm_variant, coning, subsamples, ever
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
                  frame, imu_topic, output, quiet):
     """Navigate IMU increments from an initial state and write the trajectory."""
+    check_trajectory_output(output)            # before any work: a directory, no format, no permission
     cfg = config_mod.load_config(config_path)
     cfg = config_mod.merge(cfg, "navigation", attitude=attitude, dcm_variant=dcm_variant, coning=coning,
                            subsamples=subsamples, every=every, allow_gaps=allow_gaps,
@@ -98,7 +99,7 @@ def navigate_cmd(imu, init_path, attitude, dcm_variant, coning, subsamples, ever
         raise SinsError(f"{imu}: no IMU samples")
     t_start = first.t0 if first.t0 is not None else float(first.time[0] - (
         first.time[1] - first.time[0] if len(first) > 1 else 0.0))
-    init = read_init(init_path, t_start, conv)
+    init = read_init(init_path, t_start, conv, cfg["limits"])
     if opts.frame == "launch-inertial" and opts.launch is None and "launch" in init.extra:
         launch_frame(init.extra["launch"], init.time, f"{init_path}: launch")   # checked naming the file
         opts.launch = init.extra["launch"]

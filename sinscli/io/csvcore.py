@@ -16,6 +16,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 from ..errors import SinsError, num, quote
+from .atomic import check_finite
 from .inputs import input_file
 
 
@@ -189,13 +190,15 @@ class CsvTableWriter:
     equally long 1-D arrays with the same keys each time.
     """
 
-    def __init__(self, path, columns: list[str]):
+    def __init__(self, path, columns: list[str], target=None):
         self.columns = list(columns)
+        self.target = target if target is not None else path      # the name in messages
         self._fh = open(path, "wb")
         self._fh.write((",".join(self.columns) + "\n").encode())
         self._opts = pacsv.WriteOptions(include_header=False, quoting_style="none", batch_size=1 << 16)
 
     def write(self, data: dict[str, np.ndarray]) -> None:
+        check_finite(self.target, {c: data[c] for c in self.columns}, data.get("time"))
         table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in self.columns})
         buf = io.BytesIO()
         pacsv.write_csv(table, buf, write_options=self._opts)

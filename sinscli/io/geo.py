@@ -24,8 +24,6 @@ def _track(traj: Trajectory):
     if len(traj) == 0:
         raise SinsError(f"{traj.source}: trajectory is empty; nothing to write")
     lon, lat = np.degrees(traj.lon), np.degrees(traj.lat)
-    if not (np.isfinite(lon).all() and np.isfinite(lat).all() and np.isfinite(traj.height).all()):
-        raise SinsError(f"{traj.source}: trajectory has non-finite positions; cannot write a map track")
     return lon.tolist(), lat.tolist(), np.asarray(traj.height, dtype=np.float64).tolist()
 
 

@@ -11,7 +11,7 @@ import yaml
 from ..errors import SinsError, num, quote
 from ..nav.rotation import dcm_to_euler, euler_to_dcm
 from ..types import NavState, time_tolerance
-from .atomic import atomic_path
+from .atomic import atomic_path, check_finite
 from . import limits as limits_mod
 from .inputs import input_file, load_yaml
 
@@ -103,6 +103,8 @@ def write_init_yaml(path, state: NavState, conv: int = 0, extra: dict | None = N
     data = init_dict(state, conv)
     for k, v in {**state.extra, **(extra or {})}.items():
         data[k] = _plain(v)
+    check_finite(path, {k: v for k, v in data.items() if isinstance(v, (int, float)) or
+                        (isinstance(v, list) and all(isinstance(x, (int, float)) for x in v))})
     with atomic_path(path) as tmp:
         Path(tmp).write_text(yaml.safe_dump(data, sort_keys=False, default_flow_style=False))
 

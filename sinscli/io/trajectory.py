@@ -16,7 +16,7 @@ from .inputs import input_file
 from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, quat_to_dcm_many
 from ..types import Trajectory
 from . import limits as limits_mod
-from .atomic import atomic_path
+from .atomic import atomic_path, check_finite, prepare_output
 from .csvcore import CsvTableWriter, read_header, read_numeric_columns
 
 BASE_COLUMNS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading",
@@ -55,7 +55,7 @@ class TrajectoryWriter:
     """
 
     def __init__(self, path, conv: int = 0, extra_columns=()):
-        self.path = Path(path)
+        self.path = check_trajectory_output(path)
         self.conv = conv
         self.suffix = self.path.suffix.lower()
         if self.suffix not in (".csv", ".parquet"):
@@ -67,9 +67,10 @@ class TrajectoryWriter:
 
     def write(self, traj: Trajectory) -> None:
         cols = trajectory_columns(traj, self.conv)
+        check_finite(self.path, {c: cols[c] for c in self.columns}, cols["time"])
         if self.suffix == ".csv":
             if self._writer is None:
-                self._writer = CsvTableWriter(self._tmp, self.columns)
+                self._writer = CsvTableWriter(self._tmp, self.columns, target=self.path)
             self._writer.write(cols)
         else:
             import pyarrow as pa
@@ -113,10 +114,23 @@ def write_trajectory(path, traj: Trajectory, conv: int = 0) -> None:
         with TrajectoryWriter(path, conv, extra_columns=list(traj.extra)) as w:
             w.write(traj)
         return
-    if suffix not in WRITERS:
-        known = ", ".join(sorted({".csv", ".parquet", *WRITERS}))
-        raise SinsError(f"{path}: unknown output format '{suffix}'; expected one of {known}")
+    check_trajectory_output(path)
+    check_finite(path, {"time": traj.time, "lat": traj.lat, "lon": traj.lon, "height": traj.height,
+                        "velocity": traj.vel_n, "attitude": traj.Cbn, **traj.extra}, traj.time)
     WRITERS[suffix](path, traj, conv)
+
+
+def check_trajectory_output(path) -> Path:
+    """Refuse, before any work, an output that is a directory or has no known trajectory format."""
+    path = Path(path)
+    if path.is_dir():
+        raise SinsError(f"{path}: output is a directory; give a file name")
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".parquet", *WRITERS):
+        known = ", ".join(sorted({".csv", ".parquet", *WRITERS}))
+        what = f"unknown output format '{suffix}'" if suffix else "no file suffix to tell the output format"
+        raise SinsError(f"{path}: {what}; expected one of {known}")
+    return prepare_output(path)
 
 
 def read_trajectory(path, limits=None) -> Trajectory:

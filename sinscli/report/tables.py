@@ -10,7 +10,7 @@ import csv
 
 import numpy as np
 
-from ..io.atomic import atomic_path
+from ..io.atomic import atomic_path, check_finite
 from .errors import ROW_UNITS, ErrorSeries, ErrorTable
 
 #: How Tables 1-2 of seed 000 name each row (subscript g = truth, n = navigation).
@@ -41,6 +41,7 @@ def _r(x: float) -> str:
 
 def write_errors_csv(path, table: ErrorTable) -> None:
     """``quantity,unit,<method>...``: one row per table row, full precision."""
+    check_finite(path, dict(zip(table.rows, table.values)))
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(["quantity", "unit", *table.methods])
@@ -96,6 +97,8 @@ def timeseries_frame(series: dict[str, ErrorSeries], every: int = 1):
 
 def write_timeseries_csv(path, series: dict[str, ErrorSeries], every: int = 1) -> None:
     """``timeseries.csv`` (see :func:`timeseries_frame`); floats in shortest round-trip form."""
+    for name, s in series.items():
+        check_finite(path, {f"{name}.{attr}": getattr(s, attr) for _, attr, _, _ in TIMESERIES_QUANTITIES}, s.time)
     frame = timeseries_frame(series, every)
     with atomic_path(path) as tmp:
         frame.to_csv(tmp, index=True, na_rep="", lineterminator="\n")
