@@ -194,7 +194,9 @@ def validate(cfg: dict, src: str) -> None:
     for k, v in lim.items():
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or \
                 (k != "height_min" and v <= 0):
-            _fail(src, f"limits.{k}", f"expected a finite number{'' if k == 'height_min' else ' > 0'}, got {v!r}")
+            hint = " (YAML reads 1.0e8 as text: write 1.0e+8)" if isinstance(v, str) and "e" in v.lower() else ""
+            _fail(src, f"limits.{k}", f"expected a finite number{'' if k == 'height_min' else ' > 0'}, "
+                                      f"got {v!r}{hint}")
         lim[k] = float(v)
     if not lim["height_min"] < lim["height_max"]:
         _fail(src, "limits.height_min", f"must be below limits.height_max ({lim['height_max']!r})")

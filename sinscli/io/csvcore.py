@@ -45,7 +45,10 @@ def read_header(path) -> list[str]:
                         f"(save the file as UTF-8)") from None
     if not text.strip():
         raise SinsError(f"{path}: first line is empty, expected a header row")
-    names = [c.strip() for c in next(csv.reader([text]))]
+    try:
+        names = [c.strip() for c in next(csv.reader([text.rstrip("\r\n")]), [])]
+    except csv.Error as exc:
+        raise SinsError(f"{path}: line 1: cannot read the header as CSV ({exc})") from None
     if len(names) > MAX_COLUMNS:
         raise SinsError(f"{path}: line 1: the header has {len(names)} columns; at most {MAX_COLUMNS} are read")
     seen = set()
@@ -135,7 +138,10 @@ def _locate_bad_cell(path: Path, cols: list[str], exc: Exception) -> str:
             if len(raw) > MAX_LINE_BYTES:
                 return f"{path}: line {lineno}: longer than {MAX_LINE_BYTES} bytes; expected {len(header)} numbers"
             line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
-            row = next(csv.reader([line]), [])
+            try:
+                row = next(csv.reader([line]), [])
+            except csv.Error as exc:
+                return f"{path}: line {lineno}: cannot read as CSV ({exc})"
             if not row or all(not x.strip() for x in row):
                 return f"{path}: line {lineno}: empty row, expected {len(header)} comma-separated values"
             if len(row) != len(header):

@@ -115,18 +115,23 @@ def parse_yaml(text: str, src: str):
     """Parse YAML text with the bounds of :func:`load_yaml` (``src`` names it in messages)."""
     if text.startswith("\ufeff"):
         text = text[1:]
-    loader = _BoundedLoader(text)
-    loader.src = src
+    loader = None
     try:
+        loader = _BoundedLoader(text)
+        loader.src = src
         return loader.get_single_data()
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
+        if isinstance(exc, yaml.reader.ReaderError):
+            line = text.count("\n", 0, exc.position) + 1
+            raise SinsError(f"{src}: line {line}: character #x{exc.character:04x} is not allowed in YAML") from None
         problem = getattr(exc, "problem", None) or type(exc).__name__
         raise SinsError(f"{_where(src, mark)}: not valid YAML ({problem})") from None
     except RecursionError:
         raise SinsError(f"{src}: nested too deeply") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
 def load_yaml(path, what: str = "YAML file"):

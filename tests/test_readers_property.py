@@ -1,0 +1,248 @@
+"""Property tests (hypothesis) of the CSV and YAML readers: any text either reads to finite arrays with the
+promised invariants, or raises one :class:`SinsError` line that names the file."""
+from __future__ import annotations
+
+import math
+import string
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import yaml
+from hypothesis import HealthCheck, event, given, settings
+from hypothesis import strategies as st
+
+from sinscli.config import DEFAULTS, load_config
+from sinscli.errors import SinsError
+from sinscli.io.gnss_csv import read_gnss_csv
+from sinscli.io.imu_csv import read_imu_csv
+from sinscli.io.init_state import INIT_KEYS, read_init
+from sinscli.io.trajectory import BASE_COLUMNS, DCM_COLUMNS, read_trajectory
+
+SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+LIM = DEFAULTS["limits"]
+
+# ------------------------------------------------------------------ text generators
+
+NUMBERS = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True).map(repr),
+    st.floats(-1e4, 1e4).map(lambda x: f"{x:.6g}"),
+    st.integers(-10 ** 30, 10 ** 30).map(str),
+    st.sampled_from(["", "nan", "inf", "-inf", "1e400", "-1e400", "abc", " 1 ", "1,5", '"2"', "0x1f", "1e-400"]))
+CELL_TEXT = st.text(alphabet=string.printable + "\xe9\u00a0\ufeff", max_size=12)
+
+
+def _csv(names, rows) -> str:
+    return "\n".join([",".join(names)] + [",".join(r) for r in rows]) + "\n"
+
+
+def structured_csv(columns):
+    """A header drawn from the reader's column names (and some junk), rows of numbers and junk."""
+    names = st.lists(st.one_of(st.sampled_from(columns), CELL_TEXT), min_size=1, max_size=len(columns) + 2)
+    return st.builds(lambda n, rows: _csv(n, rows), names,
+                     st.lists(st.lists(st.one_of(NUMBERS, CELL_TEXT), min_size=0, max_size=len(columns) + 2),
+                              max_size=8))
+
+
+def plausible_csv(columns, time_step=0.01):
+    """The reader's own header with mostly numeric rows around valid values: exercises the success path."""
+    def build(rows, junk):
+        lines = []
+        for k, r in enumerate(rows):
+            cells = [repr(round(time_step * (k + 1), 6))] + [repr(v) for v in r]
+            lines.append(cells)
+        for (i, j), v in junk:
+            if lines:
+                lines[i % len(lines)][j % len(columns)] = v
+        return _csv(columns, lines)
+    row = st.lists(st.floats(-1.0, 1.0), min_size=len(columns) - 1, max_size=len(columns) - 1)
+    return st.builds(build, st.lists(row, min_size=0, max_size=12),
+                     st.lists(st.tuples(st.tuples(st.integers(0, 20), st.integers(0, 20)), NUMBERS), max_size=2))
+
+
+def any_text():
+    return st.one_of(st.text(max_size=300), st.binary(max_size=300))
+
+
+def _write(data, suffix: str) -> Path:
+    d = Path(tempfile.mkdtemp(prefix="sins-prop-"))
+    p = d / f"input{suffix}"
+    if isinstance(data, str):
+        p.write_text(data, encoding="utf-8")
+    else:
+        p.write_bytes(data)
+    return p
+
+
+def _refused(exc: SinsError, path: Path) -> None:
+    event("refused")
+    msg = str(exc)
+    assert "\n" not in msg and path.name in msg, msg
+    assert "np.float64(" not in msg and len(msg) <= 480, msg
+
+
+# ------------------------------------------------------------------ CSV readers
+
+IMU_INC = ["time", "dtheta_x", "dtheta_y", "dtheta_z", "dvel_x", "dvel_y", "dvel_z"]
+IMU_RATE = ["time", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z"]
+
+
+def _check_imu(path):
+    try:
+        imu = read_imu_csv(path)
+    except SinsError as exc:
+        _refused(exc, path)
+        return
+    event("read")
+    assert len(imu) >= 1 and imu.dtheta_b.shape == (len(imu), 3) and imu.dvel_b.shape == (len(imu), 3)
+    for a in (imu.time, imu.dtheta_b, imu.dvel_b):
+        assert np.isfinite(a).all()
+    assert np.all(np.diff(imu.time) > 0)
+    assert np.abs(imu.time).max() <= LIM["time"]
+    if imu.kind == "rates":
+        dt = np.diff(np.concatenate([[imu.t0], imu.time]))
+        assert np.all(dt > 0) and imu.t0 < imu.time[0]
+        assert np.all(np.abs(imu.dtheta_b) <= LIM["rate"] * dt[:, None] * (1 + 1e-12))
+        assert np.all(np.abs(imu.dvel_b) <= LIM["specific_force"] * dt[:, None] * (1 + 1e-12))
+
+
+@SETTINGS
+@given(st.one_of(structured_csv(IMU_INC), structured_csv(IMU_RATE), plausible_csv(IMU_INC),
+                 plausible_csv(IMU_RATE), any_text()))
+def test_imu_csv_reads_or_refuses(text):
+    _check_imu(_write(text, ".csv"))
+
+
+GNSS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "std_e", "std_n", "std_u"]
+
+
+@SETTINGS
+@given(st.one_of(structured_csv(GNSS), plausible_csv(GNSS[:4], 1.0), plausible_csv(GNSS, 1.0), any_text()))
+def test_gnss_csv_reads_or_refuses(text):
+    path = _write(text, ".csv")
+    try:
+        g = read_gnss_csv(path)
+    except SinsError as exc:
+        _refused(exc, path)
+        return
+    event("read")
+    for a in (g.time, g.lat, g.lon, g.height):
+        assert np.isfinite(a).all()
+    assert np.all(np.diff(g.time) > 0)
+    assert np.all(np.abs(g.lat) <= 90) and np.all(np.abs(g.lon) <= 360)
+    assert np.all((g.height >= LIM["height_min"]) & (g.height <= LIM["height_max"]))
+    if g.vel_n is not None:
+        assert np.all(np.linalg.norm(g.vel_n, axis=1) <= LIM["speed"])
+    if g.std_pos is not None:
+        assert np.all(g.std_pos >= 0)
+
+
+TRAJ = BASE_COLUMNS + DCM_COLUMNS
+
+
+def _rows_of_valid_trajectory(n, junk):
+    """Valid rows (identity attitude at heading 0) with optional junk cells."""
+    lines = []
+    for k in range(n):
+        row = [0.1 * k, 30.0, 114.0, 50.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0] + \
+              [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+        lines.append([repr(v) for v in row])
+    for (i, j), v in junk:
+        if lines:
+            lines[i % len(lines)][j % len(TRAJ)] = v
+    return _csv(TRAJ, lines)
+
+
+@SETTINGS
+@given(st.one_of(structured_csv(TRAJ),
+                 st.builds(_rows_of_valid_trajectory, st.integers(0, 6),
+                           st.lists(st.tuples(st.tuples(st.integers(0, 9), st.integers(0, 30)), NUMBERS), max_size=2)),
+                 any_text()))
+def test_trajectory_csv_reads_or_refuses(text):
+    path = _write(text, ".csv")
+    try:
+        tr = read_trajectory(path)
+    except SinsError as exc:
+        _refused(exc, path)
+        return
+    event("read")
+    for a in (tr.time, tr.lat, tr.lon, tr.height, tr.vel_n, tr.Cbn):
+        assert np.isfinite(a).all()
+    assert np.all(np.diff(tr.time) > 0)
+    err = np.abs(np.einsum("nij,nkj->nik", tr.Cbn, tr.Cbn) - np.eye(3)).max() if len(tr) else 0.0
+    assert err <= 2e-3
+    assert np.all(np.abs(tr.lat) <= math.pi / 2)
+
+
+# ------------------------------------------------------------------ YAML readers
+
+SCALARS = st.one_of(st.none(), st.booleans(), st.integers(-2 ** 70, 2 ** 70), st.floats(allow_nan=True),
+                    st.text(max_size=8))
+VALUES = st.recursive(SCALARS, lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                                       st.dictionaries(st.text(max_size=6), inner, max_size=4)),
+                      max_leaves=12)
+
+
+def _init_docs():
+    good = {"time": 0.0, "lat": 30.0, "lon": 114.0, "height": 50.0, "vel_e": 0.0, "vel_n": 0.0, "vel_u": 0.0,
+            "roll": 0.0, "pitch": 0.0, "heading": 30.0}
+
+    def edit(changes, drop):
+        d = dict(good)
+        d.update(changes)
+        for k in drop:
+            d.pop(k, None)
+        return yaml.safe_dump(d)
+    return st.one_of(
+        st.builds(edit, st.dictionaries(st.sampled_from(INIT_KEYS + ["heding", "extra"]), VALUES, max_size=3),
+                  st.lists(st.sampled_from(INIT_KEYS), max_size=2)),
+        st.builds(edit, st.dictionaries(st.sampled_from(INIT_KEYS), st.floats(-200.0, 200.0), max_size=4),
+                  st.just([])))
+
+
+@SETTINGS
+@given(st.one_of(_init_docs(), VALUES.map(yaml.safe_dump), any_text()))
+def test_init_yaml_reads_or_refuses(text):
+    path = _write(text, ".yaml")
+    try:
+        s = read_init(path)
+    except SinsError as exc:
+        _refused(exc, path)
+        return
+    event("read")
+    assert all(math.isfinite(x) for x in (s.time, s.lat, s.lon, s.height))
+    assert np.isfinite(s.vel_n).all() and np.isfinite(s.Cbn).all()
+    assert abs(s.lat) <= math.radians(89.99) and abs(s.time) <= LIM["time"]
+    assert np.linalg.norm(s.vel_n) <= LIM["speed"]
+    assert np.abs(s.Cbn @ s.Cbn.T - np.eye(3)).max() < 1e-12
+
+
+def _config_docs():
+    keys = [(sec, k) for sec, d in DEFAULTS.items() for k in d]
+
+    def edit(changes):
+        d: dict = {}
+        for (sec, k), v in changes:
+            d.setdefault(sec, {})[k] = v
+        return yaml.safe_dump(d)
+    return st.builds(edit, st.lists(st.tuples(st.sampled_from(keys), VALUES), max_size=3))
+
+
+@SETTINGS
+@given(st.one_of(_config_docs(), VALUES.map(yaml.safe_dump), any_text()))
+def test_config_yaml_loads_or_refuses(text):
+    path = _write(text, ".yaml")
+    try:
+        cfg = load_config(path)
+    except SinsError as exc:
+        _refused(exc, path)
+        return
+    event("read")
+    nav = cfg["navigation"]
+    assert 1 <= nav["subsamples"] < 2 ** 31 and 1 <= nav["every"] < 2 ** 31
+    assert 0 < nav["singularity_threshold"] < 1
+    for v in cfg["limits"].values():
+        assert math.isfinite(v)
+    from sinscli.config import mounting_matrix
+    m = mounting_matrix(cfg["imu"]["mounting"])
+    assert np.isfinite(m).all() and np.abs(m @ m.T - np.eye(3)).max() <= 1e-6
