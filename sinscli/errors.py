@@ -3,8 +3,11 @@ numbers are written into messages."""
 from __future__ import annotations
 
 import numbers
+import re
 
 MAX_MESSAGE = 480        # characters of a message; longer ones are cut (a giant header, a huge value)
+# numpy 2 writes scalars as np.float64(0.01): a message shows the number alone, wherever it was formatted
+_NUMPY_REPR = re.compile(r"np\.(?:float|int|uint|complex|str_|bool)\w*\(([^()]*)\)")
 
 
 class SinsError(Exception):
@@ -17,7 +20,7 @@ class SinsError(Exception):
     exit_code = 2
 
     def __init__(self, message: str):
-        text = " ".join(str(message).split())
+        text = _NUMPY_REPR.sub(r"\1", " ".join(str(message).split()))
         if len(text) > MAX_MESSAGE:
             text = text[:MAX_MESSAGE - 3] + "..."
         super().__init__(text)

@@ -585,6 +585,7 @@ def test_seed_inputs_pass(seeds, tmp_path):
 def test_fuzz_contract(seeds, tmp_path):
     rng = np.random.default_rng(SEED)
     counts = collections.Counter()
+    by_kind = collections.defaultdict(collections.Counter)
     failures = collections.defaultdict(list)
     before = {p: p.stat().st_mtime_ns for p in seeds.values()}
     slowest = 0.0
@@ -602,13 +603,14 @@ def test_fuzz_contract(seeds, tmp_path):
             cls, detail = "hang", f"no answer within {HANG_S:g} s"
         slowest = max(slowest, time.perf_counter() - t0)
         counts[cls] += 1
+        by_kind[desc.split(":")[0]][cls] += 1
         if cls not in ("ok", "refused"):
             failures[cls].append(f"#{k} {desc}: {detail}")
         shutil.rmtree(case_dir, ignore_errors=True)
     elapsed = time.perf_counter() - t_start
     assert {p: p.stat().st_mtime_ns for p in seeds.values()} == before, "a run wrote into the seed inputs"
     summary = {"cases": N_CASES, "seconds": round(elapsed, 1), "slowest_case_s": round(slowest, 2),
-               "classes": dict(counts)}
+               "classes": dict(counts), "by_input": {k: dict(v) for k, v in sorted(by_kind.items())}}
     print(f"\nfuzz contract: {json.dumps(summary)}")
     if os.environ.get("SINS_FUZZ_REPORT"):
         Path(os.environ["SINS_FUZZ_REPORT"]).write_text(
