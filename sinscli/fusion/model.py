@@ -14,7 +14,8 @@ position error in metres, R_m = RM + h, R_n = RN + h):
     dr'  = F_rr dr + dv
     dv'  = F_vr dr + F_vv dv + [f^n x] phi + Cbn (b_a + diag(f^b) s_a) + Cbn w_a
     phi' = F_pr dr + F_pv dv - [w_in^n x] phi - Cbn (b_g + diag(w^b) s_g) - Cbn w_g
-    b'   = -b / tau + w_b              (first-order Gauss-Markov, steady sigma = bias_instability)
+    b'   = -b / tau + w_b              (first-order Gauss-Markov density 2 sigma^2/tau; the pipeline
+                                        passes 1/tau = 0, a random walk: see filter_model)
     s'   = 0
 
     F_rr = [[vU/Rn - vN tanL/Rm, vE tanL/Rm, -vE/Rn], [0, vU/Rm, -vN/Rm], [0, 0, 0]]
