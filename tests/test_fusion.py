@@ -292,3 +292,22 @@ def test_cli_bad_input(case, tmp_path):
     expect = {"no_overlap": "does not overlap", "bad_sigma": "fusion.zupt.sigma", "nonfinite": "gnss_pos_sigma",
               "sensor_missing_term": "gyro.bias_instability", "not_pd": "covariance"}[case]
     assert expect in lines[0], lines[0]
+
+
+HUSKY = Path("/work/shared/data/ros1_husky/husky_imu_gps.bag")
+if not HUSKY.exists():
+    HUSKY = ROOT.parent / "shared/data/ros1_husky/husky_imu_gps.bag"
+
+
+@pytest.mark.skipif(not HUSKY.exists(), reason="shared Husky bag not present")
+def test_husky_bag_end_to_end(tmp_path):
+    """Real data: alignment on the first 30 s (heading from the GNSS course), fused track within a few
+    fix sigmas of the fixes (residual RMS), a Foxglove MCAP written."""
+    import re
+    r = _sins(["navigate", str(HUSKY), "--gnss", str(HUSKY), "--config", str(ROOT / "configs/fusion/husky.yaml"),
+               "--align", "gnss-inertial", "-o", "husky.mcap", "-q"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    m = re.search(r"residual RMS against the fixes ([0-9.]+) m horizontal", r.stderr)
+    assert m and float(m.group(1)) < 2.0, r.stderr          # fixes' sigma ~1-2 m
+    assert "heading from the GNSS course" in r.stderr
+    assert (tmp_path / "husky.mcap").stat().st_size > 100_000
