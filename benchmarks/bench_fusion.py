@@ -5,8 +5,8 @@ Prints ``samples_per_s`` and the ratio to plain navigation; ``--hour`` runs one 
 36,000 fixes, the drive repeated with its time shifted) with the smoother under tracemalloc and
 prints the peak Python-allocated memory.  Run: ``python benchmarks/bench_fusion.py [--hour]``.
 """
-import math
 import sys
+from pathlib import Path
 import time
 import tracemalloc
 
@@ -18,14 +18,8 @@ from sinscli.nav.pipeline import NavOptions, navigate
 from sinscli.sim.run import simulate
 from sinscli.types import GnssLog, ImuLog
 
-
-def best_of(fn, repeat=3):
-    best = math.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_navigate import best_of  # noqa: E402
 
 
 def repeat_log(sim, times):
