@@ -74,13 +74,13 @@ UNIT_CHOICES = {"gyro": GYRO_UNITS, "accel": ACCEL_UNITS, "dtheta": ANGLE_UNITS,
 
 # sections that belong to another stage, which validates them itself (`sins align`); one config
 # file can then serve every command
-STAGE_SECTIONS = ("align",)
+STAGE_SECTIONS = ("align", "fusion")
 
 
 def load_config(path=None, extra_sections=STAGE_SECTIONS) -> dict:
     """Load and validate a config YAML (or the defaults when ``path`` is None).
 
-    ``extra_sections`` (default: the ``align`` section) are accepted and returned raw
+    ``extra_sections`` (default: the ``align`` and ``fusion`` sections) are accepted and returned raw
     under their name (None when absent) for the stage that validates them.
     """
     cfg = copy.deepcopy(DEFAULTS)

@@ -311,6 +311,57 @@ def _angle_update(st, method, alpha, alpha_prev, zeta, cflu, integrator, t_start
     return n_ev
 
 
+@njit(cache=True, inline="always")
+def interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_ev):
+    """One attitude interval closes at ``t_end``: the moderate-rate update of the state ``st``.
+
+    Body increments (:func:`close_interval`), displacement and velocity with the midpoint
+    navigation-frame rotation (:mod:`sinscli.nav.mechanization`), attitude (or the angle methods),
+    position, then the compensated accumulation of every integrated state and the interval's
+    bookkeeping (``S_T = S_TSTART = t_end``).  The one mechanization step shared by :func:`run` and
+    the fusion kernel (:mod:`sinscli.fusion.kernel`); returns the event count ``n_ev``.
+    """
+    T = t_end - st[S_TSTART]
+    phi, dv_b, alpha_prev = close_interval(st, sums, order)
+    cbn = _cbn(st)
+    dv_n0 = m_vec(cbn, dv_b)
+    vel = _vec(st, S_VEL)
+    lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
+    v_mm2 = _vec(st, S_VMM2)
+    v_mm3 = _vec(st, S_VMM3)
+    nhist = int(st[S_HAVE_MM2])
+    h1 = st[S_TSTART] - st[S_TMM2]
+    h2 = st[S_TMM2] - st[S_TMM3]
+    dR = first_guess_displacement(vel, dv_n0, lat, h, T)
+    for _ in range(2):
+        lat_mid, h_mid = midpoint(lat, h, dR)
+        zeta = frame_rotation(lat_mid, h_mid, dR, T)
+        dvel = velocity_update(vel, dv_n0, zeta, lat_mid, h_mid, dR, T)
+        v_new = v_add(vel, dvel)
+        dR = displacement(v_mm3, v_mm2, vel, v_new, h2, h1, T, nhist)
+    lat_mid, h_mid = midpoint(lat, h, dR)
+    zeta = frame_rotation(lat_mid, h_mid, dR, T)
+    if method == ATT_KRYLOV or method == ATT_EULER:
+        n_ev = _angle_update(st, method, sums[0], alpha_prev, zeta, cflu, integrator, st[S_TSTART], events, n_ev)
+    else:
+        _attitude_update(st, method, phi, zeta)
+    dlat, dlon, dh = position_update(lat, h, dR)
+    # ---- store (compensated accumulation of every integrated state) ----
+    _set_vec(st, S_VMM3, v_mm2)
+    st[S_TMM3] = st[S_TMM2]
+    _set_vec(st, S_VMM2, vel)
+    st[S_TMM2] = st[S_TSTART]
+    st[S_HAVE_MM2] = min(nhist + 1, 2)
+    for i in range(3):
+        _acc(st, S_VEL + i, S_VLO + i, dvel[i])
+    _acc(st, S_LAT, S_PLO, dlat)
+    _acc(st, S_LON, S_PLO + 1, dlon)
+    _acc(st, S_H, S_PLO + 2, dh)
+    st[S_T] = t_end
+    st[S_TSTART] = t_end
+    return n_ev
+
+
 @njit(cache=True)
 def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integrator, cos_stop,
         out_t, out_pos, out_vel, out_cbn, out_ang, events):
@@ -337,46 +388,9 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
             continue
         # ---- attitude interval closes: moderate-rate update ----
         t_end = time[k]
-        T = t_end - st[S_TSTART]
-        phi, dv_b, alpha_prev = close_interval(st, sums, order)
-        cbn = _cbn(st)
-        dv_n0 = m_vec(cbn, dv_b)
-        vel = _vec(st, S_VEL)
-        lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
-        v_mm2 = _vec(st, S_VMM2)
-        v_mm3 = _vec(st, S_VMM3)
-        nhist = int(st[S_HAVE_MM2])
-        h1 = st[S_TSTART] - st[S_TMM2]
-        h2 = st[S_TMM2] - st[S_TMM3]
-        dR = first_guess_displacement(vel, dv_n0, lat, h, T)
-        for _ in range(2):
-            lat_mid, h_mid = midpoint(lat, h, dR)
-            zeta = frame_rotation(lat_mid, h_mid, dR, T)
-            dvel = velocity_update(vel, dv_n0, zeta, lat_mid, h_mid, dR, T)
-            v_new = v_add(vel, dvel)
-            dR = displacement(v_mm3, v_mm2, vel, v_new, h2, h1, T, nhist)
-        lat_mid, h_mid = midpoint(lat, h, dR)
-        zeta = frame_rotation(lat_mid, h_mid, dR, T)
-        if method == ATT_KRYLOV or method == ATT_EULER:
-            n_ev = _angle_update(st, method, sums[0], alpha_prev, zeta, cflu, integrator, st[S_TSTART], events, n_ev)
-        else:
-            _attitude_update(st, method, phi, zeta)
-        dlat, dlon, dh = position_update(lat, h, dR)
-        # ---- store (compensated accumulation of every integrated state) ----
-        _set_vec(st, S_VMM3, v_mm2)
-        st[S_TMM3] = st[S_TMM2]
-        _set_vec(st, S_VMM2, vel)
-        st[S_TMM2] = st[S_TSTART]
-        st[S_HAVE_MM2] = min(nhist + 1, 2)
-        for i in range(3):
-            _acc(st, S_VEL + i, S_VLO + i, dvel[i])
-        _acc(st, S_LAT, S_PLO, dlat)
-        _acc(st, S_LON, S_PLO + 1, dlon)
-        _acc(st, S_H, S_PLO + 2, dh)
+        n_ev = interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_ev)
         lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
         v_new = _vec(st, S_VEL)
-        st[S_T] = t_end
-        st[S_TSTART] = t_end
         z = (0.0, 0.0, 0.0)
         sums = (z, z, z, z)
         nsub_now = 0
