@@ -90,7 +90,7 @@ def navigate_cmd(imu, init_path, attitude, dcm_variant, coning, subsamples, ever
                       subsamples=nav["subsamples"], every=nav["every"], conv=conv, frame=nav["frame"],
                       angles=angles, euler_integrator=nav["euler_integrator"],
                       singularity_threshold=nav["singularity_threshold"], on_singularity=nav["on_singularity"],
-                      launch=nav["launch"])
+                      launch=nav["launch"], krylov_substep_tol=nav["krylov_substep_tol"])
     opts.check()
     blocks = iter_imu(imu, cfg, allow_gaps=nav["allow_gaps"])
     first = next(blocks, None)
