@@ -58,7 +58,8 @@ def main(ctx, debug, verbose):
     ctx.ensure_object(dict)
     ctx.obj["debug"] = debug
     level = logging.DEBUG if debug else logging.INFO if verbose else logging.WARNING
-    logging.basicConfig(level=level, format="sins: %(levelname)s: %(message)s", stream=sys.stderr)
+    # the root logger stays at WARNING: --debug is for sins, not for numba's compiler dumps
+    logging.basicConfig(level=logging.WARNING, format="sins: %(levelname)s: %(message)s", stream=sys.stderr)
     logging.getLogger("sins").setLevel(level)
 
 
