@@ -7,7 +7,7 @@ increments shows the memory-bound floor.  Then the per-sample cost of
 ``krylov`` against ``quat`` on real motions: the vehicle drive
 (``sample_data/imu.csv`` repeated to 720,000 samples; no RK4 sub-steps, issue 14
 target <= 1.5) and the 2 rev/s spin boost (``configs/scenarios/spin_boost.yaml``,
-simulated error-free, repeated), with the sub-steps the Krylov update took.
+its first 32 s simulated error-free, repeated), with the sub-steps the Krylov update took.
 Run: ``python benchmarks/bench_navigate.py``.
 """
 import math
@@ -86,7 +86,7 @@ def krylov_on_motions():
 
     drive = read_imu_csv(ROOT / "sample_data" / "imu.csv")
     init_drive = read_init(ROOT / "sample_data" / "init.yaml", drive.t0, 0)
-    spin = simulate(ROOT / "configs" / "scenarios" / "spin_boost.yaml", perfect=True)
+    spin = simulate(ROOT / "configs" / "scenarios" / "spin_boost.yaml", perfect=True, duration=32.0)
     for label, imu, init in (("vehicle drive (sample_data, repeated)", drive, init_drive),
                              ("spin boost 2 rev/s (repeated)", spin.imu, spin.init)):
         log = _repeat(imu)
