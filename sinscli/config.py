@@ -49,6 +49,7 @@ DEFAULTS = {
         "euler_integrator": "rk4",          # euler | rk4 (3-angle baseline)
         "singularity_threshold": 0.01,      # |cos psi| under which the 3-angle method warns
         "on_singularity": "continue",       # continue | stop
+        "krylov_substep_tol": 1.0e-9,       # krylov: RK4 truncation allowed per interval / its rotation
         "launch": None,           # {lat, lon, height, azimuth} deg/m for launch-inertial
     },
     "ros": {
@@ -152,6 +153,9 @@ def validate(cfg: dict, src: str) -> None:
     thr = nav["singularity_threshold"]
     if not isinstance(thr, (int, float)) or not 0 < thr < 1:
         _fail(src, "navigation.singularity_threshold", f"expected a number in (0, 1), got {thr!r}")
+    tol = nav["krylov_substep_tol"]
+    if not isinstance(tol, (int, float)) or isinstance(tol, bool) or not 0 < tol < 1:
+        _fail(src, "navigation.krylov_substep_tol", f"expected a number in (0, 1), got {tol!r}")
     if nav["launch"] is not None:
         launch = nav["launch"]
         if not isinstance(launch, dict) or set(launch) - {"lat", "lon", "height", "azimuth"}:

@@ -7,22 +7,17 @@ from pathlib import Path
 
 import click
 
-from .. import config as config_mod
+from ..conventions import BODY_CONVENTIONS
 from ..errors import SinsError
-from ..io.imu_csv import check_static_start
-from ..io.init_state import read_init
-from ..io.readers import iter_imu
-from ..io.trajectory import TrajectoryWriter, write_trajectory
-from ..nav.earth import gravity
-from ..nav.inertial import COLUMNS as INERTIAL_COLUMNS, launch_frame
-from ..nav.pipeline import NavOptions, concat, navigate_blocks
-
-from ..nav.rotation import BODY_CONVENTIONS
 from .base import log, main, progress, quiet_option
+
+# the readers, the kernels (numpy, numba) and the writers are imported when the command runs, so
+# that `sins navigate --help` does not load them
 
 
 def _extra_columns(opts):
     """Extra trajectory columns the options add (``--angles``, ``--frame launch-inertial``)."""
+    from ..nav.inertial import COLUMNS as INERTIAL_COLUMNS
     cols = ("k_phi", "k_psi", "k_gamma", "k_xi", "k_set") if opts.angles else ()
     return cols + (INERTIAL_COLUMNS if opts.frame == "launch-inertial" else ())
 
@@ -102,6 +97,15 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
             raise SinsError("give the initial state: --init FILE (or, with --gnss, --align METHOD)")
     elif (init_path is None) == (align_method is None):
         raise SinsError("with --gnss give exactly one of --init FILE and --align METHOD")
+    from .. import config as config_mod
+    from ..io.imu_csv import check_static_start
+    from ..io.init_state import read_init
+    from ..io.readers import iter_imu
+    from ..io.trajectory import TrajectoryWriter, write_trajectory
+    from ..nav.earth import gravity
+    from ..nav.inertial import launch_frame
+    from ..nav.pipeline import NavOptions, concat, navigate_blocks
+
     cfg = config_mod.load_config(config_path)
     cfg = config_mod.merge(cfg, "navigation", attitude=attitude, dcm_variant=dcm_variant, coning=coning,
                            subsamples=subsamples, every=every, allow_gaps=allow_gaps,
@@ -115,7 +119,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
                       subsamples=nav["subsamples"], every=nav["every"], conv=conv, frame=nav["frame"],
                       angles=angles, euler_integrator=nav["euler_integrator"],
                       singularity_threshold=nav["singularity_threshold"], on_singularity=nav["on_singularity"],
-                      launch=nav["launch"])
+                      launch=nav["launch"], krylov_substep_tol=nav["krylov_substep_tol"])
     opts.check()
     if gnss_path is not None:
         from .fusion_run import run_fused
