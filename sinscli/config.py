@@ -48,6 +48,7 @@ DEFAULTS = {
         "euler_integrator": "rk4",          # euler | rk4 (3-angle baseline)
         "singularity_threshold": 0.01,      # |cos psi| under which the 3-angle method warns
         "on_singularity": "continue",       # continue | stop
+        "krylov_substep_tol": 1.0e-9,       # krylov: RK4 truncation allowed per interval / its rotation
         "launch": None,           # {lat, lon, height, azimuth} deg/m for launch-inertial
     },
     "limits": {                   # physically impossible inputs are refused at the reader (line, column)
@@ -83,13 +84,13 @@ UNIT_CHOICES = {"gyro": GYRO_UNITS, "accel": ACCEL_UNITS, "dtheta": ANGLE_UNITS,
 
 # sections that belong to another stage, which validates them itself (`sins align`); one config
 # file can then serve every command
-STAGE_SECTIONS = ("align",)
+STAGE_SECTIONS = ("align", "fusion")
 
 
 def load_config(path=None, extra_sections=STAGE_SECTIONS) -> dict:
     """Load and validate a config YAML (or the defaults when ``path`` is None).
 
-    ``extra_sections`` (default: the ``align`` section) are accepted and returned raw
+    ``extra_sections`` (default: the ``align`` and ``fusion`` sections) are accepted and returned raw
     under their name (None when absent) for the stage that validates them.
     """
     cfg = copy.deepcopy(DEFAULTS)
@@ -157,6 +158,9 @@ def validate(cfg: dict, src: str) -> None:
     thr = nav["singularity_threshold"]
     if not isinstance(thr, (int, float)) or not 0 < thr < 1:
         _fail(src, "navigation.singularity_threshold", f"expected a number in (0, 1), got {thr!r}")
+    tol = nav["krylov_substep_tol"]
+    if not isinstance(tol, (int, float)) or isinstance(tol, bool) or not 0 < tol < 1:
+        _fail(src, "navigation.krylov_substep_tol", f"expected a number in (0, 1), got {tol!r}")
     if nav["launch"] is not None:
         launch = nav["launch"]
         if not isinstance(launch, dict) or set(launch) - {"lat", "lon", "height", "azimuth"}:

@@ -238,6 +238,6 @@ def load_align_config(path) -> tuple[dict, dict]:
 
     The navigation part is loaded and validated by :func:`sinscli.config.load_config`.
     """
-    cfg = config_mod.load_config(path, extra_sections=("align",))
+    cfg = config_mod.load_config(path)
     align = cfg.pop("align")
     return cfg, merge_section(align, str(path) if path is not None else "config")

@@ -14,8 +14,7 @@ precision for every angle.
 import numpy as np
 from numba import njit
 
-FLU, RFU, FRD = 0, 1, 2
-BODY_CONVENTIONS = {"flu": FLU, "rfu": RFU, "frd": FRD}
+from ..conventions import BODY_CONVENTIONS, FLU, FRD, RFU  # noqa: F401  (re-exported)
 
 # C_{conv}^{flu}: turns a vector given in the named body axes into FLU axes.
 _CONV_TO_FLU = np.array([
