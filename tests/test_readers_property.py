@@ -74,11 +74,18 @@ def _write(data, suffix: str) -> Path:
     return p
 
 
-def _refused(exc: SinsError, path: Path) -> None:
-    event("refused")
-    msg = str(exc)
-    assert "\n" not in msg and path.name in msg, msg
-    assert "np.float64(" not in msg and len(msg) <= 480, msg
+def read_or_refuse(reader, path: Path):
+    """``reader(path)``, or None after checking that its refusal is one line naming the file."""
+    try:
+        out = reader(path)
+    except SinsError as exc:
+        event("refused")
+        msg = str(exc)
+        assert "\n" not in msg and path.name in msg, msg
+        assert "np.float64(" not in msg and len(msg) <= 480, msg
+        return None
+    event("read")
+    return out
 
 
 # ------------------------------------------------------------------ CSV readers
@@ -88,12 +95,9 @@ IMU_RATE = ["time", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z
 
 
 def _check_imu(path):
-    try:
-        imu = read_imu_csv(path)
-    except SinsError as exc:
-        _refused(exc, path)
+    imu = read_or_refuse(read_imu_csv, path)
+    if imu is None:
         return
-    event("read")
     assert len(imu) >= 1 and imu.dtheta_b.shape == (len(imu), 3) and imu.dvel_b.shape == (len(imu), 3)
     for a in (imu.time, imu.dtheta_b, imu.dvel_b):
         assert np.isfinite(a).all()
@@ -120,12 +124,9 @@ GNSS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "std_e", "std
 @given(st.one_of(structured_csv(GNSS), plausible_csv(GNSS[:4], 1.0), plausible_csv(GNSS, 1.0), any_text()))
 def test_gnss_csv_reads_or_refuses(text):
     path = _write(text, ".csv")
-    try:
-        g = read_gnss_csv(path)
-    except SinsError as exc:
-        _refused(exc, path)
+    g = read_or_refuse(read_gnss_csv, path)
+    if g is None:
         return
-    event("read")
     for a in (g.time, g.lat, g.lon, g.height):
         assert np.isfinite(a).all()
     assert np.all(np.diff(g.time) > 0)
@@ -160,12 +161,9 @@ def _rows_of_valid_trajectory(n, junk):
                  any_text()))
 def test_trajectory_csv_reads_or_refuses(text):
     path = _write(text, ".csv")
-    try:
-        tr = read_trajectory(path)
-    except SinsError as exc:
-        _refused(exc, path)
+    tr = read_or_refuse(read_trajectory, path)
+    if tr is None:
         return
-    event("read")
     for a in (tr.time, tr.lat, tr.lon, tr.height, tr.vel_n, tr.Cbn):
         assert np.isfinite(a).all()
     assert np.all(np.diff(tr.time) > 0)
@@ -204,12 +202,9 @@ def _init_docs():
 @given(st.one_of(_init_docs(), VALUES.map(yaml.safe_dump), any_text()))
 def test_init_yaml_reads_or_refuses(text):
     path = _write(text, ".yaml")
-    try:
-        s = read_init(path)
-    except SinsError as exc:
-        _refused(exc, path)
+    s = read_or_refuse(read_init, path)
+    if s is None:
         return
-    event("read")
     assert all(math.isfinite(x) for x in (s.time, s.lat, s.lon, s.height))
     assert np.isfinite(s.vel_n).all() and np.isfinite(s.Cbn).all()
     assert abs(s.lat) <= math.radians(89.99) and abs(s.time) <= LIM["time"]
@@ -232,12 +227,9 @@ def _config_docs():
 @given(st.one_of(_config_docs(), VALUES.map(yaml.safe_dump), any_text()))
 def test_config_yaml_loads_or_refuses(text):
     path = _write(text, ".yaml")
-    try:
-        cfg = load_config(path)
-    except SinsError as exc:
-        _refused(exc, path)
+    cfg = read_or_refuse(load_config, path)
+    if cfg is None:
         return
-    event("read")
     nav = cfg["navigation"]
     assert 1 <= nav["subsamples"] < 2 ** 31 and 1 <= nav["every"] < 2 ** 31
     assert 0 < nav["singularity_threshold"] < 1
