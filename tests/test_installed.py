@@ -81,14 +81,17 @@ def test_the_installed_package_is_used(sins, workdir):
 
 
 def test_readme_quick_start(sins, workdir):
-    """The README's first command line, after its install step, in a fresh directory with sample_data."""
+    """The README's first command line, after its install step, in a fresh directory holding copies of
+    sample_data/ and configs/ (the files the commands name)."""
     line = next(ln for ln in (ROOT / "README.md").read_text().splitlines() if "pip install" in ln and "sins " in ln)
     cmds = [c.strip() for c in line.split("&&") if c.strip().startswith("sins ")]
     assert len(cmds) == 2, cmds
     shutil.copytree(ROOT / "sample_data", workdir / "sample_data")
+    shutil.copytree(ROOT / "configs", workdir / "configs")
     for c in cmds:
         run(sins, c.split()[1:], workdir)
-    assert (workdir / "nav.csv").is_file() and (workdir / "report" / "index.html").is_file()
+    outputs = [c.split()[c.split().index("-o") + 1] for c in cmds]
+    assert all((workdir / o).exists() for o in outputs) and (workdir / "report" / "index.html").is_file()
     table = (workdir / "report" / "errors.csv").read_text()
     assert "max_att_deg" in table
 
