@@ -108,7 +108,7 @@ def test_imu_message_with_1e308_is_refused_naming_the_message(tmp_path):
 def test_config_nan_mounting_and_init_huge_velocity(data, tmp_path):
     (tmp_path / "cfg.yaml").write_text("imu:\n  mounting: {roll: .nan}\n")
     refused(["navigate", data / "imu.csv", "--init", INIT, "--config", tmp_path / "cfg.yaml", "-o",
-             tmp_path / "n.csv"], "cfg.yaml: line 2, column 20: '.nan' is not a finite number")
+             tmp_path / "n.csv"], "cfg.yaml: line 2, column 20: imu.mounting.roll: '.nan' is not a finite number")
     init = INIT.read_text().replace("vel_e: 0.0", "vel_e: -1.0e+308")
     (tmp_path / "init.yaml").write_text(init)
     refused(["navigate", data / "imu.csv", "--init", tmp_path / "init.yaml", "-o", tmp_path / "n.csv"],
@@ -169,7 +169,7 @@ def test_hundred_thousand_header_columns_are_refused_quickly(tmp_path):
 @pytest.mark.parametrize("text,fragment", [
     (b"time: 0.0\nlat: 30\xff\n", "line 2, column 8: byte 0xff is not UTF-8"),
     (b"time: " + b"[" * 20000 + b"]" * 20000 + b"\n", "nested more than 64 levels deep"),
-    (b"time: 1" + b"0" * 400 + b"\n", "line 1, column 7: integer '100"),
+    (b"time: 1" + b"0" * 400 + b"\n", "line 1, column 7: time: integer '100"),
     (INIT.read_bytes().replace(b"heading:", b"heding:"), "missing key(s) heading (found 'heding': misspelt?)"),
 ])
 def test_init_yaml_problems(data, tmp_path, text, fragment):
@@ -182,7 +182,7 @@ def test_config_problems(data, tmp_path):
     out = tmp_path / "n.csv"
     (tmp_path / "every.yaml").write_text("navigation:\n  every: " + "1" + "0" * 30 + "\n")
     refused(["navigate", data / "imu.csv", "--init", INIT, "--config", tmp_path / "every.yaml", "-o", out],
-            "every.yaml: line 2, column 10: integer")
+            "every.yaml: line 2, column 10: navigation.every: integer")
     (tmp_path / "every2.yaml").write_text("navigation:\n  every: 4611686018427387904\n")
     refused(["navigate", data / "imu.csv", "--init", INIT, "--config", tmp_path / "every2.yaml", "-o", out],
             "navigation.every: expected a whole number from 1 to 2147483647")

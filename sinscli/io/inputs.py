@@ -73,37 +73,49 @@ class _BoundedLoader(yaml.SafeLoader):
 
     def get_single_node(self):
         node = super().get_single_node()
+        self._keys: dict[int, str] = {}      # scalar node -> its key path, for the messages
         if node is not None:
             sizes: dict[int, int] = {}
 
-            def size(n) -> int:
+            def size(n, path: str) -> int:
                 key = id(n)
                 if key not in sizes:
                     sizes[key] = 0           # (a recursive alias counts once)
-                    kids = n.value if isinstance(n, yaml.SequenceNode) else \
-                        [x for kv in n.value for x in kv] if isinstance(n, yaml.MappingNode) else []
-                    sizes[key] = min(1 + sum(size(k) for k in kids), MAX_YAML_NODES + 1)
+                    self._keys[key] = path
+                    if isinstance(n, yaml.SequenceNode):
+                        total = sum(size(x, f"{path}[{i}]") for i, x in enumerate(n.value))
+                    elif isinstance(n, yaml.MappingNode):
+                        total = sum(size(k, path) + size(v, f"{path}.{k.value}" if path else str(k.value))
+                                    for k, v in n.value)
+                    else:
+                        total = 0
+                    sizes[key] = min(1 + total, MAX_YAML_NODES + 1)
                 return sizes[key]
 
-            if size(node) > MAX_YAML_NODES:
+            if size(node, "") > MAX_YAML_NODES:
                 raise SinsError(f"{self.src}: expands to more than {MAX_YAML_NODES} values (anchors and aliases)")
         return node
+
+    def _at(self, node) -> str:
+        """``file: line L, column C: key.path`` of a scalar node."""
+        key = getattr(self, "_keys", {}).get(id(node))
+        return _where(self.src, node.start_mark) + (f": {key}" if key else "")
 
     def construct_yaml_int(self, node):
         digits = node.value.replace("_", "").lstrip("+-")
         if len(digits) > 20:
-            raise SinsError(f"{_where(self.src, node.start_mark)}: integer {quote(node.value, 30)} is out of range "
+            raise SinsError(f"{self._at(node)}: integer {quote(node.value, 30)} is out of range "
                             f"(at most {MAX_YAML_INT})")
         value = super().construct_yaml_int(node)
         if abs(value) > MAX_YAML_INT:
-            raise SinsError(f"{_where(self.src, node.start_mark)}: integer {value} is out of range "
+            raise SinsError(f"{self._at(node)}: integer {value} is out of range "
                             f"(at most {MAX_YAML_INT})")
         return value
 
     def construct_yaml_float(self, node):
         value = super().construct_yaml_float(node)
         if value != value or value in (float("inf"), float("-inf")):
-            raise SinsError(f"{_where(self.src, node.start_mark)}: {quote(node.value, 30)} is not a finite number")
+            raise SinsError(f"{self._at(node)}: {quote(node.value, 30)} is not a finite number")
         return value
 
 
