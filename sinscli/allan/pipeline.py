@@ -89,7 +89,7 @@ def characterize(imu: ImuLog, start: float | None = None, end: float | None = No
     n = len(w)
     dt = np.diff(w.time)
     tau0 = float(np.median(dt)) if n > 1 else 0.0
-    if n < MIN_SAMPLES or n * tau0 < MIN_DURATION:
+    if n < MIN_SAMPLES or n * tau0 < MIN_DURATION * (1.0 - 1e-9):
         raise SinsError(f"{imu.source}: {n} samples over {n * tau0:.4g} s; the Allan deviation needs at least "
                         f"{MIN_SAMPLES} samples and {MIN_DURATION:g} s (hours for the bias terms)")
     check_static(w, static_rate, static_accel, static_block)
