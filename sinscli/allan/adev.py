@@ -20,7 +20,7 @@ is conservative: for white noise the spread is about 0.82 of it
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 def cluster_sizes(n: int, per_decade: int = 10, min_clusters: int = 4) -> np.ndarray:
@@ -31,46 +31,58 @@ def cluster_sizes(n: int, per_decade: int = 10, min_clusters: int = 4) -> np.nda
 
 
 @njit(cache=True)
-def integrate(inc, mean):
-    """``x`` (N + 1, K): ``x_0 = 0``, ``x_{k+1} = x_k + (inc_k - mean)``."""
+def integrate_into(x, col0, inc, mean):
+    """``x[:, col0:col0 + K]``: ``x_0 = 0``, ``x_{k+1} = x_k + (inc_k - mean)`` for increments (N, K)."""
     n, kdim = inc.shape
-    x = np.empty((n + 1, kdim))
     for c in range(kdim):
-        x[0, c] = 0.0
+        x[0, col0 + c] = 0.0
     for k in range(n):
         for c in range(kdim):
-            x[k + 1, c] = x[k, c] + (inc[k, c] - mean[c])
-    return x
+            x[k + 1, col0 + c] = x[k, col0 + c] + (inc[k, c] - mean[c])
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def second_difference_sums(x, ms):
-    """``sum_k (x_{k+2m} - 2 x_{k+m} + x_k)^2`` for each ``m`` in ``ms`` and each column: (len(ms), K)."""
+    """``sum_k (x_{k+2m} - 2 x_{k+m} + x_k)^2`` for each ``m`` in ``ms`` and each column: (len(ms), K).
+
+    The sum over k is split into chunks summed on the available cores (the order of the
+    additions, hence the last bits, depends on the chunking only, not on the thread count).
+    """
     n1, kdim = x.shape
     out = np.zeros((ms.shape[0], kdim))
-    acc = np.zeros(kdim)
+    nchunk = 16
     for a in range(ms.shape[0]):
         m = ms[a]
+        total = n1 - 2 * m
+        part = np.zeros((nchunk, kdim))
+        for ch in prange(nchunk):
+            k0 = total * ch // nchunk
+            k1 = total * (ch + 1) // nchunk
+            acc = np.zeros(kdim)
+            for k in range(k0, k1):
+                for c in range(kdim):
+                    d = x[k + 2 * m, c] - 2.0 * x[k + m, c] + x[k, c]
+                    acc[c] += d * d
+            part[ch] = acc
         for c in range(kdim):
-            acc[c] = 0.0
-        for k in range(n1 - 2 * m):
-            for c in range(kdim):
-                d = x[k + 2 * m, c] - 2.0 * x[k + m, c] + x[k, c]
-                acc[c] += d * d
-        for c in range(kdim):
-            out[a, c] = acc[c]
+            out[a, c] = part[:, c].sum()
     return out
 
 
-def overlapping_avar(inc: np.ndarray, tau0: float, ms: np.ndarray, progress=None) -> np.ndarray:
-    """Overlapping Allan variance (len(ms), K) of increments ``inc`` (N, K) sampled every ``tau0`` s.
+def overlapping_avar(inc, tau0: float, ms: np.ndarray, progress=None) -> np.ndarray:
+    """Overlapping Allan variance (len(ms), K) of increments ``inc`` (N, K) sampled every ``tau0`` s,
+    or of several such arrays side by side (a tuple: their columns in order).
 
     ``progress(k)`` is called after each cluster size (``k`` = 1).
     """
-    inc = np.ascontiguousarray(inc, dtype=np.float64)
-    n = inc.shape[0]
-    x = integrate(inc, inc.mean(axis=0))
-    out = np.empty((ms.shape[0], inc.shape[1]))
+    parts = [np.ascontiguousarray(p, dtype=np.float64) for p in (inc if isinstance(inc, tuple) else (inc,))]
+    n = parts[0].shape[0]
+    x = np.empty((n + 1, sum(p.shape[1] for p in parts)))
+    col = 0
+    for p in parts:
+        integrate_into(x, col, p, p.mean(axis=0))
+        col += p.shape[1]
+    out = np.empty((ms.shape[0], x.shape[1]))
     for a in range(ms.shape[0]):
         out[a] = second_difference_sums(x, ms[a:a + 1])[0]
         if progress is not None:

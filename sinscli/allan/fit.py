@@ -109,14 +109,14 @@ def fit_axis(tau: np.ndarray, m: np.ndarray, avar: np.ndarray, rel_sigma: np.nda
     good = np.isfinite(avar) & (avar > 0)
     tau, m, avar, rel_sigma = tau[good], m[good], avar[good], rel_sigma[good]
     rel_var = 2.0 * rel_sigma                       # relative 1-sigma of the variance
-    grid = np.logspace(np.log10(tau[0] / 2.0), np.log10(tau[-1] * 2.0), 60)
+    grid = np.logspace(np.log10(tau[0] / 2.0), np.log10(tau[-1] * 2.0), 40)
     ref = avar.copy()
     for _ in range(3):                              # reweight with the model instead of the noisy curve
         scale = ref * rel_var
         res = [_solve(tau, m, avar, scale, T, trapezoid)[1] for T in grid]
         k = int(np.argmin(res))
         lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
-        fine = np.logspace(np.log10(lo), np.log10(hi), 41)
+        fine = np.logspace(np.log10(lo), np.log10(hi), 25)
         res_f = [_solve(tau, m, avar, scale, T, trapezoid)[1] for T in fine]
         T = float(fine[int(np.argmin(res_f))])
         coef, _, B = _solve(tau, m, avar, scale, T, trapezoid)

@@ -101,8 +101,7 @@ def characterize(imu: ImuLog, start: float | None = None, end: float | None = No
     ms = cluster_sizes(n, per_decade)
     if on_sizes is not None:
         on_sizes(len(ms))
-    inc = np.hstack([w.dtheta_b, w.dvel_b])
-    avar = overlapping_avar(inc, tau0, ms, progress)
+    avar = overlapping_avar((w.dtheta_b, w.dvel_b), tau0, ms, progress)
     rel = adev_relative_sigma(n, ms)
     trapezoid = w.kind == "rates"
     tau = ms * tau0
