@@ -15,7 +15,7 @@ from sinscli.allan.adev import adev_relative_sigma, cluster_sizes, overlapping_a
 from sinscli.allan.fit import GM_PEAK_RATIO, GM_PEAK_X, fit_axis, gm_avar
 from sinscli.allan.pipeline import characterize
 from sinscli.cli import main
-from sinscli.io.imu_csv import write_imu_csv
+from sinscli.io.imu_csv import rates_to_increments, write_imu_csv
 from sinscli.sensors import load_sensor
 from sinscli.sim.errors import apply_imu_errors
 from sinscli.sim.run import simulate
@@ -153,6 +153,25 @@ def test_rate_random_walk_and_quantization_are_fitted_when_present(q):
         assert np.sqrt(12) * f.quantization == pytest.approx(q, rel=0.15)
 
 
+def test_rate_logs_trapezoid_increments_are_modelled():
+    """Rate samples (ROS Imu) become increments by the trapezoidal rule, which halves the m = 1 Allan
+    variance of white noise; the white term's (1 - 3/(4m)) factor recovers the noise density."""
+    rng = np.random.default_rng(5)
+    n, rate = 360_000, 100.0                          # 1 h
+    t = np.arange(n + 1) / rate
+    arw, vrw = 0.3 * np.pi / 180 / 60, 100 * UG
+    gyro = arw * np.sqrt(rate) * rng.standard_normal((n + 1, 3))
+    accel = np.array([0.0, 0.0, 9.8]) + vrw * np.sqrt(rate) * rng.standard_normal((n + 1, 3))
+    tt, dth, dv, t0 = rates_to_increments(t, gyro, accel)
+    res = characterize(ImuLog(tt, dth, dv, t0, "rates", "rates"))
+    assert res.trapezoid
+    assert res.adev[0, 0] / (arw / np.sqrt(1 / rate)) == pytest.approx(0.5, rel=0.02)   # sqrt(1 - 3/4)
+    for c, f in enumerate(res.fits):
+        assert f.white == pytest.approx(arw if c < 3 else vrw, rel=0.02), c
+    plain = characterize(ImuLog(tt, dth, dv, t0, "same, called increments", "increments"))
+    assert max(abs(f.white / (arw if c < 3 else vrw) - 1) for c, f in enumerate(plain.fits)) > 0.02
+
+
 # --------------------------------------------------------------------------- CLI
 
 def run(args):
@@ -204,6 +223,10 @@ def test_moving_short_and_out_of_range_logs_are_refused(tmp_path):
     assert r.exit_code == 2 and "needs at least" in r.output and not (tmp_path / "out2").exists()
     r = run([tmp_path / "moving.csv", "--start", 1e6, "-o", tmp_path / "out2"])
     assert r.exit_code == 2 and "--start 1000000.0 is outside the log" in r.output
+    perfect = simulate(static_scenario(70.0), perfect=True)
+    write_imu_csv(tmp_path / "perfect.csv", perfect.imu)
+    r = run([tmp_path / "perfect.csv", "-o", tmp_path / "out2"])
+    assert r.exit_code == 2 and "no noise to characterize" in r.output and not (tmp_path / "out2").exists()
 
 
 @pytest.mark.skipif(not HUSKY.exists(), reason="the real Husky bag is not on this machine")

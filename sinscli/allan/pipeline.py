@@ -103,6 +103,14 @@ def characterize(imu: ImuLog, start: float | None = None, end: float | None = No
         on_sizes(len(ms))
     avar = overlapping_avar((w.dtheta_b, w.dvel_b), tau0, ms, progress)
     rel = adev_relative_sigma(n, ms)
+    # an axis whose deviation stays at the rounding level of its signal (1e-9 of the earth rate or of g)
+    span = w.time[-1] - (w.t0 if w.t0 is not None else w.time[0] - tau0)
+    scale = [max(float(np.linalg.norm(w.dtheta_b.sum(axis=0))) / span, 7.292115e-5),
+             max(float(np.linalg.norm(w.dvel_b.sum(axis=0))) / span, 1.0)]
+    flat = [AXES[c] for c in range(6) if not np.nanmax(np.sqrt(np.maximum(avar[:, c], 0))) > 1e-9 * scale[c // 3]]
+    if flat:
+        raise SinsError(f"{imu.source}: {', '.join(flat)}: the increments do not vary beyond rounding (a noise-free "
+                        "log, e.g. sins simulate --perfect?); there is no noise to characterize")
     trapezoid = w.kind == "rates"
     tau = ms * tau0
     fits = [fit_axis(tau, ms, avar[:, c], rel, n, trapezoid) for c in range(6)]

@@ -25,7 +25,7 @@ from .base import main, progress, quiet_option
               help="Output directory: sensor.yaml, allan.csv, fit.csv, allan.png.")
 @quiet_option
 def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir, quiet):
-    """Allan deviation of a static IMU log: noise terms and a sensor.yaml for simulate, align and fusion.
+    """Allan deviation of a static IMU log: noise terms and a sensor.yaml in the presets' schema.
 
     \b
       sins allan static.csv -o imu_noise/
@@ -33,7 +33,7 @@ def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir,
 
     The log must be at rest (the check of sins align: 1 s mean rate and specific
     force); the fit needs hours for the bias terms.  sensor.yaml is in the schema
-    of the shipped presets (sins simulate, sins align and the fusion filter read it).
+    of the shipped presets (sinscli.sensors.load_sensor; a scenario's imu.sensor takes its path).
     """
     from ..align.options import build_options, load_align_config
     from ..allan.output import plot_allan, write_allan_csv, write_fit_csv, write_sensor_yaml
@@ -67,8 +67,14 @@ def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir,
                                            f"{1.0 / res.tau0:.4g} Hz")
     if not quiet:
         import numpy as np
+        from ..allan.fit import TERMS
         g = [f.white for f in res.fits[:3]]
         a = [f.white for f in res.fits[3:]]
         click.echo(f"sins: allan: {res.n} samples, {res.duration:.6g} s; ARW {np.degrees(np.mean(g)) * 60:.4g} "
                    f"deg/sqrt(h), VRW {np.mean(a) / 9.80665e-6:.4g} micro-g/sqrt(Hz) (axis means) -> "
                    f"{outdir}/sensor.yaml", err=True)
+        names = {"quantization": "quantization", "white": "random walk (ARW/VRW)",
+                 "gauss_markov": "bias instability (Gauss-Markov)", "rate_random_walk": "rate random walk"}
+        seen = ", ".join(f"{names[t]} on {sum(f.identified[t] for f in res.fits)}/6 axes" for t in TERMS)
+        click.echo(f"sins: allan: identified from this {res.duration / 3600.0:.3g} h log: {seen} "
+                   "(a bias term needs a log of about 17 of its correlation times)", err=True)
