@@ -35,13 +35,13 @@ def static_scenario(duration, sensor=SENSOR, segments=None):
             "segments": segments or [{"type": "rest", "duration": duration}]}
 
 
-def static_log(hours, seed, rate=100.0):
+def static_log(hours, seed, rate=100.0, spec=SENSOR):
     """What ``sins simulate`` writes for ``hours`` at rest: the exact rest increments (constant at rest) with
     the simulator's error model applied (:func:`test_simulator_errors_are_apply_imu_errors` checks that)."""
     exact = simulate(static_scenario(1.0), seed=seed, perfect=True)
     n = int(round(hours * 3600 * rate))
     dt = np.full(n, 1.0 / rate)
-    sensor = load_sensor(SENSOR, None, "test", Path("."))
+    sensor = load_sensor(spec, None, "test", Path("."))
     dth, dv, _ = apply_imu_errors(np.tile(exact.imu.dtheta_b[0], (n, 1)), np.tile(exact.imu.dvel_b[0], (n, 1)),
                                   dt, sensor, seed)
     return ImuLog(np.arange(1, n + 1) / rate, dth, dv, 0.0, "static", "increments")
@@ -193,9 +193,30 @@ def test_cli_writes_a_sensor_yaml_that_simulate_takes(tmp_path):
     np.testing.assert_allclose(sensor["accel"]["vrw"], 100 * UG, rtol=0.1)
     sim = simulate(static_scenario(10.0, sensor=str(tmp_path / "out" / "sensor.yaml")), seed=1)
     assert len(sim.imu) == 1000 and np.all(np.isfinite(sim.imu.dtheta_b))
+    for which, white in (("gyro", "arw"), ("accel", "vrw")):       # what the fusion filter requires
+        assert {white, "bias_sigma", "bias_instability", "bias_tau"} <= set(doc[which])
     csv_text = (tmp_path / "out" / "allan.csv").read_text().splitlines()
     assert csv_text[0].startswith("tau_s,m,clusters,gyro_x_adev_rad_s,gyro_x_sigma_rad_s,gyro_x_fit_rad_s")
     assert "nan" not in "".join(csv_text).lower()
+
+
+def test_white_noise_log_gets_a_bias_bound_not_a_fit(tmp_path):
+    """No bias term in the log: bias_instability/bias_tau are still written (the fusion filter needs them),
+    as the Gauss-Markov curve whose peak touches the deviation's minimum, an upper bound."""
+    write_imu_csv(tmp_path / "imu.csv", static_log(0.25, 4, spec={"gyro": {"arw": 0.3}, "accel": {"vrw": 100}}))
+    r = run([tmp_path / "imu.csv", "-o", tmp_path / "out", "-q"])
+    assert r.exit_code == 0, r.output
+    text = (tmp_path / "out" / "sensor.yaml").read_text()
+    assert "not identifiable on axis x, y, z" in text and "upper bound" in text
+    sensor = load_sensor(str(tmp_path / "out" / "sensor.yaml"), None, "test", tmp_path)
+    fit = {row.split(",")[0]: row.split(",") for row in (tmp_path / "out" / "fit.csv").read_text().splitlines()}
+    for c, axis in enumerate(("x", "y", "z")):
+        tau_min, b = float(fit[f"gyro_{axis}"][9]), float(fit[f"gyro_{axis}"][8])
+        assert sensor["gyro"]["bias_tau"][c] == pytest.approx(tau_min / GM_PEAK_X, rel=1e-5)
+        # its peak equals the deviation's minimum: 0.6174 sigma = 0.664 B
+        assert GM_PEAK_RATIO * sensor["gyro"]["bias_instability"][c] == pytest.approx(0.664 * b * DEG_H, rel=1e-3)
+        # and it stays under the white noise at the longest cluster times, as an upper bound should
+        assert sensor["gyro"]["bias_instability"][c] < 0.3 * np.pi / 180 / 60 / np.sqrt(tau_min) / GM_PEAK_RATIO * 1.5
 
 
 def test_installed_script_from_any_directory(tmp_path):

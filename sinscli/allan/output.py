@@ -42,9 +42,8 @@ def sensor_yaml_text(res: AllanResult, name: str) -> str:
         qunit = "rad" if which == "gyro" else "m/s"
         lines.append(f"{which}:")
         lines.append(f"  {white_key}: {_list(d[white_key])}   # {white_unit}, x y z")
-        if "bias_instability" in d:
-            lines.append(f"  bias_instability: {_list(d['bias_instability'])}   # {unit}, Gauss-Markov steady-state sigma")
-            lines.append(f"  bias_tau: {_list(d['bias_tau'])}   # s, Gauss-Markov correlation time")
+        lines.append(f"  bias_instability: {_list(d['bias_instability'])}   # {unit}, Gauss-Markov steady-state sigma")
+        lines.append(f"  bias_tau: {_list(d['bias_tau'])}   # s, Gauss-Markov correlation time")
         if "quantization" in d:
             lines.append(f"  quantization: {_list(d['quantization'])}   # {qunit} per count")
         lines.append("  bias_sigma: 0   # turn-on bias (run-to-run): a single static log cannot observe it")

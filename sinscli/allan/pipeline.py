@@ -18,7 +18,7 @@ from ..errors import SinsError
 from ..sensors import ACCEL_UNITS, GYRO_UNITS
 from ..types import ImuLog, time_tolerance
 from .adev import adev_relative_sigma, cluster_sizes, overlapping_avar
-from .fit import AxisFit, fit_axis
+from .fit import FLICKER_RATIO, GM_PEAK_RATIO, GM_PEAK_X, AxisFit, fit_axis
 
 AXES = ("gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z")
 MIN_SAMPLES = 1000
@@ -123,8 +123,13 @@ def characterize(imu: ImuLog, start: float | None = None, end: float | None = No
 
 def sensor_values(fits: list[AxisFit]) -> dict:
     """``{"gyro": {key: [x, y, z]}, "accel": {...}}`` in the units of the sensor YAML schema, plus
-    ``{"<which>_notes": [...]}`` saying what is not identifiable.  Keys written: arw/vrw, bias_instability
-    and bias_tau (where the Gauss-Markov term is identified), quantization (where identified), bias_sigma 0."""
+    ``{"<which>_notes": [...]}`` saying what is not identifiable.
+
+    Keys written: ``arw``/``vrw``; ``bias_instability`` and ``bias_tau`` on every axis (the fusion filter
+    needs them): the fitted Gauss-Markov term where identified, else the largest one the curve allows, the
+    Gauss-Markov curve whose peak touches the curve's minimum (``sigma = min ADEV / 0.6174``,
+    ``T = tau_min / 1.8926``), an upper bound; ``quantization`` where identified; ``bias_sigma`` 0.
+    """
     out = {}
     for which, units, white_key, sl in (("gyro", GYRO_UNITS, "arw", slice(0, 3)),
                                         ("accel", ACCEL_UNITS, "vrw", slice(3, 6))):
@@ -132,20 +137,20 @@ def sensor_values(fits: list[AxisFit]) -> dict:
         d = {white_key: [x.white / units[white_key] for x in f], "bias_sigma": [0.0, 0.0, 0.0]}
         notes = []
         gm = [x.identified["gauss_markov"] for x in f]
-        if any(gm):
-            taus = [x.gm_tau for x, ok in zip(f, gm) if ok]
-            d["bias_instability"] = [x.gm_sigma / units["bias_instability"] if ok else 0.0 for x, ok in zip(f, gm)]
-            d["bias_tau"] = [x.gm_tau if ok else float(np.median(taus)) for x, ok in zip(f, gm)]
+        bound = [(x.flicker_b * FLICKER_RATIO / GM_PEAK_RATIO, x.tau_min_adev / GM_PEAK_X) for x in f]
+        d["bias_instability"] = [(x.gm_sigma if ok else b[0]) / units["bias_instability"]
+                                 for x, ok, b in zip(f, gm, bound)]
+        d["bias_tau"] = [x.gm_tau if ok else b[1] for x, ok, b in zip(f, gm, bound)]
         if not all(gm):
             axes = ", ".join("xyz"[i] for i, ok in enumerate(gm) if not ok)
-            notes.append(f"bias instability not identifiable on axis {axes}: no Gauss-Markov hump with its peak "
-                         "inside the log (a log of about 17 correlation times is needed)")
+            notes.append(f"bias instability not identifiable on axis {axes} (no Gauss-Markov hump with its peak "
+                         "inside the log; a log of about 17 correlation times is needed): written as the upper "
+                         "bound, the Gauss-Markov curve whose peak touches the Allan deviation's minimum")
         q = [x.identified["quantization"] for x in f]
         if any(q):
             d["quantization"] = [math.sqrt(12.0) * x.quantization if ok else 0.0 for x, ok in zip(f, q)]
-        rrw = [x.rrw for x in f]
-        rrw_unit = units["bias_instability"] / math.sqrt(3600.0)      # deg/h/sqrt(h) or micro-g/sqrt(h)... per s
+        rrw_unit = units["bias_instability"] / math.sqrt(3600.0)      # per sqrt(h)
         out[which] = d
         out[f"{which}_notes"] = notes
-        out[f"{which}_rrw"] = ([r / rrw_unit for r in rrw], [x.identified["rate_random_walk"] for x in f])
+        out[f"{which}_rrw"] = ([x.rrw / rrw_unit for x in f], [x.identified["rate_random_walk"] for x in f])
     return out
