@@ -14,7 +14,7 @@ log = logging.getLogger("sins")
 # command name -> module under sinscli.cli that defines it; imported on first use, so that
 # `sins navigate` does not pay for the simulator, reports or alignment at start-up.
 COMMANDS = {"navigate": "navigate", "align": "align", "simulate": "simulate", "compare": "compare",
-            "info": "info", "convert": "convert"}
+            "info": "info", "convert": "convert", "allan": "allan"}
 
 # The first paragraph of each command's help, for the listing of `sins --help`: with it the
 # listing imports no command module (numpy, numba, the simulator, the ROS readers), so it takes

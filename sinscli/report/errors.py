@@ -46,6 +46,10 @@ ROW_UNITS = dict({k: "1" for k in DCM_ROWS},
                  pos_E="m", pos_N="m", pos_U="m", vel_E="m/s", vel_N="m/s", vel_U="m/s",
                  max_pos_E="m", max_pos_N="m", max_pos_U="m",
                  max_vel_E="m/s", max_vel_N="m/s", max_vel_U="m/s", max_att_deg="deg")
+#: Rows of the trajectory metrics (``sins compare --metrics``; :mod:`.compare_metrics`).
+METRIC_STATISTICS = ("rmse", "mean", "median", "std", "min", "max")
+ROW_UNITS.update({f"{g}_{s}": u for g, u in (("ate", "m"), ("rpe_trans", "m"), ("rpe_rot", "deg"))
+                  for s in METRIC_STATISTICS}, align_scale="1")
 
 
 @dataclass
@@ -130,22 +134,30 @@ def interp_dcm_many(c0, c1, s):
     return out
 
 
+def interpolation_weights(t_src: np.ndarray, t: np.ndarray, truth_name: str = "truth",
+                          nav_name: str = "navigation"):
+    """``(inside, tq, j, j1, s)``: the indices of ``t`` inside the span of ``t_src``, those times, and the
+    bracketing samples ``j, j1`` of ``t_src`` with the fraction ``s`` in [0, 1] between them."""
+    tol = time_tolerance(t_src, t)
+    inside = np.nonzero((t >= t_src[0] - tol) & (t <= t_src[-1] + tol))[0]
+    if inside.shape[0] == 0:
+        raise SinsError(explain_no_common_epochs(t_src, t, truth_name, nav_name, tol))
+    tq = np.clip(t[inside], t_src[0], t_src[-1])
+    n = t_src.shape[0]
+    j = np.clip(np.searchsorted(t_src, tq, side="right") - 1, 0, max(n - 2, 0))
+    j1 = np.minimum(j + 1, n - 1)
+    dt = t_src[j1] - t_src[j]
+    s = np.where(dt > 0, (tq - t_src[j]) / np.where(dt > 0, dt, 1.0), 0.0)
+    return inside, tq, j, j1, s
+
+
 def interpolate_truth(truth: Trajectory, t: np.ndarray, truth_name: str = "truth",
                       nav_name: str = "navigation") -> tuple[Trajectory, np.ndarray]:
     """The truth at times ``t`` inside its span: linear in position and velocity, geodesic in attitude.
 
     Returns the interpolated trajectory and the indices of ``t`` it covers.
     """
-    tol = time_tolerance(truth.time, t)
-    inside = np.nonzero((t >= truth.time[0] - tol) & (t <= truth.time[-1] + tol))[0]
-    if inside.shape[0] == 0:
-        raise SinsError(explain_no_common_epochs(truth.time, t, truth_name, nav_name, tol))
-    tq = np.clip(t[inside], truth.time[0], truth.time[-1])
-    n = truth.time.shape[0]
-    j = np.clip(np.searchsorted(truth.time, tq, side="right") - 1, 0, max(n - 2, 0))
-    j1 = np.minimum(j + 1, n - 1)
-    dt = truth.time[j1] - truth.time[j]
-    s = np.where(dt > 0, (tq - truth.time[j]) / np.where(dt > 0, dt, 1.0), 0.0)
+    inside, tq, j, j1, s = interpolation_weights(truth.time, t, truth_name, nav_name)
 
     def lin(x):
         sw = s.reshape((-1,) + (1,) * (x.ndim - 1))
@@ -216,8 +228,11 @@ def compare_trajectories(truth: Trajectory, nav: Trajectory, conv: int = 0, inte
 
 @dataclass
 class ErrorTable:
-    """Seed-000 error table: ``values[r, m]`` is row ``ROWS[r]`` of method ``methods[m]``."""
-    epoch: float
+    """Seed-000 error table: ``values[r, m]`` is row ``rows[r]`` of method ``methods[m]``.
+
+    ``epoch`` is None for a table of trajectory metrics alone (TUM inputs).
+    """
+    epoch: float | None
     methods: list[str]
     values: np.ndarray        # (len(ROWS), len(methods))
     rows: tuple = tuple(ROWS)

@@ -124,3 +124,63 @@ def plot_position_velocity(outdir, series: dict[str, ErrorSeries], title: str = 
 def plot_all(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
     """Every figure of a report; returns the file names (relative to ``outdir``)."""
     return plot_attitude(outdir, series, title) + plot_position_velocity(outdir, series, title)
+
+
+def plot_metrics(outdir, results: dict, title: str = "", frame: str = "") -> list[str]:
+    """``ate.png`` (ATE against time), ``rpe.png`` (RPE per pair) and ``trajectory_xy.png`` (plan view of
+    the truth and every aligned trajectory) from :class:`~.metrics.TrajectoryMetrics` per method."""
+    names = []
+    ate = {m: r for m, r in results.items() if r.ate_m is not None}
+    if ate:
+        fig = Figure(figsize=(8, 4))
+        ax = fig.add_subplot()
+        for k, (name, r) in enumerate(ate.items()):
+            t, y = envelope(r.time, r.ate_m)
+            ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
+        ax.grid(True, alpha=0.3)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("ATE (m)")
+        _title(ax, title, "Absolute trajectory error |p_nav - p_truth|"
+               + ("" if next(iter(ate.values())).alignment.mode == "none"
+                  else f" after {next(iter(ate.values())).alignment.mode} alignment"))
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        _save(fig, outdir / "ate.png")
+        names.append("ate.png")
+    rpe = {m: r for m, r in results.items() if r.rpe_i is not None}
+    if rpe:
+        fig = Figure(figsize=(8, 6))
+        axes = fig.subplots(2, 1, sharex=True)
+        for k, (name, r) in enumerate(rpe.items()):
+            te = r.time[r.rpe_j]
+            for ax, vals in zip(axes, (r.rpe_trans_m, r.rpe_rot_deg)):
+                t, y = envelope(te, vals)
+                ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
+        axes[0].set_ylabel("translation (m)")
+        axes[1].set_ylabel("rotation (deg)")
+        for ax in axes:
+            ax.grid(True, alpha=0.3)
+        axes[-1].set_xlabel("time at the pair's end (s)")
+        _title(axes[0], title, "Relative pose error per pair")
+        axes[0].legend(fontsize=8)
+        fig.tight_layout()
+        _save(fig, outdir / "rpe.png")
+        names.append("rpe.png")
+    first = next(iter(results.values()))
+    fig = Figure(figsize=(7, 7))
+    ax = fig.add_subplot()
+    step = max(1, len(first.time) // (4 * MAX_POINTS))         # a plan view needs no more points than that
+    ax.plot(first.ref_pos[::step, 0], first.ref_pos[::step, 1], "k-", lw=2.0, alpha=0.5, label="truth")
+    for k, (name, r) in enumerate(results.items()):
+        step = max(1, len(r.time) // (4 * MAX_POINTS))
+        ax.plot(r.est_pos[::step, 0], r.est_pos[::step, 1], lw=1.0, ls=_STYLES[k % len(_STYLES)],
+                label=name + ("" if r.alignment.mode == "none" else f" ({r.alignment.mode}-aligned)"))
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.set_xlabel("x / east (m)")
+    ax.set_ylabel("y / north (m)")
+    _title(ax, title, "Plan view" + (f": {frame}" if frame and len(frame) < 60 else ""))
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, outdir / "trajectory_xy.png")
+    return names + ["trajectory_xy.png"]

@@ -49,7 +49,8 @@ def report_page(title: str, table: ErrorTable, figures: list[str], files: list[s
     """The HTML text of one report: notes, the table, links to the files, the figures."""
     body = [f"<h1>{_e(title)}</h1>"]
     body += [f"<p class=\"note\">{_e(n)}</p>" for n in notes]
-    body.append(f"<h2>Errors (truth minus navigation) at t = {float(table.epoch)!r} s</h2>")
+    body.append("<h2>Trajectory metrics</h2>" if table.epoch is None else
+                f"<h2>Errors (truth minus navigation) at t = {float(table.epoch)!r} s</h2>")
     body.append(error_table_html(table))
     body.append(extra_html)
     body.append("<p>Files: " + ", ".join(f"<a href=\"{_e(f)}\">{_e(f)}</a>" for f in files) + "</p>")
@@ -64,6 +65,11 @@ def write_report_html(path, title: str, table: ErrorTable, figures: list[str], f
     text = report_page(title, table, figures, files, notes, extra_html)
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
+
+
+def summary_html(lines: list[str]) -> str:
+    """Summary sentences as a list."""
+    return "<h2>Summary</h2>\n<ul>\n" + "".join(f"<li>{_e(s)}</li>\n" for s in lines) + "</ul>"
 
 
 def simple_table_html(header: list[str], rows: list[list], failed: list[bool] | None = None) -> str:

@@ -11,7 +11,7 @@ import csv
 import numpy as np
 
 from ..io.atomic import atomic_path
-from .errors import ROW_UNITS, ErrorSeries, ErrorTable
+from .errors import METRIC_STATISTICS, ROW_UNITS, ErrorSeries, ErrorTable
 
 #: How Tables 1-2 of seed 000 name each row (subscript g = truth, n = navigation).
 ROW_LABELS = dict(
@@ -22,6 +22,9 @@ ROW_LABELS = dict(
     max_vel_E="max \\|VEg - VEn\\|", max_vel_N="max \\|VNg - VNn\\|", max_vel_U="max \\|VUg - VUn\\|",
     max_att_deg="max attitude error angle",
 )
+ROW_LABELS.update({f"{g}_{s}": f"{label} {s.upper() if s == 'rmse' else s}"
+                   for g, label in (("ate", "ATE"), ("rpe_trans", "RPE translation"), ("rpe_rot", "RPE rotation"))
+                   for s in METRIC_STATISTICS}, align_scale="Sim(3) alignment scale")
 
 #: timeseries.csv quantities per method: (suffix, ErrorSeries attribute, column, scale).
 _DEG = float(np.degrees(1.0))
@@ -52,12 +55,22 @@ def _md_cell(text: str) -> str:
     return str(text).replace("|", "\\|")
 
 
+def table_caption(table: ErrorTable) -> str:
+    """What the table's values are (the epoch of the seed-000 rows, or trajectory metrics alone)."""
+    if table.epoch is None:
+        return "Trajectory metrics: statistics over the matched epochs."
+    text = f"Errors truth minus navigation at t = {float(table.epoch)!r} s; maxima over the whole run."
+    if any(k.startswith(("ate_", "rpe_")) for k in table.rows):
+        text += " ATE and RPE rows: statistics over the matched epochs (pairs)."
+    return text
+
+
 def markdown_table(table: ErrorTable, title: str = "") -> str:
     """The table laid out like seed 000 Tables 1-2: No., quantity, one column per method."""
     lines = []
     if title:
         lines += [f"**{_md_cell(title)}**", ""]
-    lines.append(f"Errors truth minus navigation at t = {float(table.epoch)!r} s; maxima over the whole run.")
+    lines.append(table_caption(table))
     lines.append("")
     lines.append("| No. | Quantity | Unit | " + " | ".join(_md_cell(m) for m in table.methods) + " |")
     lines.append("|---:|---|---|" + "---:|" * len(table.methods))
@@ -67,9 +80,11 @@ def markdown_table(table: ErrorTable, title: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_errors_md(path, table: ErrorTable, title: str = "") -> None:
-    """``errors.md``: :func:`markdown_table` with a title line."""
+def write_errors_md(path, table: ErrorTable, title: str = "", summary: list[str] = ()) -> None:
+    """``errors.md``: :func:`markdown_table` with a title line (and the summary lines under it)."""
     text = markdown_table(table, title)
+    if summary:
+        text += "\n" + "".join(f"- {_md_cell(s)}\n" for s in summary)
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
 
@@ -99,3 +114,28 @@ def write_timeseries_csv(path, series: dict[str, ErrorSeries], every: int = 1) -
     frame = timeseries_frame(series, every)
     with atomic_path(path) as tmp:
         frame.to_csv(tmp, index=True, na_rep="", lineterminator="\n")
+
+
+def write_metric_series_csv(outdir, results) -> list[str]:
+    """``ate.csv`` (method, time, ate_m) and ``rpe.csv`` (method, time_start, time_end, trans_m, rot_deg)."""
+    from pathlib import Path
+    outdir = Path(outdir)
+    written = []
+    ate = {m: r for m, r in results.items() if r.ate_m is not None}
+    if ate:
+        with atomic_path(outdir / "ate.csv") as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(["method", "time", "ate_m"])
+            for m, r in ate.items():
+                w.writerows([m, _r(t), _r(e)] for t, e in zip(r.time, r.ate_m))
+        written.append("ate.csv")
+    rpe = {m: r for m, r in results.items() if r.rpe_i is not None}
+    if rpe:
+        with atomic_path(outdir / "rpe.csv") as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(["method", "time_start", "time_end", "trans_m", "rot_deg"])
+            for m, r in rpe.items():
+                w.writerows([m, _r(r.time[i]), _r(r.time[j]), _r(a), _r(b)]
+                            for i, j, a, b in zip(r.rpe_i, r.rpe_j, r.rpe_trans_m, r.rpe_rot_deg))
+        written.append("rpe.csv")
+    return written
