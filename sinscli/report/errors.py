@@ -30,7 +30,8 @@ from numba import njit
 
 from ..errors import SinsError
 from ..nav.earth import radii_py
-from ..nav.rotation import attitude_error_many, dcm_to_euler_many, dcm_to_rotvec, mm3, rotvec_to_dcm
+from ..nav.rotation import (attitude_error_many, dcm_to_euler_many, dcm_to_rotvec, level_heading_frame, mm3,
+                            rotvec_to_dcm)
 from ..types import Trajectory
 
 REL_TIME_TOL = 1e-9     # epochs match when |t_truth - t_nav| <= 1e-9 max(1 s, |t|) ...
@@ -180,9 +181,7 @@ def level_components(cbn_true: np.ndarray, att_n: np.ndarray, conv: int = 0) -> 
     forward), pitch = phi . (cos H, -sin H, 0) (horizontal right), heading = -phi_U.
     """
     heading = dcm_to_euler_many(np.ascontiguousarray(cbn_true), conv)[:, 2]
-    sh, ch = np.sin(heading), np.cos(heading)
-    return np.stack([att_n[:, 0] * sh + att_n[:, 1] * ch, att_n[:, 0] * ch - att_n[:, 1] * sh, -att_n[:, 2]],
-                    axis=-1)
+    return np.einsum("nij,nj->ni", level_heading_frame(heading), att_n)
 
 
 def error_series(truth: Trajectory, nav: Trajectory, conv: int = 0) -> ErrorSeries:
