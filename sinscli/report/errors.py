@@ -29,6 +29,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import SinsError
+from ..io.timebase import describe as describe_time_base
 from ..nav.earth import radii_py
 from ..nav.rotation import (attitude_error_many, dcm_to_euler_many, dcm_to_rotvec, level_heading_frame, mm3,
                             rotvec_to_dcm)
@@ -76,14 +77,6 @@ def time_tolerance(t_truth: np.ndarray, t_nav: np.ndarray) -> float:
     return tol
 
 
-def _time_base(t0: float, t1: float) -> str:
-    if abs(t0) >= 1e8:
-        return "absolute seconds (UNIX or GPS time)"
-    if abs(t0) <= 1.0 + (t1 - t0):
-        return "seconds from the start"
-    return "seconds of a GPS week or another origin"
-
-
 def explain_no_common_epochs(t_truth, t_nav, truth_name: str, nav_name: str, tol: float) -> str:
     """The one-line message for a navigation file with no epoch in common with the truth."""
     a, b = float(t_truth[0]), float(t_truth[-1])
@@ -95,7 +88,7 @@ def explain_no_common_epochs(t_truth, t_nav, truth_name: str, nav_name: str, tol
         from_zero = (abs(a) <= 1.0 + (b - a), abs(c) <= 1.0 + (d - c))   # a file that counts from its start
         if (abs(a) >= 1e8) != (abs(c) >= 1e8) or (from_zero[0] != from_zero[1] and gap > 10.0 * longest):
             return (f"{nav_name}: no common epochs with the truth: different time bases "
-                    f"(truth in {_time_base(a, b)}, navigation in {_time_base(c, d)}; {spans}); "
+                    f"(truth in {describe_time_base(a, b)}, navigation in {describe_time_base(c, d)}; {spans}); "
                     "write both files with the same time origin")
         return f"{nav_name}: no common epochs with the truth: the time spans do not overlap ({spans})"
     return (f"{nav_name}: no common epochs with the truth within {tol:.3g} s although the spans overlap "
