@@ -12,9 +12,9 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from .errors import ErrorSeries, ErrorTable, build_table
+from .errors import ErrorSeries, ErrorTable, build_consistency, build_table
 from .figures import plot_all
-from .html import write_report_html
+from .html import consistency_table_html, write_report_html
 from .tables import write_errors_csv, write_errors_md, write_timeseries_csv
 
 REPORT_FILES = ["errors.csv", "errors.md", "timeseries.csv"]
@@ -46,8 +46,11 @@ def write_report_files(outdir: Path, series: dict[str, ErrorSeries], table: Erro
                        extra_html: str = "") -> list[str]:
     """Write the report files into ``outdir`` (an existing, usually staging, directory)."""
     outdir = Path(outdir)
-    write_errors_csv(outdir / "errors.csv", table)
-    write_errors_md(outdir / "errors.md", table, title)
+    consistency = build_consistency(series)
+    write_errors_csv(outdir / "errors.csv", table, consistency)
+    write_errors_md(outdir / "errors.md", table, title, consistency)
+    if consistency is not None:
+        extra_html = consistency_table_html(consistency) + extra_html
     write_timeseries_csv(outdir / "timeseries.csv", series, timeseries_every)
     figures = plot_all(outdir, series, title)
     files = REPORT_FILES + list(extra_files)
