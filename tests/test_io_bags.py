@@ -2,7 +2,6 @@
 closed-form increments, topic choice, GNSS, and every listed bad input through the CLI."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np

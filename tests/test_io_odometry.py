@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sinscli.config import load_config, mounting_matrix
+from sinscli.config import load_config
 from sinscli.errors import SinsError
 from sinscli.io import ros
 from sinscli.io.body_vel_csv import read_body_velocity_csv, write_body_velocity_csv

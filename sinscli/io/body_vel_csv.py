@@ -22,7 +22,7 @@ from ..errors import SinsError
 from ..nav.rotation import BODY_CONVENTIONS, conv_to_flu
 from ..types import BodyVelLog
 from .atomic import atomic_path
-from .csvcore import read_header, read_numeric_columns, write_table_csv
+from .csvcore import check_positive, read_mapped_columns, write_table_csv
 from .imu_csv import check_time
 
 VEL = ["vel_x", "vel_y", "vel_z"]
@@ -33,35 +33,13 @@ def read_body_velocity_csv(path, cfg: dict | None = None) -> BodyVelLog:
     """Read a body-velocity CSV; ``cfg`` is the whole validated config (odometry and imu sections) or None."""
     path = Path(path)
     odo = (cfg or {}).get("odometry") or {}
-    mapping = dict(odo.get("columns") or {})
-    inverse = {v: k for k, v in mapping.items()}
-    ignored = set(odo.get("ignore_columns") or [])
-    header = read_header(path)
-    known = [inverse.get(c, c) for c in header]
-    unknown = [c for c, k in zip(header, known) if k not in ODOMETRY_NAMES and c not in ignored]
-    if unknown:
-        raise SinsError(f"{path}: unknown column(s) {', '.join(repr(c) for c in unknown)}; expected a body-velocity "
-                        f"CSV: time, vel_x, vel_y, vel_z and optionally std_x, std_y, std_z (map other names with "
-                        f"the config's odometry.columns)")
-    missing = [c for c in ["time"] + VEL if c not in known]
-    if missing:
-        raise SinsError(f"{path}: missing column(s) {', '.join(missing)}; expected time, vel_x, vel_y, vel_z "
-                        "(m/s, body axes)")
-    present = [c for c in STD if c in known]
-    if present and len(present) != 3:
-        raise SinsError(f"{path}: has {', '.join(present)} but not all of {', '.join(STD)}")
-    wanted = [c for c in ODOMETRY_NAMES if c in known]
-    data = read_numeric_columns(path, {c: mapping.get(c, c) for c in wanted})
+    data, mapping = read_mapped_columns(
+        path, odo, ODOMETRY_NAMES, ["time"] + VEL, [STD],
+        "expected a body-velocity CSV: time, vel_x, vel_y, vel_z and optionally std_x, std_y, std_z (map other "
+        "names with the config's odometry.columns)", "expected time, vel_x, vel_y, vel_z (m/s, body axes)")
     check_time(path, data["time"], allow_gaps=True, what=mapping.get("time", "time"))
-    std = None
-    if present:
-        for c in STD:
-            bad = ~(data[c] > 0)
-            if bad.any():
-                k = int(np.argmax(bad))
-                raise SinsError(f"{path}: line {k + 2}, column '{mapping.get(c, c)}': {float(data[c][k])!r} is not a "
-                                "positive 1-sigma")
-        std = np.column_stack([data[c] for c in STD])
+    check_positive(path, data, STD, mapping)
+    std = np.column_stack([data[c] for c in STD]) if STD[0] in data else None
     vel = np.column_stack([data[c] for c in VEL])
     kind = odo.get("frame", "auto")
     if kind in ("sensor", "vehicle"):

@@ -10,7 +10,7 @@ from ..config import GNSS_NAMES
 from ..errors import SinsError
 from ..types import GnssLog
 from .atomic import atomic_path
-from .csvcore import read_header, read_numeric_columns, write_table_csv
+from .csvcore import check_positive, read_mapped_columns, write_table_csv
 from .imu_csv import check_time
 from .timebase import diagnose
 
@@ -23,39 +23,17 @@ GROUPS = {"vel_n": ["vel_e", "vel_n", "vel_u"], "std_pos": ["std_e", "std_n", "s
 
 def read_gnss_csv(path, cfg=None) -> GnssLog:
     """Read ``gnss.csv``: required time, lat, lon (deg), height (m); optional velocity and sigmas."""
-    cfg = cfg or {}
     path = Path(path)
-    header = read_header(path)
-    mapping = dict(cfg.get("columns") or {})
-    inverse = {v: k for k, v in mapping.items()}
-    ignored = set(cfg.get("ignore_columns") or [])
-    known = [inverse.get(c, c) for c in header]
-    unknown = [c for c, k in zip(header, known) if k not in GNSS_NAMES and c not in ignored]
-    if unknown:
-        raise SinsError(f"{path}: unknown column(s) {', '.join(repr(c) for c in unknown)}; expected "
-                        f"{', '.join(GNSS_NAMES)} (map other names with the config's gnss.columns)")
-    missing = [c for c in REQUIRED if c not in known]
-    if missing:
-        raise SinsError(f"{path}: missing column(s) {', '.join(missing)}; expected time, lat, lon, height")
-    for name, group in GROUPS.items():
-        present = [c for c in group if c in known]
-        if present and len(present) != 3:
-            raise SinsError(f"{path}: has {', '.join(present)} but not all of {', '.join(group)}")
-    wanted = [c for c in GNSS_NAMES if c in known]
-    data = read_numeric_columns(path, {c: mapping.get(c, c) for c in wanted})
+    data, mapping = read_mapped_columns(
+        path, cfg or {}, GNSS_NAMES, REQUIRED, list(GROUPS.values()),
+        f"expected {', '.join(GNSS_NAMES)} (map other names with the config's gnss.columns)",
+        "expected time, lat, lon, height")
     check_time(path, data["time"], allow_gaps=True, what=mapping.get("time", "time"))
     lat = data["lat"]
     if np.any(np.abs(lat) > 90):
         k = int(np.argmax(np.abs(lat) > 90))
         raise SinsError(f"{path}: line {k + 2}, column 'lat': {lat[k]!r} is outside [-90, 90] degrees")
-    for name in GROUPS["std_pos"] + GROUPS["std_vel"]:
-        if name in data:
-            v = data[name]
-            bad = ~(v > 0)                       # finite already checked
-            if bad.any():
-                k = int(np.argmax(bad))
-                raise SinsError(f"{path}: line {k + 2}, column '{mapping.get(name, name)}': {float(v[k])!r} is not "
-                                "a positive 1-sigma")
+    check_positive(path, data, GROUPS["std_pos"] + GROUPS["std_vel"], mapping)
     out = GnssLog(data["time"], lat, data["lon"], data["height"], source=str(path))
     for name, group in GROUPS.items():
         if group[0] in data:
