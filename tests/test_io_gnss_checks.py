@@ -272,3 +272,17 @@ def test_align_refuses_gnss_in_another_time_base(unix_rest, tmp_path, case, tran
         for k in ("lat", "lon", "height", "roll", "pitch", "heading"):
             assert a[k] == pytest.approx(b[k], abs=1e-7), k
         assert math.isclose(a["lat"], 30.0, abs_tol=1e-6)
+
+
+def test_align_refuses_a_gnss_sigma_of_zero(unix_rest, tmp_path):
+    """gnss.csv with std_n = 0 on line 4: one error line naming line and column, exit 2, no output."""
+    os.symlink(unix_rest / "imu.csv", tmp_path / "imu.csv")
+    cols = read_header(unix_rest / "gnss.csv")
+    data = read_numeric_columns(unix_rest / "gnss.csv", {c: c for c in cols})
+    data.update({c: np.full(len(data["time"]), 1.5) for c in ("std_e", "std_n", "std_u")})
+    data["std_n"][2] = 0.0
+    write_table_csv(tmp_path / "gnss.csv", data)
+    res = _align(tmp_path, "gnss.csv")
+    assert res.returncode == 2 and not (tmp_path / "init.yaml").exists()
+    assert res.stderr.strip().splitlines() == [
+        "sins: error: gnss.csv: line 4, column 'std_n': 0.0 is not a positive 1-sigma"]
