@@ -61,7 +61,7 @@ def test_same_base_passes_including_partial_and_longer_gnss():
 
 
 def test_no_overlap():
-    with pytest.raises(SinsError, match=r"^g\.csv: no overlap with the IMU log: the time spans do not overlap "
+    with pytest.raises(SinsError, match=r"^g\.csv: does not overlap the IMU log in time: the time spans are apart "
                                         r"\(g\.csv spans .*; g\.csv starts 1000.4 s after the IMU log ends\)$"):
         _check(IMU, GNSS_UNIX + 1600.0)
     with pytest.raises(SinsError, match=r"g\.csv ends .* s before the IMU log starts"):
@@ -132,7 +132,7 @@ def test_milliseconds_against_seconds(scale, word):
 
 def test_diagnose_is_symmetric_in_its_names():
     assert diagnose("a", (0.0, 10.0), "b", (1.0, 9.0)) is None
-    assert "b: no overlap with a" in diagnose("a", (0.0, 10.0), "b", (11.0, 19.0))
+    assert "b: does not overlap a in time: the time spans are apart" in diagnose("a", (0.0, 10.0), "b", (11.0, 19.0))
 
 
 # --------------------------------------------------------------------------- GNSS CSV sigmas
@@ -244,7 +244,7 @@ def _align(cwd, gnss, config=None):
     ("gps", lambda t: t - GPS_EPOCH_UNIX + 18.0, "GPS time (seconds since 1980-01-06)", GPS_EPOCH_UNIX - 18.0),
     ("start", lambda t: t - T_UNIX, "seconds from the start", None),
     ("ms", lambda t: t * 1e3, "milliseconds", None),
-    ("late", lambda t: t + 3600.0, "the time spans do not overlap", None),
+    ("late", lambda t: t + 3600.0, "does not overlap the IMU log in time: the time spans are apart", None),
 ])
 def test_align_refuses_gnss_in_another_time_base(unix_rest, tmp_path, case, transform, needle, offset):
     d = unix_rest
@@ -286,3 +286,10 @@ def test_align_refuses_a_gnss_sigma_of_zero(unix_rest, tmp_path):
     assert res.returncode == 2 and not (tmp_path / "init.yaml").exists()
     assert res.stderr.strip().splitlines() == [
         "sins: error: gnss.csv: line 4, column 'std_n': 0.0 is not a positive 1-sigma"]
+
+
+@pytest.mark.parametrize("gnss_t", [GNSS_UNIX + 5000.0, GNSS_UNIX - T_UNIX, GNSS_UNIX * 1e3,
+                                    GNSS_UNIX - GPS_EPOCH_UNIX + 18.0, GNSS_UNIX - 1.7e9 + 400000.0])
+def test_every_disjoint_case_says_it_does_not_overlap(gnss_t):
+    with pytest.raises(SinsError, match=r"^g\.csv: does not overlap the IMU log in time: "):
+        _check(IMU, gnss_t)

@@ -116,13 +116,14 @@ def diagnose(ref_name: str, ref: tuple[float, float], other_name: str, other: tu
                             f"{-sign * leap} s (config gnss.time_offset: {-sign * leap})")
         return None
     slack = 1.0 + 0.01 * max(da, db)
+    head = f"{other_name}: does not overlap {ref_name} in time: "
     # milliseconds (micro-, nanoseconds) against seconds
     for s, word in SCALES:
         if _scaled_inside(b0, b1, a0, a1, s):
-            return (f"{other_name}: different time units: {other_name} seems to be in {word}, {ref_name} in seconds "
+            return (head + f"different time units: {other_name} seems to be in {word}, {ref_name} in seconds "
                     f"({spans}); write the times of {other_name} in seconds")
         if _scaled_inside(a0, a1, b0, b1, s):
-            return (f"{other_name}: different time units: {ref_name} seems to be in {word}, {other_name} in seconds "
+            return (head + f"different time units: {ref_name} seems to be in {word}, {other_name} in seconds "
                     f"({spans}); write the times of {ref_name} in seconds")
     if ka == kb == "absolute":
         # GPS seconds since 1980 against UNIX time
@@ -130,11 +131,11 @@ def diagnose(ref_name: str, ref: tuple[float, float], other_name: str, other: tu
             unix_t = a0 if sign > 0 else b0
             shift = GPS_EPOCH_UNIX - gps_minus_utc(unix_t)
             if _overlap(a0, a1, b0 + sign * shift, b1 + sign * shift, slack):
-                return (f"{other_name}: different time bases: {gps_name} seems to be in GPS time (seconds since "
+                return (head + f"different time bases: {gps_name} seems to be in GPS time (seconds since "
                         f"1980-01-06), {unix_name} in UNIX time (GPS = UNIX - {shift:.0f} s at that date; {spans}); "
                         f"shift the GNSS times by {sign * shift:.0f} s (config gnss.time_offset: {sign * shift:.0f})")
         gap = max(b0 - a1, a0 - b1)
-        return (f"{other_name}: no overlap with {ref_name}: the time spans do not overlap ({spans}; "
+        return (head + f"the time spans are apart ({spans}; "
                 f"{other_name} {'starts' if b0 > a1 else 'ends'} {gap:.6g} s {'after' if b0 > a1 else 'before'} "
                 f"{ref_name} {'ends' if b0 > a1 else 'starts'})")
     # GPS seconds of week against an absolute epoch
@@ -146,12 +147,12 @@ def diagnose(ref_name: str, ref: tuple[float, float], other_name: str, other: tu
                 week_no, sow0 = divmod(gps0, WEEK)
                 if _overlap(sow0, sow0 + (ab[1] - ab[0]), wk[0], wk[1], slack):
                     shift = sign * (ab[0] - sow0)
-                    return (f"{other_name}: different time bases: {week_name} seems to be in GPS seconds of week "
+                    return (head + f"different time bases: {week_name} seems to be in GPS seconds of week "
                             f"(week {int(week_no)}), {abs_name} in {label} ({spans}); shift the GNSS times by "
                             f"{shift:.0f} s (config gnss.time_offset: {shift:.0f})")
     gap = max(b0 - a1, a0 - b1)
     if (ka == "absolute") != (kb == "absolute") or (ka != kb and gap > 10.0 * max(da, db, 1.0)):
-        return (f"{other_name}: different time bases: {other_name} seems to be in {describe(b0, b1)}, {ref_name} in "
+        return (head + f"different time bases: {other_name} seems to be in {describe(b0, b1)}, {ref_name} in "
                 f"{describe(a0, a1)} ({spans}); write both with the same time origin")
-    return (f"{other_name}: no overlap with {ref_name}: the time spans do not overlap ({spans}; the gap is "
+    return (head + f"the time spans are apart ({spans}; the gap is "
             f"{gap:.6g} s)")
