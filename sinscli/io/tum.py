@@ -5,9 +5,15 @@ Position is in a local ENU frame whose origin is the trajectory's first point
 attitude of the FLU body axes (x forward, y left, z up, REP-103) in that ENU
 frame, scalar last as the format wants.  Floats are written in shortest
 round-trip form.
+
+The format is fixed at 8 columns (``evo`` and the TUM tools refuse more), so
+it cannot carry the 1-sigma and bias columns of an aided trajectory: they are
+left out (write ``.csv``, ``.parquet``, ``.mcap``, ``.geojson`` or ``.kml`` to
+keep them).
 """
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
@@ -31,6 +37,9 @@ def _fmt(a: np.ndarray) -> list[str]:
 def write_tum(path, traj: Trajectory, conv: int = 0) -> None:
     """Write ``time tx ty tz qx qy qz qw`` lines (ENU about the first point, FLU body), atomically."""
     origin, enu, q = trajectory_enu_quat(traj, conv)
+    if traj.extra:
+        logging.getLogger("sins").warning("%s: the TUM format has 8 fixed columns; the column(s) %s are left out "
+                                          "(write .csv, .parquet or .mcap to keep them)", path, ", ".join(traj.extra))
     cols = [_fmt(traj.time)] + [_fmt(enu[:, i]) for i in range(3)] + [_fmt(q[:, i]) for i in range(4)]
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="ascii", newline="\n") as f:

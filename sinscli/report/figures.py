@@ -1,5 +1,9 @@
 """PNG figures of the errors against time (seed 000 Figs. 1-3, plus position and velocity).
 
+For a run that carries the navigator's own 1-sigma (an aided trajectory), its
+claim is drawn around zero: a shaded +-3 sigma band and dotted +-1 sigma lines.
+The figures only draw: every number comes from :class:`ErrorSeries`.
+
 Matplotlib's object API with the Agg canvas (no pyplot, no global state, safe
 in worker processes and without a display).  Long runs are drawn as a min/max
 envelope per pixel column, so every peak stays visible.
@@ -63,13 +67,33 @@ def _title(ax, title: str, what: str) -> None:
     ax.set_title(f"{short}\n{what}" if short else what, fontsize=9)
 
 
-def _line_plot(ax, series: dict[str, ErrorSeries], values) -> None:
-    """One line per method; line styles cycle too, so that coinciding methods stay visible."""
+def _line_plot(ax, series: dict[str, ErrorSeries], values, sigma=None) -> None:
+    """One line per method; line styles cycle too, so that coinciding methods stay visible.
+
+    ``sigma(s)`` (optional) gives the method's claimed 1-sigma of the same quantity, or None: it is drawn
+    as a shaded +-3 sigma band and thin +-1 sigma lines around zero, in the method's colour.
+    """
     for k, (name, s) in enumerate(series.items()):
         t, y = envelope(s.time, values(s))
-        ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
+        (line,) = ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name, zorder=3)
+        sd = sigma(s) if sigma is not None else None
+        if sd is not None and len(s):
+            ts, ys = envelope(s.time, sd)
+            color = line.get_color()
+            ax.fill_between(ts, -3.0 * ys, 3.0 * ys, color=color, alpha=0.12, lw=0, label=f"{name} +-3 sigma",
+                            zorder=1)
+            ax.plot(ts, ys, color=color, lw=0.6, ls=":", alpha=0.8, label=f"{name} +-1 sigma", zorder=2)
+            ax.plot(ts, -ys, color=color, lw=0.6, ls=":", alpha=0.8, zorder=2)
     ax.grid(True, alpha=0.3)
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
+
+
+def _sigma_of(attr: str, col: int, scale: float = 1.0):
+    """``s -> s.<attr>[:, col] * scale`` or None when the run has no such sigma."""
+    def get(s):
+        arr = getattr(s, attr)
+        return None if arr is None else arr[:, col] * scale
+    return get
 
 
 def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
@@ -79,7 +103,7 @@ def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> li
     for fname, col, label in ATTITUDE_FIGURES:
         fig = Figure(figsize=(8, 4))
         ax = fig.add_subplot()
-        _line_plot(ax, series, lambda s, c=col: s.att_rph_rad[:, c] * scale)
+        _line_plot(ax, series, lambda s, c=col: s.att_rph_rad[:, c] * scale, _sigma_of("att_std_rad", col, scale))
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"truth - navigation ({unit})")
         _title(ax, title, label)
@@ -101,11 +125,11 @@ def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> li
     return names + ["att_angle.png"]
 
 
-def _three_panel(outdir, fname, series, attr, unit, what, title) -> str:
+def _three_panel(outdir, fname, series, attr, unit, what, title, std_attr=None) -> str:
     fig = Figure(figsize=(8, 7))
     axes = fig.subplots(3, 1, sharex=True)
     for c, (ax, axis) in enumerate(zip(axes, ("east", "north", "up"))):
-        _line_plot(ax, series, lambda s: getattr(s, attr)[:, c])
+        _line_plot(ax, series, lambda s: getattr(s, attr)[:, c], _sigma_of(std_attr, c) if std_attr else None)
         ax.set_ylabel(f"{axis} ({unit})")
     _title(axes[0], title, f"{what} error, truth - navigation")
     axes[0].legend(fontsize=8)
@@ -117,8 +141,8 @@ def _three_panel(outdir, fname, series, attr, unit, what, title) -> str:
 
 def plot_position_velocity(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
     """``pos_error.png`` and ``vel_error.png``: E, N, U panels, one line per method."""
-    return [_three_panel(outdir, "pos_error.png", series, "pos_enu_m", "m", "Position", title),
-            _three_panel(outdir, "vel_error.png", series, "vel_enu_mps", "m/s", "Velocity", title)]
+    return [_three_panel(outdir, "pos_error.png", series, "pos_enu_m", "m", "Position", title, "pos_std_m"),
+            _three_panel(outdir, "vel_error.png", series, "vel_enu_mps", "m/s", "Velocity", title, "vel_std_mps")]
 
 
 def plot_all(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:

@@ -8,8 +8,10 @@ from __future__ import annotations
 import html
 
 from ..io.atomic import atomic_path
-from .errors import ROW_UNITS, ErrorTable
-from .tables import ROW_LABELS
+import numpy as np
+
+from .errors import CONSISTENCY_UNITS, ROW_UNITS, ConsistencyTable, ErrorTable
+from .tables import CONSISTENCY_LABELS, ROW_LABELS
 
 _STYLE = """
 body { font-family: sans-serif; margin: 1.5em; max-width: 70em; }
@@ -40,6 +42,20 @@ def error_table_html(table: ErrorTable) -> str:
         label = ROW_LABELS[key].replace("\\|", "|")
         out.append(f"<tr><td>{r + 1}</td><td>{_e(label)}</td><td>{_e(ROW_UNITS[key])}</td>"
                    + "".join(f"<td class=\"num\">{v:.5E}</td>" for v in table.values[r]) + "</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def consistency_table_html(cons: ConsistencyTable) -> str:
+    """The navigators' sigma consistency (fraction inside 3 sigma, average NEES) as a heading and a table."""
+    out = ["<h2>Consistency of the navigators' own 1-sigma</h2>",
+           "<p class=\"note\">Fraction of epochs whose error lies inside +-3 sigma (0.9973 for an honest Gaussian "
+           "claim) and the average NEES over the three axes (3 for an honest claim).</p>",
+           "<table>", "<tr><th>Quantity</th><th>Unit</th>" + "".join(f"<th>{_e(m)}</th>" for m in cons.methods) + "</tr>"]
+    for r, key in enumerate(cons.rows):
+        cells = "".join("<td class=\"num\">-</td>" if np.isnan(v) else f"<td class=\"num\">{v:.4f}</td>"
+                        for v in cons.values[r])
+        out.append(f"<tr><td>{_e(CONSISTENCY_LABELS[key])}</td><td>{_e(CONSISTENCY_UNITS[key])}</td>{cells}</tr>")
     out.append("</table>")
     return "\n".join(out)
 

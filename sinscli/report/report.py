@@ -12,9 +12,9 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from .errors import ErrorSeries, ErrorTable, build_table
+from .errors import ErrorSeries, ErrorTable, build_consistency, build_table
 from .figures import plot_all, plot_metrics
-from .html import summary_html, write_report_html
+from .html import consistency_table_html, summary_html, write_report_html
 from .tables import write_errors_csv, write_errors_md, write_metric_series_csv, write_timeseries_csv
 
 
@@ -51,8 +51,9 @@ def write_report_files(outdir: Path, series: dict[str, ErrorSeries], table: Erro
     ``rpe.csv`` and their figures; ``summary`` lines open errors.md and the page.
     """
     outdir = Path(outdir)
-    write_errors_csv(outdir / "errors.csv", table)
-    write_errors_md(outdir / "errors.md", table, title, summary)
+    consistency = build_consistency(series) if series else None
+    write_errors_csv(outdir / "errors.csv", table, consistency)
+    write_errors_md(outdir / "errors.md", table, title, summary, consistency)
     files = ["errors.csv", "errors.md"]
     figures = []
     if series:
@@ -63,6 +64,8 @@ def write_report_files(outdir: Path, series: dict[str, ErrorSeries], table: Erro
         files += write_metric_series_csv(outdir, metrics)
         figures += plot_metrics(outdir, metrics, title, frame)
     files += list(extra_files)
+    if consistency is not None:
+        extra_html = consistency_table_html(consistency) + extra_html
     if summary:
         extra_html = summary_html(summary) + extra_html
     write_report_html(outdir / "index.html", title, table, figures, files, notes, extra_html)
