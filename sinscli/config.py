@@ -22,6 +22,7 @@ IMU_NAMES = ["time", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_
              "dtheta_x", "dtheta_y", "dtheta_z", "dvel_x", "dvel_y", "dvel_z"]
 GNSS_NAMES = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u",
               "std_e", "std_n", "std_u", "std_vel_e", "std_vel_n", "std_vel_u"]
+ODOMETRY_NAMES = ["time", "vel_x", "vel_y", "vel_z", "std_x", "std_y", "std_z"]
 
 DEFAULTS = {
     "imu": {
@@ -36,6 +37,12 @@ DEFAULTS = {
         "columns": {},
         "ignore_columns": [],
         "lever_arm": [0.0, 0.0, 0.0],   # antenna position in body axes, m
+        "time_offset": 0.0,             # s added to every GNSS time on reading (e.g. -18: GPS time -> UTC)
+    },
+    "odometry": {
+        "columns": {},            # FORMATS name (time, vel_x.., std_x..) -> column name in the CSV
+        "ignore_columns": [],
+        "frame": "auto",          # auto | body | vehicle | sensor: axes of the velocity (configs/navigation.yaml)
     },
     "navigation": {
         "attitude": "quat",       # dcm | quat | krylov | euler
@@ -63,6 +70,7 @@ DEFAULTS = {
         "imu_topic": None,
         "gnss_topic": None,
         "vel_topic": None,
+        "odom_topic": None,       # body velocity: nav_msgs/Odometry (or a body-frame Twist*) topic
         "time": "header",         # header | log
     },
 }
@@ -76,6 +84,7 @@ CHOICES = {
     ("navigation", "euler_integrator"): ["euler", "rk4"],
     ("navigation", "on_singularity"): ["continue", "stop"],
     ("ros", "time"): ["header", "log"],
+    ("odometry", "frame"): ["auto", "body", "vehicle", "sensor"],
 }
 MAX_COUNT = 2 ** 31 - 1          # largest subsamples / every (the kernels count in int64)
 MAX_LEVER_ARM = 1000.0           # m, each lever-arm component
@@ -179,7 +188,7 @@ def validate(cfg: dict, src: str) -> None:
             _fail(src, f"imu.units.{k}", f"expected one of {', '.join(UNIT_CHOICES[k])}, got {v!r}")
     for k, v in DEFAULTS["imu"]["units"].items():
         units.setdefault(k, v)
-    for section, names in (("imu", IMU_NAMES), ("gnss", GNSS_NAMES)):
+    for section, names in (("imu", IMU_NAMES), ("gnss", GNSS_NAMES), ("odometry", ODOMETRY_NAMES)):
         cols = cfg[section]["columns"]
         if not isinstance(cols, dict):
             _fail(src, f"{section}.columns", "expected a mapping {FORMATS name: file column}")
@@ -210,6 +219,10 @@ def validate(cfg: dict, src: str) -> None:
                        for x in arm)):
         _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres (at most {MAX_LEVER_ARM:g} "
                                      f"each), got {arm!r}")
+    off = cfg["gnss"]["time_offset"]
+    if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
+        _fail(src, "gnss.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the config's "
+                                       f"limits.time), got {off!r}")
 
 
 def mounting_matrix(mounting, src: str = "config") -> np.ndarray:

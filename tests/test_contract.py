@@ -266,7 +266,8 @@ def test_writer_guard_and_navigator_state_check(tmp_path):
     tr.height = tr.height.copy()
     tr.height[7] = np.nan
     for suffix in (".csv", ".parquet", ".mcap", ".tum", ".geojson", ".kml"):
-        with pytest.raises(NonFiniteOutput, match=r"height is not finite at time 0.07 s \(row 8\)"):
+        with pytest.raises(NonFiniteOutput, match=r"internal consistency check: row 8 \(time 0.07 s\), column 'height': nan is "
+                                                   r"not a finite number"):
             write_trajectory(tmp_path / f"t{suffix}", tr)
     assert list(tmp_path.iterdir()) == []
     # the navigator stops with the epoch when its state turns non-finite (an input no reader saw)

@@ -2,7 +2,6 @@
 closed-form increments, topic choice, GNSS, and every listed bad input through the CLI."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -103,14 +102,6 @@ def test_husky_against_rosbags_decode(husky):
     # the README's description of the recording: imu_link has its y axis up, |f| about g
     f_mean = imu.dvel_b.sum(axis=0) / (imu.time[-1] - imu.t0)
     assert 9.7 < f_mean[1] < 9.9 and abs(f_mean[0]) < 0.5 and abs(f_mean[2]) < 0.5
-
-
-def test_husky_odometry_velocity_is_rotated_into_the_parent_frame(husky):
-    gnss = ros.read_gnss(husky["bag"], vel_topic="/husky_velocity_controller/odom")
-    assert 987 <= len(gnss) <= 989 and gnss.vel_n.shape == (len(gnss), 3) and gnss.std_vel is not None
-    assert np.isfinite(gnss.vel_n).all() and np.isfinite(gnss.std_vel).all()
-    speed = np.linalg.norm(gnss.vel_n, axis=1)
-    assert speed.max() < 3.0 and speed.mean() > 0.1      # a Husky drives at walking speed
 
 
 # --------------------------------------------------------------------------- bulk = library, bit for bit
@@ -237,27 +228,6 @@ def test_gnss_fields_velocity_and_no_fix(tmp_path, caplog):
     assert nostd.std_pos is None and nostd.vel_n is None
 
 
-def test_odometry_velocity_rotation(tmp_path):
-    """Odometry twist is in the child frame: yaw +90 deg turns body +x (1 m/s) into parent +y."""
-    from rosbags.rosbag2 import Writer
-    from rosbags.typesys import Stores, get_typestore
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    path = tmp_path / "odom"
-    g = _gnss(n=3)
-    s = math.sqrt(0.5)
-    with Writer(path, version=9) as w:
-        cf = w.add_connection("/fix", "sensor_msgs/msg/NavSatFix", typestore=ts)
-        co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
-        for k, m in enumerate(write._navsat_messages(ts, False, g)):
-            tn = int(round(g["time"][k] * 1e9))
-            w.write(cf, tn, ts.serialize_cdr(m, "sensor_msgs/msg/NavSatFix"))
-            from sinscli.io.foxglove import odometry_message
-            om = odometry_message(ts, tn // 10**9, tn % 10**9, [0, 0, 0], [0, 0, s, s], [1.0, 0.0, 0.0])
-            w.write(co, tn, ts.serialize_cdr(om, "nav_msgs/msg/Odometry"))
-    out = ros.read_gnss(path, vel_topic="/odom")
-    np.testing.assert_allclose(out.vel_n, np.tile([0.0, 1.0, 0.0], (3, 1)), atol=1e-15)
-
-
 # --------------------------------------------------------------------------- topic choice
 
 def test_topic_choice(tmp_path):
@@ -319,12 +289,18 @@ def test_convert_cli_writes_formats_csv(husky, tmp_path):
     assert np.array_equal(back.dvel_b, imu.dvel_b)
     g = read_gnss_csv(out / "gnss.csv")
     assert np.array_equal(g.lat, gnss.lat) and np.array_equal(g.std_pos, gnss.std_pos)
+    # the Odometry topic is body velocity: odom.csv, in the axes of its child frame base_link
+    from sinscli.io.body_vel_csv import read_body_velocity_csv
+    from sinscli.io.ros.odometry import read_body_velocity
+    odom = read_body_velocity_csv(out / "odom.csv")
+    ref = read_body_velocity(husky["bag"])
+    assert np.array_equal(odom.time, ref.time) and np.array_equal(odom.vel_b, ref.vel_b)
+    assert np.array_equal(odom.std, ref.std)
+    # ... and never ENU GNSS velocity
     out2 = tmp_path / "out2"
     res = _run(["convert", str(husky["bag"]), "-o", str(out2), "-q", "--vel-topic", "/husky_velocity_controller/odom"])
-    assert res.exit_code == 0, res.output
-    gv = ros.read_gnss(husky["bag"], vel_topic="/husky_velocity_controller/odom")
-    g2 = read_gnss_csv(out2 / "gnss.csv")
-    assert np.array_equal(g2.vel_n, gv.vel_n) and np.array_equal(g2.std_vel, gv.std_vel)
+    assert res.exit_code == 2 and "is nav_msgs/msg/Odometry" in res.output and "not an ENU velocity" in res.output
+    assert not out2.exists()
 
 
 # --------------------------------------------------------------------------- bad input through the CLI
@@ -395,7 +371,9 @@ def _case(tmp_path, kind):
         g = _gnss()
         g["cov"] = g["cov"].copy()
         g["cov"][2] = 0.0
-        return _write(t / "x.db3", imu=imu, gnss=g), [], "topic /fix: message 2 has a zero, negative or NaN position"
+        return _write(t / "x.db3", imu=imu, gnss=g), [], ("topic /fix: message 2, column 'position variance [0] "
+                                                          "(covariance type known)': 0.0 is not a positive finite "
+                                                          "variance")
     if kind == "compression_bag":
         p = _write(t / "x.bag", imu=imu, gnss=_gnss(), bag_compression="bz2")
         _flip_compression(p, b"compression=bz2", b"compression=xz9")

@@ -40,6 +40,9 @@ def _parse_heading(value):
 @click.option("--body", type=click.Choice(sorted(BODY_CONVENTIONS)), default=None, help="Body axes convention.")
 @click.option("--imu-topic", default=None, help="IMU topic in a ROS bag / MCAP log.")
 @click.option("--gnss-topic", default=None, help="NavSatFix topic in a ROS bag / MCAP log.")
+@click.option("--vel-topic", default=None,
+              help="GNSS velocity topic (TwistStamped or TwistWithCovarianceStamped, ENU) in a ROS bag / MCAP log. "
+                   "nav_msgs/Odometry is refused: its twist is a body velocity, not ENU.")
 @click.option("--series", type=click.Path(path_type=Path), default=None,
               help="CSV of the attitude estimate against alignment time.")
 @click.option("--plot", type=click.Path(path_type=Path), default=None, help="PNG of the attitude against time.")
@@ -52,7 +55,7 @@ def _parse_heading(value):
               help="Initial-state YAML (or, with --monte-carlo, the output directory).")
 @quiet_option
 def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, heading, epoch, config_path, body,
-              imu_topic, gnss_topic, series, plot, mc_runs, scenario, seed, output, quiet):
+              imu_topic, gnss_topic, vel_topic, series, plot, mc_runs, scenario, seed, output, quiet):
     """Initial alignment: the attitude (and state) where navigation starts, with its 1-sigma.
 
     \b
@@ -77,7 +80,7 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
 
     cfg, al = load_align_config(config_path)
     cfg = merge(cfg, "imu", body=body)
-    cfg = merge(cfg, "ros", imu_topic=imu_topic, gnss_topic=gnss_topic)
+    cfg = merge(cfg, "ros", imu_topic=imu_topic, gnss_topic=gnss_topic, vel_topic=vel_topic)
     for key, value in (("method", method), ("start", start), ("duration", duration),
                        ("roll_window", roll_window), ("epoch", epoch)):
         if value is not None:
@@ -92,6 +95,10 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
         opts.position = parse_position(position, "--position")
     imu_log = read_imu(imu, cfg)
     gnss = read_gnss(gnss_path, cfg) if gnss_path is not None else None
+    if gnss is not None:
+        from ..io.gnss_csv import check_gnss_against_imu
+        check_gnss_against_imu(gnss, imu_log.t0 if imu_log.t0 is not None else float(imu_log.time[0]),
+                               float(imu_log.time[-1]))
     res = align(imu_log, opts, gnss)          # well under a second for minutes of data: no progress bar
     for note in res.notes:
         click.echo(f"sins: note: {note}", err=True)

@@ -17,7 +17,7 @@ log = logging.getLogger("sins")
 # command name -> module under sinscli.cli that defines it; imported on first use, so that
 # `sins navigate` does not pay for the simulator, reports or alignment at start-up.
 COMMANDS = {"navigate": "navigate", "align": "align", "simulate": "simulate", "compare": "compare",
-            "info": "info", "convert": "convert"}
+            "info": "info", "convert": "convert", "allan": "allan"}
 
 # The first paragraph of each command's help, for the listing of `sins --help`: with it the
 # listing imports no command module (numpy, numba, the simulator, the ROS readers), so it takes
@@ -25,6 +25,7 @@ COMMANDS = {"navigate": "navigate", "align": "align", "simulate": "simulate", "c
 # tests/test_cli_startup.py checks that the listing equals the one click makes from the
 # commands themselves.  A command missing here is imported for the listing.
 SHORT_HELP = {
+    "allan": "Allan deviation of a static IMU log: noise terms and a sensor.yaml in the presets' schema.",
     "align": "Initial alignment: the attitude (and state) where navigation starts, with its 1-sigma.",
     "compare": "Compare navigation results with a truth: error tables, time series, figures, index.html.",
     "convert": "Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into FORMATS.md CSV files: "

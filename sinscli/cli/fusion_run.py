@@ -11,33 +11,14 @@ import click
 import numpy as np
 
 from ..errors import SinsError
-from ..io.atomic import atomic_path
+from ..io.gnss_csv import check_gnss_against_imu
+from ..io.atomic import prepare_output
 from ..io.init_state import read_init
+from ..io.innovations import write_innovations
 from ..io.readers import read_gnss, read_imu
-from ..io.trajectory import write_trajectory
-from ..types import GnssLog, ImuLog, NavState
+from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
+from ..types import ImuLog, NavState
 from .base import log, progress
-
-try:                                   # the I/O helper's versions (sinscli.io) replace these when present
-    from ..io.gnss_csv import check_gnss_against_imu
-except ImportError:
-    def check_gnss_against_imu(gnss: GnssLog, t_imu0: float, t_imu1: float) -> None:
-        """Refuse a GNSS log that does not overlap the IMU log in time."""
-        if len(gnss) == 0 or gnss.time[-1] <= t_imu0 or gnss.time[0] >= t_imu1:
-            span = f"{gnss.time[0]!r} .. {gnss.time[-1]!r}" if len(gnss) else "no fixes"
-            raise SinsError(f"{gnss.source}: the GNSS log ({span} s) does not overlap the IMU log "
-                            f"({t_imu0!r} .. {t_imu1!r} s); both must use the same time base")
-try:
-    from ..io.innovations import write_innovations
-except ImportError:
-    def write_innovations(path, records) -> None:
-        """The innovation records as CSV (time, type, axis, innovation, sigma, nis, accepted), atomically."""
-        with atomic_path(path, suffix=".csv") as tmp, open(tmp, "w") as fh:
-            fh.write("time,type,axis,innovation,sigma,nis,accepted\n")
-            for r in records:
-                fh.write(f"{float(r['time'])!r},{r['type']},{r['axis']},{float(r['innovation'])!r},"
-                         f"{float(r['sigma'])!r},{float(r['nis'])!r},{int(r['accepted'])}\n")
-
 
 def init_from_yaml(init: NavState) -> tuple[dict, dict | None]:
     """1-sigma (attitude, rad) and sensor estimates (SI) that a ``sins align`` YAML carries."""
@@ -71,10 +52,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         fopts.sensor, fopts.base_dir = sensor, Path.cwd()
     if fopts.lever_arm is None:
         fopts.lever_arm = np.asarray(cfg["gnss"]["lever_arm"], dtype=float)
-    suffix = output.suffix.lower()
-    from ..io.trajectory import WRITERS
-    if suffix not in (".csv", ".parquet", *WRITERS):
-        raise SinsError(f"{output}: unknown output format '{suffix}'")
+    check_trajectory_output(output)
+    if innovations_path is not None:
+        prepare_output(innovations_path)
     imu = read_imu(imu_path, cfg, allow_gaps=cfg["navigation"]["allow_gaps"])
     if len(imu) == 0:
         raise SinsError(f"{imu_path}: no IMU samples")
@@ -83,9 +63,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     check_gnss_against_imu(gnss, t0, float(imu.time[-1]))
     init_bias = None
     if align_method is not None:
-        init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv)
+        init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts.gnss_pos_sigma)
     else:
-        init = read_init(init_path, t0, opts.conv)
+        init = read_init(init_path, t0, opts.conv, cfg["limits"])
         init_sigma, init_bias = init_from_yaml(init)
     fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias)
     step = 1 << 16
@@ -100,18 +80,20 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     for r in records[~records["accepted"]]:
         log.debug("rejected %s %s at %.6f s: innovation %.4g, sigma %.4g, NIS %.3g", r["type"], r["axis"],
                   r["time"], r["innovation"], r["sigma"], r["nis"])
-    for name in traj.extra:
-        a = traj.extra[name]
-        if not np.all(np.isfinite(a)):
-            raise SinsError(f"internal: column {name} is not finite; nothing written")
+    guard_trajectory(output, traj)               # both outputs or neither: the guard before either is written
     if innovations_path is not None:
         write_innovations(innovations_path, records)
-    write_trajectory(output, traj, opts.conv)
+    try:
+        write_trajectory(output, traj, opts.conv)
+    except BaseException:
+        if innovations_path is not None:
+            Path(innovations_path).unlink(missing_ok=True)
+        raise
     click.echo(f"sins: {summary.text()}", err=True)
     log.info("wrote %s", output)
 
 
-def _align(imu, gnss, method, cfg, config_path, conv):
+def _align(imu, gnss, method, cfg, config_path, conv, gnss_pos_sigma):
     """``sins align --method METHOD`` on the log's first window (the align section of the same config)."""
     from ..align.options import build_options, merge_section
     from ..align.pipeline import align
@@ -124,9 +106,8 @@ def _align(imu, gnss, method, cfg, config_path, conv):
         click.echo(f"sins: note: {note}", err=True)
     sig = {"attitude": np.array([res.sigma[0], res.sigma[1],
                                  res.sigma[2] if np.isfinite(res.sigma[2]) else np.inf])}
-    if gnss.std_pos is not None:
-        k = int(np.clip(np.searchsorted(gnss.time, res.state.time), 0, len(gnss) - 1))
-        sig["position"] = np.maximum(gnss.std_pos[k], 0.01) * 2.0
+    k = int(np.clip(np.searchsorted(gnss.time, res.state.time), 0, len(gnss) - 1))
+    sig["position"] = np.maximum(gnss.position_sigma(gnss_pos_sigma)[k], 0.01) * 2.0
     bias = None
     if res.gyro_bias is not None:
         bias = {"gyro": res.gyro_bias, "accel": res.accel_bias}

@@ -198,7 +198,7 @@ class FusionSummary:
 def gnss_rows(gnss: GnssLog, fopts: FusionOptions, t_min: float) -> np.ndarray:
     """Measurement rows of a GNSS log: position, velocity (when used) and the course for the heading."""
     n = len(gnss)
-    sp = gnss.std_pos if gnss.std_pos is not None else np.tile(fopts.gnss_pos_sigma, (n, 1))
+    sp = gnss.position_sigma(fopts.gnss_pos_sigma)
     if not np.all(np.isfinite(sp)) or np.any(sp <= 0):
         k = int(np.argmax(~(np.isfinite(sp).all(axis=1) & (sp > 0).all(axis=1))))
         raise SinsError(f"{gnss.source}: fix {k + 1} (time {gnss.time[k]!r}): position sigma must be finite and > 0")

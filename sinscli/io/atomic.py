@@ -25,24 +25,46 @@ class NonFiniteOutput(SinsError):
     """A writer was handed a NaN or infinity: an input slipped past the readers' checks."""
 
 
-def check_finite(path, columns: dict, time=None) -> None:
-    """Refuse to write ``columns`` (name -> array or number) if any value is NaN or infinite.
+def check_finite(path, columns: dict, time=None, first_row: int = 1, sigmas=()) -> None:
+    """Refuse to write ``columns`` (name -> array or number) if any value is NaN or infinite, or if a
+    column named in ``sigmas`` (a 1-sigma) holds a value that is not positive.
 
-    The message names the output, the column and the epoch (``time``, when given) of the first bad row.
+    The message names the output (the target, when ``path`` is its temporary), the row (``first_row`` is
+    the number of element 0, for a writer that streams in chunks), the epoch (``time``, when given) and
+    the column of the first bad value.
     """
+    sigmas = set(sigmas)
     for name, values in columns.items():
         a = np.asarray(values)
         if a.dtype.kind not in "fc":
             continue
         ok = np.isfinite(a)
+        if name in sigmas:
+            ok &= a > 0
         if ok.all():
             continue
-        k = int(np.argmax(~ok.reshape(a.shape[0], -1).all(axis=1))) if a.ndim else 0
+        flat = ok.reshape(a.shape[0], -1).all(axis=1) if a.ndim else ok.reshape(1)
+        k = int(np.argmax(~flat))
+        value = a.reshape(a.shape[0], -1)[k][~ok.reshape(a.shape[0], -1)[k]][0] if a.ndim else a
         t = np.asarray(time) if time is not None else None
-        when = f" at time {num(t[k])} s (row {k + 1})" if t is not None and t.ndim and k < t.shape[0] else \
-            (f" (row {k + 1})" if a.ndim else "")
-        raise NonFiniteOutput(f"{path}: internal consistency check: {name} is not finite{when}; the input drives "
-                              f"the computation outside its range; nothing written")
+        where = f"{name!r}"
+        if a.ndim:
+            epoch = f" (time {num(t[k])} s)" if t is not None and t.ndim and k < t.shape[0] and np.isfinite(t[k]) \
+                else ""
+            where = f"row {first_row + k}{epoch}, column {where}"
+        what = "a positive finite 1-sigma" if name in sigmas else "a finite number"
+        raise NonFiniteOutput(f"{target_of(Path(path))}: internal consistency check: {where}: "
+                              f"{num(value)} is not {what}; the input drives the computation outside its "
+                              f"range; nothing written")
+
+
+def target_of(path: Path) -> Path:
+    """The target of a temporary ``<folder>/.<name>.<pid>.part<suffix>`` of this process (else ``path``)."""
+    name = path.name
+    tag = f".{os.getpid()}.part"
+    if name.startswith(".") and tag in name:
+        return path.parent / name[1:name.index(tag)]
+    return path
 
 
 def temp_sibling(path: Path, suffix: str = "") -> Path:

@@ -122,6 +122,35 @@ def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]
     return _finite_columns(path, columns, table.column, 2)
 
 
+def read_mapped_columns(path, section: dict, names: list[str], required: list[str], groups: list[list[str]],
+                        unknown_hint: str, missing_hint: str) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """Read a CSV whose columns are ``names`` (or config-mapped to them): ``(our name -> array, mapping)``.
+
+    ``section`` is the config section with ``columns`` (our name -> file column) and ``ignore_columns``.
+    Refused naming the file: unknown columns (``unknown_hint`` says what is expected), missing required
+    ones (``missing_hint``), a group of three (e.g. std_x, std_y, std_z) given in part; then every value
+    as in :func:`read_numeric_columns`.
+    """
+    path = Path(path)
+    header = read_header(path)
+    mapping = dict(section.get("columns") or {})
+    inverse = {v: k for k, v in mapping.items()}
+    ignored = set(section.get("ignore_columns") or [])
+    known = [inverse.get(c, c) for c in header]
+    unknown = [c for c, k in zip(header, known) if k not in names and c not in ignored]
+    if unknown:
+        raise SinsError(f"{path}: unknown column(s) {name_list(unknown)}; {unknown_hint}")
+    missing = [c for c in required if c not in known]
+    if missing:
+        raise SinsError(f"{path}: missing column(s) {', '.join(missing)}; {missing_hint}")
+    for group in groups:
+        present = [c for c in group if c in known]
+        if present and len(present) != len(group):
+            raise SinsError(f"{path}: has {', '.join(present)} but not all of {', '.join(group)}")
+    wanted = [c for c in names if c in known]
+    return read_numeric_columns(path, {c: mapping.get(c, c) for c in wanted}), mapping
+
+
 def _locate_bad_cell(path: Path, cols: list[str], exc: Exception) -> str:
     """Find the first cell that does not parse as a float (slow path, only on error; lines are read
     with a bound, so a giant line is reported, not parsed)."""
@@ -193,19 +222,23 @@ class CsvTableWriter:
     """Stream float64 columns to a CSV file in chunks (exact round-trip floats).
 
     Use inside :func:`sinscli.io.atomic.atomic_path`; ``write`` takes a dict of
-    equally long 1-D arrays with the same keys each time.
+    equally long 1-D arrays with the same keys each time.  Every chunk passes
+    :func:`sinscli.io.atomic.check_finite` (``sigmas``: the 1-sigma columns, which must be positive).
     """
 
-    def __init__(self, path, columns: list[str], target=None):
+    def __init__(self, path, columns: list[str], sigmas=()):
         self.columns = list(columns)
-        self.target = target if target is not None else path      # the name in messages
+        self.path = path
+        self.sigmas = tuple(sigmas)
+        self._rows = 0
         self._fh = open(path, "wb")
         self._fh.write((",".join(self.columns) + "\n").encode())
         self._opts = pacsv.WriteOptions(include_header=False, quoting_style="none", batch_size=1 << 16)
 
     def write(self, data: dict[str, np.ndarray]) -> None:
-        check_finite(self.target, {c: data[c] for c in self.columns}, data.get("time"))
+        check_finite(self.path, {c: data[c] for c in self.columns}, data.get("time"), self._rows + 1, self.sigmas)
         table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in self.columns})
+        self._rows += table.num_rows
         buf = io.BytesIO()
         pacsv.write_csv(table, buf, write_options=self._opts)
         self._fh.write(buf.getbuffer())
@@ -223,9 +256,10 @@ class CsvTableWriter:
             self._fh.close()
 
 
-def write_table_csv(path, data: dict[str, np.ndarray], columns: list[str] | None = None) -> None:
-    """Write a dict of columns to ``path`` (already an atomic temporary path)."""
+def write_table_csv(path, data: dict[str, np.ndarray], columns: list[str] | None = None, sigmas=()) -> None:
+    """Write a dict of columns to ``path`` (already an atomic temporary path); ``sigmas`` as for
+    :class:`CsvTableWriter`."""
     cols = columns or list(data)
-    with CsvTableWriter(path, cols) as w:
+    with CsvTableWriter(path, cols, sigmas) as w:
         w.write(data)
         w.close()

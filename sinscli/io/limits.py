@@ -13,6 +13,8 @@ from ..errors import SinsError, num, quote
 
 LON_RANGE = 360.0            # deg: longitudes in [-360, 360] (both -180..180 and 0..360 conventions)
 ANGLE_RANGE = 360.0          # deg: roll and heading in [-360, 360]
+MAX_SIGMA = 1.0e9            # a 1-sigma read from a file (m, m/s, deg ...): positive and at most this (its square
+                             # stays far from overflow)
 
 
 def resolve(limits: dict | None) -> dict:
@@ -30,10 +32,10 @@ def _loc(row: str, k: int, column) -> str:
     return f": {row} {k}" + (f", column {quote(column)}" if column is not None else "")
 
 
-def _refuse(where, row, k, column, what, value, bound, unit, key):
+def _refuse(where, row, k, column, what, value, bound, unit, key, hint=""):
     limit = f" (the config's limits.{key})" if key else ""
     raise SinsError(f"{where}{_loc(row, k, column)}: {what} {num(value)}{unit} is beyond the physical limit "
-                    f"{num(bound)}{unit}{limit}")
+                    f"{num(bound)}{unit}{limit}{hint}")
 
 
 def check_abs(where, values, bound: float, what: str, key: str | None, unit: str = "", columns=None,
@@ -75,6 +77,22 @@ def check_range(where, values, lo: float, hi: float, what: str, key: str | None,
                     f"[{num(lo)}, {num(hi)}]{unit}{limit}")
 
 
+def check_sigma(where, values, column=None, first=0, row: str = "line", hint: str = "",
+                variance: bool = False) -> None:
+    """Refuse a 1-sigma (1-D array) that is not a positive finite number at most :data:`MAX_SIGMA`, or
+    with ``variance`` a variance not in (0, MAX_SIGMA^2] (``first`` as for :func:`check_abs`; ``hint`` is
+    added to the message)."""
+    v = np.asarray(values, dtype=np.float64)
+    bound = MAX_SIGMA ** 2 if variance else MAX_SIGMA
+    ok = (v > 0.0) & (v <= bound)
+    if ok.all():
+        return
+    k = int(np.argmax(~ok))
+    name = "variance" if variance else "1-sigma"
+    what = f"{name} {num(v[k])} is beyond {num(bound)}" if v[k] > bound else f"{num(v[k])} is not a positive finite {name}"
+    raise SinsError(f"{where}{_loc(row, _row(first, k), column)}: {what}{hint}")
+
+
 def check_imu_rates(where, gyro, accel, lim: dict, columns=None, first=0, row: str = "line") -> None:
     """Angular rates (rad/s) and specific forces (m/s^2), (N, 3) each, against the limits."""
     gcols, acols = (columns[:3], columns[3:]) if columns is not None else (None, None)
@@ -100,7 +118,16 @@ def check_imu_increments(where, dt, dtheta, dvel, lim: dict, columns=None, first
 
 
 def check_time(where, time, lim: dict, column=None, first=0, row: str = "line") -> None:
-    check_abs(where, time, lim["time"], "time stamp", "time", " s", column, first, row)
+    """Time stamps (s) within the limit; a stamp that fits once read as milli-, micro- or nanoseconds says so."""
+    t = np.asarray(time, dtype=np.float64)
+    ok = np.abs(t) <= lim["time"]
+    if ok.all():
+        return
+    k = int(np.argmax(~ok))
+    from .timebase import SCALES
+    unit = next((u for scale, u in SCALES if abs(t[k]) / scale <= lim["time"]), None)
+    hint = f"; it looks like {unit}, but time stamps are seconds" if unit else ""
+    _refuse(where, row, _row(first, k), column, "time stamp", t[k], lim["time"], " s", "time", hint)
 
 
 def check_position(where, lat_deg, lon_deg, height, lim: dict, columns=("lat", "lon", "height"), first=0,

@@ -1,5 +1,10 @@
 """Trajectory files (FORMATS.md trajectory CSV): read, and write as CSV or Parquet (streamed).
 
+Extra columns (e.g. the 1-sigma and bias columns of an aided trajectory,
+:mod:`sinscli.io.aided_columns`) are written and read as they are; every
+value must be finite and every ``*_std`` column positive, on writing and on
+reading (FORMATS.md).
+
 Other formats register a writer in :data:`WRITERS` by suffix
 (``function(path, traj, conv)``, writing atomically).
 """
@@ -15,6 +20,7 @@ from ..errors import SinsError
 from .inputs import input_file
 from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, quat_to_dcm_many
 from ..types import Trajectory
+from . import aided_columns
 from . import limits as limits_mod
 from .atomic import atomic_path, check_finite, prepare_output
 from .csvcore import CsvTableWriter, read_header, read_numeric_columns
@@ -61,16 +67,20 @@ class TrajectoryWriter:
         if self.suffix not in (".csv", ".parquet"):
             raise SinsError(f"{path}: streaming output supports .csv and .parquet")
         self.columns = BASE_COLUMNS + DCM_COLUMNS + list(extra_columns)
+        self.sigmas = [c for c in self.columns if aided_columns.is_sigma(c)]
         self._ctx = atomic_path(self.path)
         self._tmp = self._ctx.__enter__()
         self._writer = None
+        self._rows = 0
 
     def write(self, traj: Trajectory) -> None:
         cols = trajectory_columns(traj, self.conv)
-        check_finite(self.path, {c: cols[c] for c in self.columns}, cols["time"])
+        if self.suffix != ".csv":            # (the CSV table writer applies the same guard)
+            check_finite(self.path, {c: cols[c] for c in self.columns}, cols["time"], self._rows + 1, self.sigmas)
+        self._rows += len(traj)
         if self.suffix == ".csv":
             if self._writer is None:
-                self._writer = CsvTableWriter(self._tmp, self.columns, target=self.path)
+                self._writer = CsvTableWriter(self._tmp, self.columns, self.sigmas)
             self._writer.write(cols)
         else:
             import pyarrow as pa
@@ -115,9 +125,16 @@ def write_trajectory(path, traj: Trajectory, conv: int = 0) -> None:
             w.write(traj)
         return
     check_trajectory_output(path)
-    check_finite(path, {"time": traj.time, "lat": traj.lat, "lon": traj.lon, "height": traj.height,
-                        "velocity": traj.vel_n, "attitude": traj.Cbn, **traj.extra}, traj.time)
+    guard_trajectory(path, traj)
     WRITERS[suffix](path, traj, conv)
+
+
+def guard_trajectory(path, traj: Trajectory) -> None:
+    """The writer guard (:func:`sinscli.io.atomic.check_finite`) on a whole trajectory: every value finite,
+    every ``*_std`` column positive (the writers of :data:`WRITERS` rely on it)."""
+    check_finite(path, {"time": traj.time, "lat": traj.lat, "lon": traj.lon, "height": traj.height,
+                        "velocity": traj.vel_n, "attitude": traj.Cbn, **traj.extra}, traj.time,
+                 sigmas=[c for c in traj.extra if aided_columns.is_sigma(c)])
 
 
 def check_trajectory_output(path) -> Path:
@@ -190,6 +207,7 @@ def read_trajectory(path, limits=None) -> Trajectory:
                              "qw..qz", first, row)
         cbn = quat_to_dcm_many(q / norm[:, None])
     extra = {c: data[c] for c in data if c not in BASE_COLUMNS and c not in DCM_COLUMNS}
+    aided_columns.check_columns(str(path), extra, first, row)
     return Trajectory(data["time"], data["lat"] * d2r, data["lon"] * d2r, data["height"], vel, cbn, extra,
                       source=str(path))
 

@@ -5,9 +5,15 @@ Position is in a local ENU frame whose origin is the trajectory's first point
 attitude of the FLU body axes (x forward, y left, z up, REP-103) in that ENU
 frame, scalar last as the format wants.  Floats are written in shortest
 round-trip form.
+
+The format is fixed at 8 columns (``evo`` and the TUM tools refuse more), so
+it cannot carry the 1-sigma and bias columns of an aided trajectory: they are
+left out (write ``.csv``, ``.parquet``, ``.mcap``, ``.geojson`` or ``.kml`` to
+keep them).
 """
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
@@ -20,6 +26,7 @@ from ..types import Trajectory
 from .atomic import atomic_path
 from .local_frame import trajectory_enu_quat
 
+TUM_COLUMNS = ("time", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
 _ORIGIN_RE = re.compile(r"origin_lat_deg=(\S+)\s+origin_lon_deg=(\S+)\s+origin_height_m=(\S+)")
 
 
@@ -30,6 +37,9 @@ def _fmt(a: np.ndarray) -> list[str]:
 def write_tum(path, traj: Trajectory, conv: int = 0) -> None:
     """Write ``time tx ty tz qx qy qz qw`` lines (ENU about the first point, FLU body), atomically."""
     origin, enu, q = trajectory_enu_quat(traj, conv)
+    if traj.extra:
+        logging.getLogger("sins").warning("%s: the TUM format has 8 fixed columns; the column(s) %s are left out "
+                                          "(write .csv, .parquet or .mcap to keep them)", path, ", ".join(traj.extra))
     cols = [_fmt(traj.time)] + [_fmt(enu[:, i]) for i in range(3)] + [_fmt(q[:, i]) for i in range(4)]
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="ascii", newline="\n") as f:
@@ -45,6 +55,7 @@ def read_tum(path):
     path = Path(path)
     origin = None
     rows = []
+    lines = []
     try:
         text = path.read_text(encoding="ascii")
     except (OSError, UnicodeDecodeError) as exc:
@@ -65,7 +76,23 @@ def read_tum(path):
             rows.append([float(x) for x in parts])
         except ValueError:
             raise SinsError(f"{path}: line {lineno}: not a number in {s[:60]!r}") from None
+        lines.append(lineno)
     a = np.array(rows, dtype=np.float64).reshape(-1, 8)
+    if a.shape[0] == 0:
+        raise SinsError(f"{path}: no poses (expected lines of time tx ty tz qx qy qz qw)")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        k, c = (int(v[0]) for v in np.nonzero(bad))
+        raise SinsError(f"{path}: line {lines[k]}, column '{TUM_COLUMNS[c]}': value is not a finite number")
+    qn = np.linalg.norm(a[:, 4:8], axis=1)
+    if np.any(np.abs(qn - 1.0) > 1e-3):
+        k = int(np.argmax(np.abs(qn - 1.0) > 1e-3))
+        raise SinsError(f"{path}: line {lines[k]}, column 'qw': the quaternion has norm {qn[k]:.6g}; "
+                        "expected a unit quaternion")
+    if a.shape[0] > 1 and np.any(np.diff(a[:, 0]) <= 0):
+        k = int(np.argmax(np.diff(a[:, 0]) <= 0)) + 1
+        raise SinsError(f"{path}: line {lines[k]}, column 'time': time {a[k, 0]!r} does not increase "
+                        f"(previous {a[k - 1, 0]!r})")
     return a[:, 0], a[:, 1:4], a[:, 4:8], origin
 
 
@@ -75,10 +102,20 @@ def read_tum_trajectory(path, conv: int = 0) -> Trajectory:
     Velocity is not in the format: it is left as zeros.
     """
     t, enu, q_xyzw, origin = read_tum(path)
+    return tum_to_trajectory(t, enu, q_xyzw, origin, conv, str(path))
+
+
+def tum_rotations(q_xyzw: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) of TUM quaternions ``qx qy qz qw`` (normalized)."""
+    q = np.ascontiguousarray(np.asarray(q_xyzw, dtype=np.float64)[:, [3, 0, 1, 2]])
+    return quat_to_dcm_many(q / np.linalg.norm(q, axis=1, keepdims=True))
+
+
+def tum_to_trajectory(t, enu, q_xyzw, origin, conv: int, source: str) -> Trajectory:
+    """The :class:`Trajectory` of TUM rows placed on the earth by their origin (velocity left as zeros)."""
     if origin is None:
-        raise SinsError(f"{path}: no '# origin_lat_deg=... origin_lon_deg=... origin_height_m=...' line; "
+        raise SinsError(f"{source}: no '# origin_lat_deg=... origin_lon_deg=... origin_height_m=...' line; "
                         "cannot place the local ENU frame on the earth")
     lat, lon, h = local_enu_to_lla(enu, *origin)
-    c_flu = quat_to_dcm_many(np.ascontiguousarray(q_xyzw[:, [3, 0, 1, 2]]))
     return Trajectory(time=t, lat=lat, lon=lon, height=h, vel_n=np.zeros((t.shape[0], 3)),
-                      Cbn=cbn_from_flu(c_flu, conv), source=str(path))
+                      Cbn=cbn_from_flu(tum_rotations(q_xyzw), conv), source=source)

@@ -466,3 +466,21 @@ def body_flu_in_enu(cbn: np.ndarray, conv: int) -> np.ndarray:
 def cbn_from_flu(c_flu_n: np.ndarray, conv: int) -> np.ndarray:
     """Inverse of :func:`body_flu_in_enu`: ``Cbn = C_FLU^n C_{conv}^{FLU}``."""
     return np.einsum("nij,jk->nik", np.asarray(c_flu_n, dtype=np.float64), conv_to_flu(conv))
+
+
+def level_heading_frame(heading: np.ndarray) -> np.ndarray:
+    """``M`` (N, 3, 3) with ``(roll, pitch, heading components) = M phi_n`` for ENU small angles ``phi_n``.
+
+    The level heading frame of a physical heading ``H`` (rad): roll about the
+    horizontal forward axis ``(sin H, cos H, 0)``, pitch about the horizontal
+    right axis ``(cos H, -sin H, 0)``, heading about the down axis (clockwise
+    positive).  ``M`` is symmetric and orthogonal, so ``phi_n = M (r, p, h)``
+    as well, and a covariance maps as ``M P M``.
+    """
+    h = np.asarray(heading, dtype=np.float64)
+    sh, ch = np.sin(h), np.cos(h)
+    m = np.zeros(h.shape + (3, 3))
+    m[..., 0, 0], m[..., 0, 1] = sh, ch
+    m[..., 1, 0], m[..., 1, 1] = ch, -sh
+    m[..., 2, 2] = -1.0
+    return m

@@ -1,5 +1,9 @@
 """PNG figures of the errors against time (seed 000 Figs. 1-3, plus position and velocity).
 
+For a run that carries the navigator's own 1-sigma (an aided trajectory), its
+claim is drawn around zero: a shaded +-3 sigma band and dotted +-1 sigma lines.
+The figures only draw: every number comes from :class:`ErrorSeries`.
+
 Matplotlib's object API with the Agg canvas (no pyplot, no global state, safe
 in worker processes and without a display).  Long runs are drawn as a min/max
 envelope per pixel column, so every peak stays visible.
@@ -63,13 +67,33 @@ def _title(ax, title: str, what: str) -> None:
     ax.set_title(f"{short}\n{what}" if short else what, fontsize=9)
 
 
-def _line_plot(ax, series: dict[str, ErrorSeries], values) -> None:
-    """One line per method; line styles cycle too, so that coinciding methods stay visible."""
+def _line_plot(ax, series: dict[str, ErrorSeries], values, sigma=None) -> None:
+    """One line per method; line styles cycle too, so that coinciding methods stay visible.
+
+    ``sigma(s)`` (optional) gives the method's claimed 1-sigma of the same quantity, or None: it is drawn
+    as a shaded +-3 sigma band and thin +-1 sigma lines around zero, in the method's colour.
+    """
     for k, (name, s) in enumerate(series.items()):
         t, y = envelope(s.time, values(s))
-        ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
+        (line,) = ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name, zorder=3)
+        sd = sigma(s) if sigma is not None else None
+        if sd is not None and len(s):
+            ts, ys = envelope(s.time, sd)
+            color = line.get_color()
+            ax.fill_between(ts, -3.0 * ys, 3.0 * ys, color=color, alpha=0.12, lw=0, label=f"{name} +-3 sigma",
+                            zorder=1)
+            ax.plot(ts, ys, color=color, lw=0.6, ls=":", alpha=0.8, label=f"{name} +-1 sigma", zorder=2)
+            ax.plot(ts, -ys, color=color, lw=0.6, ls=":", alpha=0.8, zorder=2)
     ax.grid(True, alpha=0.3)
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
+
+
+def _sigma_of(attr: str, col: int, scale: float = 1.0):
+    """``s -> s.<attr>[:, col] * scale`` or None when the run has no such sigma."""
+    def get(s):
+        arr = getattr(s, attr)
+        return None if arr is None else arr[:, col] * scale
+    return get
 
 
 def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
@@ -79,7 +103,7 @@ def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> li
     for fname, col, label in ATTITUDE_FIGURES:
         fig = Figure(figsize=(8, 4))
         ax = fig.add_subplot()
-        _line_plot(ax, series, lambda s, c=col: s.att_rph_rad[:, c] * scale)
+        _line_plot(ax, series, lambda s, c=col: s.att_rph_rad[:, c] * scale, _sigma_of("att_std_rad", col, scale))
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"truth - navigation ({unit})")
         _title(ax, title, label)
@@ -101,11 +125,11 @@ def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> li
     return names + ["att_angle.png"]
 
 
-def _three_panel(outdir, fname, series, attr, unit, what, title) -> str:
+def _three_panel(outdir, fname, series, attr, unit, what, title, std_attr=None) -> str:
     fig = Figure(figsize=(8, 7))
     axes = fig.subplots(3, 1, sharex=True)
     for c, (ax, axis) in enumerate(zip(axes, ("east", "north", "up"))):
-        _line_plot(ax, series, lambda s: getattr(s, attr)[:, c])
+        _line_plot(ax, series, lambda s: getattr(s, attr)[:, c], _sigma_of(std_attr, c) if std_attr else None)
         ax.set_ylabel(f"{axis} ({unit})")
     _title(axes[0], title, f"{what} error, truth - navigation")
     axes[0].legend(fontsize=8)
@@ -117,10 +141,70 @@ def _three_panel(outdir, fname, series, attr, unit, what, title) -> str:
 
 def plot_position_velocity(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
     """``pos_error.png`` and ``vel_error.png``: E, N, U panels, one line per method."""
-    return [_three_panel(outdir, "pos_error.png", series, "pos_enu_m", "m", "Position", title),
-            _three_panel(outdir, "vel_error.png", series, "vel_enu_mps", "m/s", "Velocity", title)]
+    return [_three_panel(outdir, "pos_error.png", series, "pos_enu_m", "m", "Position", title, "pos_std_m"),
+            _three_panel(outdir, "vel_error.png", series, "vel_enu_mps", "m/s", "Velocity", title, "vel_std_mps")]
 
 
 def plot_all(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
     """Every figure of a report; returns the file names (relative to ``outdir``)."""
     return plot_attitude(outdir, series, title) + plot_position_velocity(outdir, series, title)
+
+
+def plot_metrics(outdir, results: dict, title: str = "", frame: str = "") -> list[str]:
+    """``ate.png`` (ATE against time), ``rpe.png`` (RPE per pair) and ``trajectory_xy.png`` (plan view of
+    the truth and every aligned trajectory) from :class:`~.metrics.TrajectoryMetrics` per method."""
+    names = []
+    ate = {m: r for m, r in results.items() if r.ate_m is not None}
+    if ate:
+        fig = Figure(figsize=(8, 4))
+        ax = fig.add_subplot()
+        for k, (name, r) in enumerate(ate.items()):
+            t, y = envelope(r.time, r.ate_m)
+            ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
+        ax.grid(True, alpha=0.3)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("ATE (m)")
+        _title(ax, title, "Absolute trajectory error |p_nav - p_truth|"
+               + ("" if next(iter(ate.values())).alignment.mode == "none"
+                  else f" after {next(iter(ate.values())).alignment.mode} alignment"))
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        _save(fig, outdir / "ate.png")
+        names.append("ate.png")
+    rpe = {m: r for m, r in results.items() if r.rpe_i is not None}
+    if rpe:
+        fig = Figure(figsize=(8, 6))
+        axes = fig.subplots(2, 1, sharex=True)
+        for k, (name, r) in enumerate(rpe.items()):
+            te = r.time[r.rpe_j]
+            for ax, vals in zip(axes, (r.rpe_trans_m, r.rpe_rot_deg)):
+                t, y = envelope(te, vals)
+                ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
+        axes[0].set_ylabel("translation (m)")
+        axes[1].set_ylabel("rotation (deg)")
+        for ax in axes:
+            ax.grid(True, alpha=0.3)
+        axes[-1].set_xlabel("time at the pair's end (s)")
+        _title(axes[0], title, "Relative pose error per pair")
+        axes[0].legend(fontsize=8)
+        fig.tight_layout()
+        _save(fig, outdir / "rpe.png")
+        names.append("rpe.png")
+    first = next(iter(results.values()))
+    fig = Figure(figsize=(7, 7))
+    ax = fig.add_subplot()
+    step = max(1, len(first.time) // (4 * MAX_POINTS))         # a plan view needs no more points than that
+    ax.plot(first.ref_pos[::step, 0], first.ref_pos[::step, 1], "k-", lw=2.0, alpha=0.5, label="truth")
+    for k, (name, r) in enumerate(results.items()):
+        step = max(1, len(r.time) // (4 * MAX_POINTS))
+        ax.plot(r.est_pos[::step, 0], r.est_pos[::step, 1], lw=1.0, ls=_STYLES[k % len(_STYLES)],
+                label=name + ("" if r.alignment.mode == "none" else f" ({r.alignment.mode}-aligned)"))
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.set_xlabel("x / east (m)")
+    ax.set_ylabel("y / north (m)")
+    _title(ax, title, "Plan view" + (f": {frame}" if frame and len(frame) < 60 else ""))
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, outdir / "trajectory_xy.png")
+    return names + ["trajectory_xy.png"]

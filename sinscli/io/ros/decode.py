@@ -36,8 +36,10 @@ from ...errors import SinsError
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 NAVSAT_TYPE = "sensor_msgs/msg/NavSatFix"
-VEL_TYPES = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/msg/TwistWithCovarianceStamped",
-             "nav_msgs/msg/Odometry")
+ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
+TWIST_TYPES = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/msg/TwistWithCovarianceStamped")
+VEL_TYPES = TWIST_TYPES                          # GNSS velocity, ENU (a GNSS receiver's twist)
+BODY_VEL_TYPES = (ODOMETRY_TYPE,) + TWIST_TYPES  # body velocity (odometry): twist in the child / header frame
 TIME_SOURCES = ("header", "log")
 
 N_VALUES = 37                       # float64 fields after the header

@@ -10,25 +10,34 @@ from ...errors import SinsError
 from .. import limits as limits_mod
 from ...types import GnssLog
 from .containers import _Log, choose_topic, guard, open_log
-from .decode import NAVSAT_TYPE, VEL_TYPES, check_increasing, check_time_source, message_times
+from .decode import NAVSAT_TYPE, ODOMETRY_TYPE, VEL_TYPES, check_increasing, check_time_source, message_times
 
 log = logging.getLogger("sins")
 
 
-def _quat_xyzw_to_dcm(q: np.ndarray) -> np.ndarray:
-    from ...nav.rotation import quat_to_dcm_many
-    wxyz = np.ascontiguousarray(q[:, [3, 0, 1, 2]], dtype=np.float64)
-    n = np.linalg.norm(wxyz, axis=1)
-    if np.any(~np.isfinite(n) | (n < 1e-6)):
-        raise ValueError("invalid orientation quaternion")
-    return quat_to_dcm_many(wxyz / n[:, None])
+BODY_FRAME_NAMES = ("base_link", "base_footprint", "body", "vehicle")
+
+
+def refuse_odometry(lg: _Log, topic: str | None, role: str = "GNSS velocity") -> None:
+    """SinsError when ``topic`` is a ``nav_msgs/Odometry`` topic given where an ENU velocity is required.
+
+    Its twist is the vehicle's velocity in its child (body) frame, and its parent frame (``odom``) is a
+    local frame of arbitrary heading, not ENU: it is body-velocity aiding, read by
+    :func:`sinscli.io.ros.odometry.read_body_velocity`.
+    """
+    if topic is not None and topic in lg.topics and lg.topics[topic].msgtype == ODOMETRY_TYPE:
+        raise SinsError(f"{lg.path}: topic {topic} is nav_msgs/msg/Odometry: its twist is the vehicle's velocity "
+                        f"in its own body frame (child_frame_id), not an ENU velocity, so it cannot serve as "
+                        f"{role}; give it as body-velocity (odometry) input instead (ros.odom_topic, --odom-topic)")
 
 
 def _velocity(lg: _Log, topic: str, time_source: str, lim: dict):
-    """(time s, vel (N,3), std (N,3) or None) from a TwistStamped / TwistWithCovarianceStamped / Odometry topic.
+    """(time s, vel (N,3), std (N,3) or None) from a TwistStamped / TwistWithCovarianceStamped topic, ENU.
 
-    Odometry twist is in the child (body) frame: it is turned into the parent frame with the pose
-    orientation, and the parent frame is taken as ENU.
+    GNSS receiver drivers (nmea_navsat_driver, ublox, septentrio) publish these with the antenna's frame
+    in ``header.frame_id`` and the velocity components east, north, up: the values are taken as ENU.
+    A ``frame_id`` that names a vehicle body frame (``base_link`` ...) gets a warning: such a twist is
+    more likely a body velocity.
     """
     info = lg.topics[topic]
     where = f"{lg.path}: topic {topic}"
@@ -36,6 +45,10 @@ def _velocity(lg: _Log, topic: str, time_source: str, lim: dict):
     if not msgs:
         raise SinsError(f"{where}: topic has no messages")
     t = message_times(where, log_ns, msgs, time_source)
+    frames = sorted({m.header.frame_id for m in msgs} & set(BODY_FRAME_NAMES))
+    if frames:
+        log.warning("%s: frame_id %s names a vehicle body frame, but the twist is read as an ENU (east, north, up) "
+                    "GNSS velocity; if it is a body velocity, give it as odometry instead", where, frames[0])
     std = None
     if info.msgtype == "geometry_msgs/msg/TwistStamped":
         v = np.array([(m.twist.linear.x, m.twist.linear.y, m.twist.linear.z) for m in msgs], dtype=np.float64)
@@ -43,31 +56,24 @@ def _velocity(lg: _Log, topic: str, time_source: str, lim: dict):
         v = np.array([(m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z) for m in msgs],
                      dtype=np.float64)
         cov = np.array([np.asarray(m.twist.covariance, dtype=np.float64).reshape(6, 6)[:3, :3] for m in msgs])
-        if info.msgtype == "nav_msgs/msg/Odometry":
-            q = np.array([(m.pose.pose.orientation.x, m.pose.pose.orientation.y, m.pose.pose.orientation.z,
-                           m.pose.pose.orientation.w) for m in msgs], dtype=np.float64)
-            try:
-                c = _quat_xyzw_to_dcm(q)
-            except ValueError:
-                raise SinsError(f"{where}: an Odometry pose orientation is not a valid quaternion") from None
-            v = np.einsum("nij,nj->ni", c, v)
-            cov = np.einsum("nij,njk,nlk->nil", c, cov, c)
-        var = np.einsum("nii->ni", cov)
-        if np.all(var == 0):
-            std = None
-        else:
-            bad = ~np.isfinite(var).all(axis=1) | (var <= 0).any(axis=1)
-            if bad.any():
-                k = int(np.flatnonzero(bad)[0])
-                raise SinsError(f"{where}: message {k} has a zero, negative or NaN velocity variance "
-                                f"({var[k].tolist()})")
-            std = np.sqrt(var)
+        std = variance_to_std(where, np.einsum("nii->ni", cov), "velocity")
     if not np.isfinite(v).all():
         k = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise SinsError(f"{where}: message {k} has a non-finite velocity")
     limits_mod.check_velocity(where, v, lim, ("x", "y", "z"), 0, "message")
     check_increasing(t, where, f"{time_source} stamp")
     return t, v, std
+
+
+def variance_to_std(where: str, var: np.ndarray, what: str, messages=0) -> np.ndarray | None:
+    """1-sigma from (N, 3) covariance diagonals; None when all are zero (not given); SinsError at a
+    variance among given ones that is not positive and finite (:func:`limits.check_sigma`), naming the
+    message (``messages``: index of row 0, or the message index of every row)."""
+    if np.all(var == 0):
+        return None
+    for j in range(3):
+        limits_mod.check_sigma(where, var[:, j], f"{what} variance [{j}]", messages, "message", variance=True)
+    return np.sqrt(var)
 
 
 def _interp_rows(t_out, t_in, y):
@@ -82,11 +88,14 @@ def read_gnss(path, topic=None, vel_topic=None, time_source="header", limits=Non
     """Read a ``sensor_msgs/NavSatFix`` topic (and optionally a velocity topic) as a :class:`GnssLog`.
 
     Fixes with status "no fix" (-1) are dropped (count logged).  The ENU position
-    covariance diagonal gives ``std_pos`` (absent when every fix says
-    COVARIANCE_TYPE_UNKNOWN).  Velocity (``vel_topic``: TwistStamped,
-    TwistWithCovarianceStamped or Odometry, ENU) is interpolated linearly at the
-    fix times; fixes outside the velocity topic's time span are dropped (count logged).
-    Positions and velocities beyond ``limits`` (the config's section) are refused naming the message.
+    covariance diagonal (REP-145) gives ``std_pos``: None when every fix says
+    COVARIANCE_TYPE_UNKNOWN, NaN rows for the UNKNOWN fixes among known ones (the
+    filter then uses its configured sigma).  Velocity (``vel_topic``: TwistStamped or
+    TwistWithCovarianceStamped, ENU; an Odometry topic is refused: its twist is a
+    body velocity) is interpolated linearly at the fix times; fixes outside the
+    velocity topic's time span are dropped (count logged).
+    Positions, velocities and variances beyond ``limits`` (the config's section) are refused naming the
+    message.
     """
     check_time_source(time_source)
     path = Path(path)
@@ -127,20 +136,18 @@ def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source, lim: 
     std = None
     known = ctype != 0
     if known.any():
-        var = cov[:, [0, 4, 8]]
-        bad = known & (~np.isfinite(var).all(axis=1) | (var <= 0).any(axis=1))
-        if bad.any():
-            k = int(keep[np.flatnonzero(bad)[0]])
-            raise SinsError(f"{where}: message {k} has a zero, negative or NaN position covariance "
-                            f"({var[np.flatnonzero(bad)[0]].tolist()}) with covariance type "
-                            f"{ctype[np.flatnonzero(bad)[0]]}")
-        if known.all():
-            std = np.sqrt(var)
-        else:
-            log.warning("%s: %d fixes have unknown covariance; std columns left out",
-                        where, int((~known).sum()))
+        std = np.full((len(msgs), 3), np.nan)    # NaN: unknown for this fix, the user's configured sigma
+        var = cov[known][:, [0, 4, 8]]
+        for j in range(3):
+            limits_mod.check_sigma(where, var[:, j], f"position variance [{j}] (covariance type known)", keep[known],
+                                   "message", variance=True)
+        std[known] = np.sqrt(var)
+        if not known.all():
+            log.warning("%s: %d of %d fixes have covariance type UNKNOWN; their sigma is left to the config",
+                        where, int((~known).sum()), len(msgs))
     vel = std_vel = None
     if vel_topic is not None:
+        refuse_odometry(lg, vel_topic)
         vtopic = choose_topic(lg, vel_topic, VEL_TYPES, "GNSS velocity", "--vel-topic")
         tv, v, sv = _velocity(lg, vtopic, time_source, lim)
         vel = _interp_rows(t, tv, v)

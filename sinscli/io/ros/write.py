@@ -81,10 +81,39 @@ def _twist_messages(ts, ros1, vel, frame_id="gps"):
                                      angular=v_cls(x=0.0, y=0.0, z=0.0)), covariance=cov))
 
 
-def write_log(path, imu=None, gnss=None, vel=None, *, imu_topic="/imu/data", gnss_topic="/fix",
-              vel_topic="/fix_velocity", frame_id="imu_link", mcap_encoding="cdr", storage="sqlite3",
-              log_delay=0.0, bag_compression=None) -> None:
-    """Write IMU (and GNSS) arrays as a ROS log, serialized by the libraries.
+def _odometry_messages(ts, ros1, odom):
+    """nav_msgs/Odometry objects from ``time``, ``vel`` (N,3, in the child frame), optional ``std`` (N,3),
+    ``frame_id`` (default odom), ``child_frame_id`` (default base_link), ``orientation`` (N,4 xyzw)."""
+    t_ns = _ns(odom["time"])
+    n = len(t_ns)
+    v = np.asarray(odom["vel"], dtype=np.float64)
+    std = odom.get("std")
+    ori = np.asarray(odom.get("orientation", np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))), dtype=np.float64)
+    t = ts.types
+    vec = t["geometry_msgs/msg/Vector3"]
+    for k in range(n):
+        cov = np.zeros(36)
+        if std is not None:
+            cov[[0, 7, 14]] = np.asarray(std[k], dtype=np.float64) ** 2
+        yield t["nav_msgs/msg/Odometry"](
+            header=_header(ts, ros1, int(t_ns[k]), odom.get("frame_id", "odom"), k),
+            child_frame_id=odom.get("child_frame_id", "base_link"),
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](
+                pose=t["geometry_msgs/msg/Pose"](
+                    position=t["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.0),
+                    orientation=t["geometry_msgs/msg/Quaternion"](x=float(ori[k, 0]), y=float(ori[k, 1]),
+                                                                  z=float(ori[k, 2]), w=float(ori[k, 3]))),
+                covariance=np.zeros(36)),
+            twist=t["geometry_msgs/msg/TwistWithCovariance"](
+                twist=t["geometry_msgs/msg/Twist"](linear=vec(x=float(v[k, 0]), y=float(v[k, 1]), z=float(v[k, 2])),
+                                                   angular=vec(x=0.0, y=0.0, z=0.0)),
+                covariance=cov))
+
+
+def write_log(path, imu=None, gnss=None, vel=None, odom=None, *, imu_topic="/imu/data", gnss_topic="/fix",
+              vel_topic="/fix_velocity", odom_topic="/odom", frame_id="imu_link", mcap_encoding="cdr",
+              storage="sqlite3", log_delay=0.0, bag_compression=None) -> None:
+    """Write IMU (and GNSS, GNSS velocity, odometry) arrays as a ROS log, serialized by the libraries.
 
     ``path`` suffix: ``.bag`` (ROS 1, rosbags), ``.mcap`` (``mcap`` writer,
     ``mcap_encoding`` "cdr" or "ros1"), ``.db3`` (a bare rosbag2 sqlite3 file)
@@ -110,7 +139,12 @@ def write_log(path, imu=None, gnss=None, vel=None, *, imu_topic="/imu/data", gns
                         _navsat_messages(ts, ros1, gnss)))
     if vel is not None:
         streams.append((vel_topic, "geometry_msgs/msg/TwistWithCovarianceStamped",
-                        _ns(np.asarray(vel.get("log_time", vel["time"])) + log_delay), _twist_messages(ts, ros1, vel)))
+                        _ns(np.asarray(vel.get("log_time", vel["time"])) + log_delay),
+                        _twist_messages(ts, ros1, vel, vel.get("frame_id", "gps"))))
+    if odom is not None:
+        streams.append((odom_topic, "nav_msgs/msg/Odometry",
+                        _ns(np.asarray(odom.get("log_time", odom["time"])) + log_delay),
+                        _odometry_messages(ts, ros1, odom)))
     serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
 
     def one(i, typ, times, msgs):
