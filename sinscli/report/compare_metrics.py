@@ -22,8 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SinsError
-from ..io.tum import body_flu_in_enu, lla_to_local_enu, tum_rotations, tum_to_trajectory
-from ..nav.earth import enu_rotation
+from ..io.tum import tum_rotations, tum_to_trajectory
+from ..nav.earth import enu_rotation, lla_to_local_enu
+from ..nav.rotation import body_flu_in_enu
 from ..types import Trajectory
 from .errors import ErrorTable, interp_dcm_many, interpolation_weights, match_epochs, time_tolerance
 from .metrics import STATISTICS, Poses, TrajectoryMetrics, trajectory_metrics
