@@ -88,11 +88,24 @@ def test_error_free_swaying_base_is_aligned_exactly():
     eul = np.degrees(dcm_to_euler_many(r.truth.Cbn, 0))
     assert 9.5 < np.ptp(eul[:, 0]) < 10.01 and 9.5 < np.ptp(eul[:, 1]) < 10.01
     assert 0.99 < np.ptp(r.truth.height) < 1.01
-    # exact but for the heave velocity, which the method takes as zero (a moored base): ~1e-6 deg in 120 s
+    # the kernels: the Wahba solution of the interval vectors is exact but for the heave velocity,
+    # which the method takes as zero (a moored base): ~1e-6 deg in 120 s
+    dt = np.diff(np.concatenate([[r.imu.t0], r.imu.time]))
+    M = len(dt)
+    cbb0, alpha, cnn0, beta = inertial.integrate(r.imu.dtheta_b, r.imu.dvel_b, dt, np.full(M + 1, LAT),
+                                                 np.full(M + 1, 50.0), np.zeros((M + 1, 3)), 2)
+    rows = np.arange(50, M + 1, 50)
+    c0 = wahba.solve(np.diff(alpha[np.r_[0, rows]], axis=0), np.diff(beta[np.r_[0, rows]], axis=0))
+    assert _err_deg(r.truth.Cbn[0], c0).max() < 1e-5
+    assert _err_deg(r.truth.Cbn[-1], inertial.attitude_at(c0, cbb0[-1:], cnn0[-1:])[0]).max() < 1e-5
+    # the pipeline's fit takes the 0.38 m/s heave velocity as unmodelled white noise (it finds ~0.27 m/s)
+    # and weighs the epochs accordingly: within 1e-4 deg, and its 1-sigma says so
     res = align(r.imu, AlignOptions(method="inertial", position=POS, sensor=SPEC))
-    assert _err_deg(r.truth.Cbn[-1], res.state.Cbn).max() < 1e-5
+    err = _err_deg(r.truth.Cbn[-1], res.state.Cbn)
+    assert err.max() < 1e-4 and 0.1 < res.residual["unmodelled_velocity_noise"] < 0.4
+    assert np.all(err[:2] < 3.0 * np.degrees(res.sigma[:2]))
     start = align(r.imu, AlignOptions(method="inertial", position=POS, sensor=SPEC, epoch="start"))
-    assert _err_deg(r.truth.Cbn[0], start.state.Cbn).max() < 1e-5
+    assert _err_deg(r.truth.Cbn[0], start.state.Cbn).max() < 1e-4
     assert start.state.time == r.imu.t0
 
 
