@@ -11,6 +11,11 @@ from sinscli.align.pipeline import align
 from sinscli.nav.earth import OMEGA_IE, gravity
 from sinscli.nav.rotation import attitude_error_many, rotvec_to_dcm
 
+
+def dcm_to_rotvec_many(c):
+    from sinscli.nav.rotation import dcm_to_rotvec
+    return np.array([dcm_to_rotvec(np.ascontiguousarray(x)) for x in c])
+
 LAT = math.radians(30.0)
 POS = (LAT, math.radians(114.0), 50.0)
 SPEC = SensorSpec(1e-9, 1e-9, 1e-7, 1e-7)
@@ -115,3 +120,54 @@ def test_sway_scenario_keys_are_checked():
         sway.sway_waves({"yaw": {"amplitude": 1}}, "f.yaml")
     with pytest.raises(SinsError, match="sway.roll.freq: must be >= 0"):
         sway.sway_waves({"roll": {"amplitude": 1, "freq": -1}}, "f.yaml")
+
+
+def test_bias_sensitivities_are_the_first_order_change_of_alpha():
+    """B, G and the gyro-matrix terms of the fit (sinscli.align.fit) against finite differences: the
+    observation vector alpha integrated from increments with a small accelerometer bias, gyro bias or
+    gyro scale-factor/misalignment matrix added moves by B nabla, G eps, G^E e."""
+    from sinscli.align import fit
+    sc = {"name": "d", "start": {"lat": 30, "lon": 114, "height": 50, "heading": 30, "speed": 5},
+          "imu": {"rate": 50}, "gnss": {"rate": 1},
+          "segments": [{"type": "turn", "angle": 90, "duration": 10, "bank": "none"},
+                       {"type": "accelerate", "speed": 10, "duration": 5}, {"type": "roll", "angle": 20, "duration": 5}]}
+    r = sway.ScenarioRuns(sway.prepare_scenario(sc, None, "t", None)).run(0, perfect=True)
+    dt = np.diff(np.concatenate([[r.imu.t0], r.imu.time]))
+    dth, dv = r.imu.dtheta_b, r.imu.dvel_b
+    cbb0, alpha = fit._integrate(dth, dv, dt, 2)
+    rows = np.array([100, 500, 1000])
+    n = rows.size
+    B, G, PE, GE = np.empty((n, 3, 3)), np.empty((n, 3, 3)), np.empty((n, 3, 9)), np.empty((n, 3, 9))
+    fit.bias_sensitivities(cbb0, alpha, np.ascontiguousarray(dth), dt, rows, B, G, PE, GE)
+    nab = np.array([2e-3, -1e-3, 3e-3])
+    eps = np.radians([0.001, -0.002, 0.0015])
+    E = np.array([[1e-4, 2e-4, -1e-4], [-3e-4, 2e-4, 1e-4], [1e-4, -2e-4, 3e-4]])
+    for kind, d_th, d_v, pred in (
+            ("accel", dth, dv + nab * dt[:, None], np.einsum("nij,j->ni", B, nab)),
+            ("gyro", dth + eps * dt[:, None], dv, np.einsum("nij,j->ni", G, eps)),
+            ("matrix", dth + dth @ E.T, dv, np.einsum("nij,j->ni", GE, E.ravel()))):
+        _, a2 = fit._integrate(d_th, d_v, dt, 2)
+        got = a2[rows] - alpha[rows]
+        assert np.abs(got - pred).max() < 1e-3 * np.abs(pred).max(), (kind, got, pred)
+    # B and P^E are the integrals of C_b^b(0) dt and C_b^b(0) e_i dtheta_j: the turn's frame rotation
+    c, _ = fit._integrate(dth + eps * dt[:, None], dv, dt, 2)
+    psi = dcm_to_rotvec_many(np.matmul(c[rows], np.swapaxes(cbb0[rows], 1, 2)))
+    assert np.abs(psi - np.einsum("nij,j->ni", B, eps)).max() < 2e-3 * np.abs(psi).max()
+
+
+def test_fit_covariance_at_rest_matches_the_closed_form_budget():
+    """At rest the fit's attitude covariance (its priors: the description) and the closed-form static
+    budget of observability.py, two derivations of one thing, agree within 10 %."""
+    sc = {"name": "s", "start": {"lat": 30, "lon": 114, "height": 50, "heading": 123.0, "pitch": 2.0, "roll": -3.0},
+          "imu": {"rate": 20, "sensor": {"gyro": {"bias": 0.01, "arw": 0.001}, "accel": {"bias": 50, "vrw": 10}}},
+          "gnss": {"rate": 1}, "segments": [{"type": "rest", "duration": 300}]}
+    r = sway.ScenarioRuns(sway.prepare_scenario(sc, None, "t", None)).run(1)
+    spec = SensorSpec(0.01 * math.pi / 180 / 3600, 0.001 * math.pi / 180 / 60, 50 * 9.80665e-6, 10 * 9.80665e-6)
+    res = align(r.imu, AlignOptions(method="inertial", position=POS, sensor=spec))
+    g = gravity(math.sin(LAT), 50.0)
+    from sinscli.align import observability
+    tilt = observability.tilt_sigma(300.0, 50 * 9.80665e-6, 10 * 9.80665e-6, g)
+    head = observability.earth_rate_heading_sigma(LAT, 300.0, spec.gyro_bias, spec.gyro_arw, spec.accel_bias, g,
+                                                  spec.accel_vrw)
+    assert res.sigma[0] == pytest.approx(tilt, rel=0.1) and res.sigma[1] == pytest.approx(tilt, rel=0.1)
+    assert res.sigma[2] == pytest.approx(head, rel=0.1)

@@ -60,6 +60,18 @@ MAX_EPOCHS = 400          # epochs used (evenly thinned beyond; the last is kept
 NUMERIC_V = 1e-9          # m/s: white noise floor of the observation vectors (double-precision sums)
 
 
+@njit(cache=True, inline="always")
+def _sub_cross_mid(acc, old, new, da0, da1, da2):
+    """``acc[:, b] -= [da x] (old[:, b] + new[:, b]) / 2`` for every column ``b`` (trapezoidal step)."""
+    for b in range(acc.shape[1]):
+        m0 = 0.5 * (old[0, b] + new[0, b])
+        m1 = 0.5 * (old[1, b] + new[1, b])
+        m2 = 0.5 * (old[2, b] + new[2, b])
+        acc[0, b] -= da1 * m2 - da2 * m1
+        acc[1, b] -= da2 * m0 - da0 * m2
+        acc[2, b] -= da0 * m1 - da1 * m0
+
+
 @njit(cache=True)
 def bias_sensitivities(cbb0, alpha, dtheta_b, dt, rows, out_b, out_g, out_pe, out_ge):
     """``B_j``, ``G_j`` (3, 3) and ``P^E_j``, ``G^E_j`` (3, 9) of the module docstring at the sample
@@ -92,21 +104,8 @@ def bias_sensitivities(cbb0, alpha, dtheta_b, dt, rows, out_b, out_g, out_pe, ou
         da0 = alpha[k + 1, 0] - alpha[k, 0]
         da1 = alpha[k + 1, 1] - alpha[k, 1]
         da2 = alpha[k + 1, 2] - alpha[k, 2]
-        for b in range(3):
-            m0 = 0.5 * (B[0, b] + Bn[0, b])
-            m1 = 0.5 * (B[1, b] + Bn[1, b])
-            m2 = 0.5 * (B[2, b] + Bn[2, b])
-            # G -= [da x] mid
-            G[0, b] -= da1 * m2 - da2 * m1
-            G[1, b] -= da2 * m0 - da0 * m2
-            G[2, b] -= da0 * m1 - da1 * m0
-        for b in range(9):
-            m0 = 0.5 * (PE[0, b] + PEn[0, b])
-            m1 = 0.5 * (PE[1, b] + PEn[1, b])
-            m2 = 0.5 * (PE[2, b] + PEn[2, b])
-            GE[0, b] -= da1 * m2 - da2 * m1
-            GE[1, b] -= da2 * m0 - da0 * m2
-            GE[2, b] -= da0 * m1 - da1 * m0
+        _sub_cross_mid(G, B, Bn, da0, da1, da2)
+        _sub_cross_mid(GE, PE, PEn, da0, da1, da2)
         for a in range(3):
             for b in range(3):
                 B[a, b] = Bn[a, b]
