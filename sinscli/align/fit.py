@@ -187,11 +187,56 @@ def inv_psd(N, floor=1e-13):
     return (vecs / vals) @ vecs.T / np.outer(d, d)
 
 
-def _solve(H, r, L, lam, mu):
-    """GLS with prior: whitened per axis by ``L``; returns ``(delta, N^-1, chi2, p_eff, z)``."""
+@njit(cache=True)
+def cholesky_inverse(S):
+    """``(L^-1, log det S)`` with ``S = L L^T`` (Cholesky-Banachiewicz, then forward substitution).
+
+    A plain kernel for the few-hundred-epoch covariances here: LAPACK's threaded routines can take
+    hundreds of times longer on a loaded 2-core machine (threads waking up), this does not."""
+    n = S.shape[0]
+    L = np.zeros((n, n))
+    logdet = 0.0
+    for i in range(n):
+        for j in range(i + 1):
+            acc = S[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            if i == j:
+                if acc <= 0.0:
+                    acc = 1e-300
+                L[i, i] = np.sqrt(acc)
+                logdet += 2.0 * np.log(L[i, i])
+            else:
+                L[i, j] = acc / L[j, j]
+    Li = np.zeros((n, n))
+    for c in range(n):
+        Li[c, c] = 1.0 / L[c, c]
+        for i in range(c + 1, n):
+            acc = 0.0
+            for k in range(c, i):
+                acc -= L[i, k] * Li[k, c]
+            Li[i, c] = acc / L[i, i]
+    return Li, logdet
+
+
+class Whitener:
+    """``L^-1`` of the Cholesky factor of an epoch covariance ``S`` (computed once, applied by products)
+    and ``log det S``."""
+
+    def __init__(self, S):
+        self.Li, self.logdet = cholesky_inverse(np.ascontiguousarray(S, dtype=np.float64))
+
+
+def _whitener(t, s_white, vrw, arw, g, s_common):
+    return Whitener(noise_covariance(t, s_white, vrw, arw, g, s_common))
+
+
+def _solve(H, r, W, lam, mu):
+    """GLS with prior, whitened per axis by ``W`` (:class:`Whitener`); returns
+    ``(delta, N^-1, chi2, p_eff, z, N)`` (``z`` the whitened residuals, (n, 3))."""
     n, _, p = H.shape
-    Hw = np.stack([np.linalg.solve(L, H[:, a, :]) for a in range(3)])      # (3, n, p)
-    rw = np.stack([np.linalg.solve(L, r[:, a]) for a in range(3)])         # (3, n)
+    Hw = np.einsum("ij,jap->aip", W.Li, H)                                  # (3, n, p)
+    rw = np.einsum("ij,ja->ai", W.Li, r)                                    # (3, n)
     N = np.einsum("anp,anq->pq", Hw, Hw) + np.diag(lam)
     rhs = np.einsum("anp,an->p", Hw, rw) + lam * mu
     Ni = inv_psd(N)
@@ -319,8 +364,8 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
         for it in range(1, max_iter + 1):
             cbb0, alpha, a_ep, sens = linearize()
             H, r = system(a_ep, sens, keep)
-            S = noise_covariance(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common)
-            L = np.linalg.cholesky(S + np.eye(S.shape[0]) * 1e-18 * max(float(np.trace(S)), 1e-30))
+            if it == 1:
+                L = _whitener(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common)
             delta, Ni, chi2, p_eff, z, N = _solve(H, r, L, lam, prior_mean())
             step(delta)
             if np.abs(delta[P_PHI]).max() < 1e-11 and it > 1:
@@ -349,17 +394,19 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
             H, r = system(a_ep, sens, keep)
             mu = prior_mean()
             s_ref = max(float(np.sqrt(np.mean(r ** 2))), 1e-9)
+            wcache = {}
 
             def neg2ll(ka, kg, sw, _H=H, _r=r, _mu=mu):
                 lt = lam0.copy()
                 lt[gidx["accel"]] /= ka ** 2
                 lt[gidx["gyro"]] /= kg ** 2
-                St = noise_covariance(t_ep[keep], np.hypot(s_v[keep], sw), vrw, arw, g, s_common)
-                Lt = np.linalg.cholesky(St + np.eye(St.shape[0]) * 1e-18 * max(float(np.trace(St)), 1e-30))
-                _, _, c2, _, _, Nt = _solve(_H, _r, Lt, lt, _mu)
+                key = round(sw, 12)
+                if key not in wcache:
+                    wcache[key] = _whitener(t_ep[keep], np.hypot(s_v[keep], sw), vrw, arw, g, s_common)
+                Wt = wcache[key]
+                _, _, c2, _, _, Nt = _solve(_H, _r, Wt, lt, _mu)
                 pri = np.concatenate([gidx["accel"], gidx["gyro"]])
-                return (c2 + 6.0 * float(np.log(np.diag(Lt)).sum()) + np.linalg.slogdet(Nt)[1]
-                        - float(np.log(lt[pri]).sum()))
+                return c2 + 3.0 * Wt.logdet + np.linalg.slogdet(Nt)[1] - float(np.log(lt[pri]).sum())
             hyp = [widen["accel"], widen["gyro"], s_w]
             bounds = [(0.0, math.log(1e4)) if gidx["accel"].size and widen_priors else None,
                       (0.0, math.log(1e4)) if gidx["gyro"].size and widen_priors else None,
@@ -390,8 +437,7 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
                 lam[gidx[name]] /= k ** 2
                 est[groups[name]] *= k
                 rep[groups[name]] *= k
-            S = noise_covariance(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common)
-            L = np.linalg.cholesky(S + np.eye(S.shape[0]) * 1e-18 * max(float(np.trace(S)), 1e-30))
+            L = _whitener(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common)
             for it in range(1, max_iter + 1):
                 cbb0, alpha, a_ep, sens = linearize()
                 H, r = system(a_ep, sens, keep)
@@ -413,8 +459,7 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
             lo, hi = s_w, max(s_w, max(float(np.sqrt(np.mean(r ** 2))), 1e-9)) * 10.0 + 1.0
             for _ in range(60):                  # chi2(s_w) decreases with s_w: bisect on chi2 = dof
                 mid = math.sqrt(lo * hi) if lo > 0 else hi / 1e6
-                S = noise_covariance(t_ep[keep], np.hypot(s_v[keep], mid), vrw, arw, g, s_common)
-                L = np.linalg.cholesky(S)
+                L = _whitener(t_ep[keep], np.hypot(s_v[keep], mid), vrw, arw, g, s_common)
                 _, _, c2, pe, _, _ = _solve(H, r, L, lam, prior_mean())
                 if c2 > 3.0 * n_used - pe:
                     lo = mid
@@ -423,8 +468,7 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
                 if lo > 0 and hi / lo < 1.01:
                     break
             s_w = hi
-            S = noise_covariance(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common)
-            L = np.linalg.cholesky(S)
+            L = _whitener(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common)
             for _ in range(3):
                 cbb0, alpha, a_ep, sens = linearize()
                 H, r = system(a_ep, sens, keep)
@@ -447,11 +491,10 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
     Hall, rall = system(a_ep, sens, np.ones(n_all, dtype=bool))
     d = delta[P_D] if centered else np.zeros(3)
     resid = rall - d
-    S0 = noise_covariance(t_ep[keep], s_v[keep], vrw, arw, g, s_common)
-    L0 = np.linalg.cholesky(S0 + np.eye(S0.shape[0]) * 1e-18 * max(float(np.trace(S0)), 1e-30))
+    W0 = _whitener(t_ep[keep], s_v[keep], vrw, arw, g, s_common)
     cols = [0, 1, 2] + ([18, 19, 20] if centered else [])
     Hf = Hall[keep][:, :, cols]
-    Hw = np.stack([np.linalg.solve(L0, Hf[:, a, :]) for a in range(3)])
+    Hw = np.einsum("ij,jap->aip", W0.Li, Hf)
     Nf = np.einsum("anp,anq->pq", Hw, Hw)
     cov_floor = psd(inv_psd(Nf)[:3, :3])
     return FitResult(C, Ni, bg, ba, E, d, chi2_0, dof, s_w, dropped, keep, resid, cbb0, alpha, sens[0][-1],
