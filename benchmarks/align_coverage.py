@@ -57,7 +57,7 @@ def main():
               "median 1-sigma (deg)       refused")
         for (m, c), v in cov.items():
             rms = np.sqrt((v.err ** 2).mean(axis=0)) if len(v.seeds) else np.full(3, np.nan)
-            med = np.nanmedian(v.sigma, axis=0) if len(v.seeds) else np.full(3, np.nan)
+            med = np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan for c in v.sigma.T])
             print(f"  {m:14s} {c:11s}  {np.array2string(v.inside(3.0), precision=3):20s}  "
                   f"{np.array2string(v.inside(1.0), precision=3):20s}  {np.array2string(rms, precision=4):25s}  "
                   f"{np.array2string(med, precision=4):25s}  {len(v.refused)}")

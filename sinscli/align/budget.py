@@ -116,6 +116,8 @@ def _hadamard3(inc, dt, m):
     tau = dt[:n].reshape(k, m).sum(axis=1)
     y = c / tau[:, None]
     d = y[3:] - 3.0 * y[2:-1] + 3.0 * y[1:-2] - y[:-3]
+    if d.shape[0] > ALLAN_MAX:                   # the MAD of an even subsample: as good, much faster
+        d = d[:: d.shape[0] // ALLAN_MAX + 1]
     mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
     return 1.482602218505602 * mad * math.sqrt(float(np.median(tau)) / 20.0), k
 
@@ -144,16 +146,19 @@ def noise_statistic(inc, dt):
     return best, best_up, best_m
 
 
+ALLAN_MAX = 1 << 17        # samples of a rest stretch for its Allan variance (plenty for white noise)
+
+
 def allan_white(inc, dt, max_frac=0.1):
     """White-noise density of a stretch at rest from its Allan variance: ``(N, N_upper)`` (largest axis)
     or None.
 
-    The overlapping Allan variance of the rate at cluster times ``tau`` from one sample to
-    ``max_frac`` of the stretch is fitted (weighted least squares, non-negative) by
+    The overlapping Allan variance of the rate (the first ``ALLAN_MAX`` samples) at cluster times
+    ``tau`` from one sample to ``max_frac`` of the stretch is fitted (weighted least squares, non-negative) by
     ``N^2 / tau + 3 Q^2 / tau^2``: white noise and quantization (which the short clusters of
     :func:`noise_statistic` cannot tell apart).  ``N_upper`` is 2.5 standard errors above."""
-    inc = np.asarray(inc, dtype=float)
-    dt = np.asarray(dt, dtype=float)
+    inc = np.asarray(inc, dtype=float)[:ALLAN_MAX]
+    dt = np.asarray(dt, dtype=float)[:ALLAN_MAX]
     n = inc.shape[0]
     step = float(np.median(dt))
     m_max = int(n * max_frac)
@@ -381,10 +386,12 @@ def _fmt(which, v):
     return f"{v / UG:.3g} micro-g"
 
 
-def resolve(spec, ev: Evidence, time=None, dtheta_b=None, dvel_b=None, t0=None) -> Budget:
+def resolve(spec, ev: Evidence, time=None, dtheta_b=None, dvel_b=None, t0=None, quasi_static=False) -> Budget:
     """The budget from a description ``spec`` (:class:`~sinscli.align.options.SensorSpec`, fields
     None where unknown) and the evidence of the log (module docstring).  The increments are needed
-    only to predict the noise statistic of a description that gives quantization or noise."""
+    only to predict the noise statistic of a description that gives quantization or noise.
+    ``quasi_static``: the base stays where it is (no vehicle vibration), so without a stretch at rest
+    the sample-rate noise statistic may judge the description as the Allan variance at rest does."""
     notes, detail = [], {}
     used = set()
     out = {}
@@ -406,8 +413,19 @@ def resolve(spec, ev: Evidence, time=None, dtheta_b=None, dvel_b=None, t0=None) 
             elif inc is not None and m > 0 and data_n > 0.0:
                 # on a moving base the short clusters also see vibration: the noise figure is raised
                 # to them, but the description's other figures are not judged by them
-                pred = predicted_noise_statistic(smooth_rate(inc, dt, np.asarray(time) - t0), dt, cfg_n, q, m)
-                if pred > 0.0 and data_n / pred > 1.5:
+                # (white noise alone gives the density itself; quantization only adds, and a noise-free
+                # quantized signal can make the median absolute deviation 0)
+                pred = max(predicted_noise_statistic(smooth_rate(inc, dt, np.asarray(time) - t0), dt, cfg_n, q, m),
+                           cfg_n)
+                if quasi_static:
+                    # a base that stays where it is moves slowly: one-sample clusters see its noise alone
+                    # (longer ones may see a sway); the description predicts them on a constant rate
+                    d1, _ = _hadamard3(inc, dt, 1)
+                    mean_rate = np.broadcast_to(inc.sum(axis=0) / dt.sum(), inc.shape)
+                    p1 = max(predicted_noise_statistic(mean_rate, dt, cfg_n, q, 1), cfg_n)
+                    if d1 is not None and p1 > 0.0:
+                        k = max(1.0, float(d1.max()) / p1)
+                elif pred > 0.0 and data_n / pred > 1.5:
                     notes.append(f"the log's {which} noise at the sample rate is {data_n / pred:.3g}x what the "
                                  f"sensor description predicts (vibration or noise; no rest to tell): the noise "
                                  f"figure is raised to it")

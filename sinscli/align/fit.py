@@ -58,6 +58,21 @@ DIAG_E = np.array([0, 4, 8])          # scale factors among the 9 elements of E 
 OUTLIER_Q = 30.0          # whitened squared innovation / robust scale: an outlier beyond this
 MAX_EPOCHS = 400          # epochs used (evenly thinned beyond; the last is kept)
 NUMERIC_V = 1e-9          # m/s: white noise floor of the observation vectors (double-precision sums)
+CONVERGED = 1e-6          # rad: a Gauss-Newton step whose attitude effect is below this has converged
+                          # (what the next linearization would change is of its square)
+
+
+@njit(cache=True)
+def corrected_increments(dtheta_b, dvel_b, dt, gyro_bias, accel_bias, E, out_dtheta, out_dvel):
+    """The increments with the estimated errors removed: ``dtheta - eps dt - E dtheta``,
+    ``dvel - nabla dt`` (first order in E: ``w = (I + E)^-1 (w_meas - eps)``)."""
+    for k in range(dt.shape[0]):
+        for a in range(3):
+            acc = dtheta_b[k, a] - gyro_bias[a] * dt[k]
+            for b in range(3):
+                acc -= E[a, b] * dtheta_b[k, b]
+            out_dtheta[k, a] = acc
+            out_dvel[k, a] = dvel_b[k, a] - accel_bias[a] * dt[k]
 
 
 @njit(cache=True, inline="always")
@@ -269,7 +284,7 @@ def _golden(f, a, b, tol=0.02, maxit=30):
 def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0, prior_accel=None,
         prior_gyro=None, prior_sf=None, prior_mis=None, centered=False, s_common=0.0, order=2,
         alpha_adjust=None, robust=False, max_iter=8, report_accel=None, report_gyro=None, report_sf=None,
-        report_mis=None, widen_priors=True) -> FitResult:
+        report_mis=None, widen_priors=True, accel_axes=None) -> FitResult:
     """Fit ``Cbn(0)`` and the sensor errors to the epochs ``rows`` (sample rows, 1..M) of one window.
 
     ``beta_ep`` (n, 3) the navigation-side vectors at the epochs; ``t_ep`` (n,) s since the start;
@@ -280,7 +295,9 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
     1-sigma, ``N^-1 (H^T W H + L S L) N^-1`` (L the prior information, S the reported variance);
     ``s_v`` (n,) or a number: the GNSS velocity 1-sigma; ``alpha_adjust(alpha_ep, cbb0_ep)`` moves the
     GNSS lever arm to the body side; ``widen_priors``: whether a misfit may widen the priors (else
-    only the white noise grows).  See the module docstring.
+    only the white noise grows); ``accel_axes`` (3, 3): body axes (columns) in which the accelerometer
+    bias is parametrized, with ``prior_accel``/``report_accel`` then a 3-vector (one 1-sigma per axis;
+    a tiny estimation prior holds that component at zero).  See the module docstring.
     """
     rows = np.asarray(rows, dtype=np.int64)
     n_all = rows.shape[0]
@@ -298,8 +315,10 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
     mis_mask = np.ones(9, dtype=bool)
     mis_mask[DIAG_E] = False
     for sl, pe, pr in ((P_NAB, prior_accel, report_accel), (P_EPS, prior_gyro, report_gyro)):
-        est[sl] = pe or 0.0
-        rep[sl] = (pr if pr is not None else pe) or 0.0
+        pe = 0.0 if pe is None else np.asarray(pe, dtype=float)
+        est[sl] = pe
+        rep[sl] = pe if pr is None else np.asarray(pr, dtype=float)
+    Ra = np.eye(3) if accel_axes is None else np.asarray(accel_axes, dtype=float)
     e_est = np.where(mis_mask, prior_mis or 0.0, prior_sf or 0.0)
     e_rep = np.where(mis_mask, report_mis if report_mis is not None else (prior_mis or 0.0),
                      report_sf if report_sf is not None else (prior_sf or 0.0))
@@ -316,9 +335,14 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
     rows_b = np.concatenate([rows, [M]])
     dth_all = np.ascontiguousarray(dtheta_b, dtype=np.float64)
 
+    dth = np.empty_like(dth_all)
+    dvc = np.empty_like(dth_all)
+    dv_all = np.ascontiguousarray(dvel_b, dtype=np.float64)
+    dt_c = np.ascontiguousarray(dt, dtype=np.float64)
+
     def linearize():
-        dth = dth_all - bg * dt[:, None] - dth_all @ E.T
-        cbb0, alpha = _integrate(dth, dvel_b - ba * dt[:, None], dt, order)
+        corrected_increments(dth_all, dv_all, dt_c, bg, ba, E, dth, dvc)
+        cbb0, alpha = _integrate(dth, dvc, dt, order)
         Bs = np.empty((n_all + 1, 3, 3))
         Gs = np.empty((n_all + 1, 3, 3))
         PEs = np.empty((n_all + 1, 3, 9))
@@ -336,7 +360,7 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
         r = beta_ep[mask] - b
         H = np.zeros((b.shape[0], 3, p))
         H[:, :, P_PHI] = -np.stack([skew(x) for x in b])
-        H[:, :, P_NAB] = -np.einsum("ij,njk->nik", C, Bs[:-1][mask])
+        H[:, :, P_NAB] = -np.einsum("ij,njk->nik", C, Bs[:-1][mask] @ Ra)
         H[:, :, P_EPS] = -np.einsum("ij,njk->nik", C, Gs[:-1][mask])
         H[:, :, P_E] = -np.einsum("ij,njk->nik", C, GEs[:-1][mask])
         H[:, :, ~free] = 0.0
@@ -346,17 +370,23 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
 
     def prior_mean():
         mu = np.zeros(p)
-        mu[P_NAB] = -ba
+        mu[P_NAB] = -Ra.T @ ba
         mu[P_EPS] = -bg
         mu[P_E] = -E.ravel()
         return mu
 
     def step(delta):
+        """Apply a Gauss-Newton step; returns its size as an attitude (rad): the start attitude's change
+        and the turn of the frame by the bias and gyro-matrix changes at the end."""
         nonlocal C, ba, bg, E
         C = rotvec_to_dcm(delta[P_PHI]) @ C
-        ba = ba + delta[P_NAB]
+        ba = ba + Ra @ delta[P_NAB]
         bg = bg + delta[P_EPS]
         E = E + delta[P_E].reshape(3, 3)
+        Bs, _, PEs, _ = sens
+        turn = Bs[-1] @ delta[P_EPS] + PEs[-1] @ delta[P_E]
+        return max(float(np.abs(delta[P_PHI]).max()), float(np.abs(turn).max()),
+                   float(np.abs(delta[P_NAB]).max()) * t_ep[-1] / max(float(np.abs(beta_ep).max()), 1e-9))
 
     it = 0
     s_w = 0.0
@@ -367,8 +397,7 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
             if it == 1:
                 L = _whitener(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common)
             delta, Ni, chi2, p_eff, z, N = _solve(H, r, L, lam, prior_mean())
-            step(delta)
-            if np.abs(delta[P_PHI]).max() < 1e-11 and it > 1:
+            if step(delta) < CONVERGED:
                 break
         if not robust or keep.sum() <= 6:
             break
@@ -442,8 +471,7 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
                 cbb0, alpha, a_ep, sens = linearize()
                 H, r = system(a_ep, sens, keep)
                 delta, Ni, chi2, p_eff, z, N = _solve(H, r, L, lam, prior_mean())
-                step(delta)
-                if np.abs(delta[P_PHI]).max() < 1e-11 and it > 1:
+                if step(delta) < CONVERGED:
                     break
         # a widened prior is the data's figure from r_p components: reported at its Student t (as the
         # bias components at rest, :mod:`.budget`)
@@ -497,6 +525,10 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
     Hw = np.einsum("ij,jap->aip", W0.Li, Hf)
     Nf = np.einsum("anp,anq->pq", Hw, Hw)
     cov_floor = psd(inv_psd(Nf)[:3, :3])
+    if accel_axes is not None:                   # the covariance with the accelerometer bias in body axes
+        Tr = np.eye(p)
+        Tr[P_NAB, P_NAB] = Ra
+        Ni = Tr @ Ni @ Tr.T
     return FitResult(C, Ni, bg, ba, E, d, chi2_0, dof, s_w, dropped, keep, resid, cbb0, alpha, sens[0][-1],
                      sens[2][-1], cov_floor, it, widen, report_widen)
 

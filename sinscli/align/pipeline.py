@@ -267,11 +267,13 @@ def _rest_statistics(w: Window, opts: AlignOptions):
     return moving, dw, df
 
 
-def resolve_budget(w: Window, opts: AlignOptions, lat: float, g: float) -> budget_mod.Budget:
-    """The sensor budget of a window: the description (``opts.sensor``) checked against the log."""
+def resolve_budget(w: Window, opts: AlignOptions, lat: float, g: float,
+                   quasi_static: bool = False) -> budget_mod.Budget:
+    """The sensor budget of a window: the description (``opts.sensor``) checked against the log
+    (``quasi_static``: the method takes the base as staying where it is, :func:`budget.resolve`)."""
     ev = budget_mod.gather_evidence(w.time, w.dtheta_b, w.dvel_b, w.t0, lat, g, opts.static_rate,
                                     opts.static_accel, opts.static_block)
-    return budget_mod.resolve(opts.sensor, ev, w.time, w.dtheta_b, w.dvel_b, w.t0)
+    return budget_mod.resolve(opts.sensor, ev, w.time, w.dtheta_b, w.dvel_b, w.t0, quasi_static=quasi_static)
 
 
 def _accel_prior(b, g, est=False):
@@ -291,6 +293,16 @@ def _turning(w: Window) -> bool:
     the bias term already carries."""
     wb, _ = coarse.block_means(w.time, w.dtheta_b, w.dvel_b, w.t0, 1.0)
     return float(np.linalg.norm(wb - wb.mean(axis=0), axis=1).sum()) > TURN_MIN
+
+
+def _level_axes(w: Window) -> np.ndarray:
+    """Body axes (columns) whose third is up (the mean specific force's direction) and first two level."""
+    up = w.dvel_b.sum(axis=0)
+    up = up / np.linalg.norm(up)
+    a = np.eye(3)[int(np.argmin(np.abs(up)))]
+    x = np.cross(a, up)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(up, x), up], axis=-1)
 
 
 def _gyro_matrix_cov(b) -> np.ndarray:
@@ -427,15 +439,23 @@ def _fit(w: Window, ob: _Observations, cbn0, g, b, rows_mask=None, robust=False,
     turning = _turning(w)
     # without GNSS the base's own motion (heave, sway) is unmodelled and the gyro matrix's effect
     # oscillates with the sway as heave does: it is not estimated, only carried in the covariance
-    # (a consider parameter: an estimation prior 1e-3 of the reported one holds it at zero), and a
-    # misfit widens only the white noise (the bias components a base at rest shows were checked
-    # against the description already, budget.resolve)
+    # (a consider parameter: an estimation prior 1e-3 of the reported one holds it at zero); so are the
+    # horizontal accelerometer bias components, which at rest a tilt absorbs and on a swaying base only
+    # the sway (with the heave it does not model) would tell from one (the vertical one is estimated);
+    # a misfit widens only the white noise (the bias components a base at rest shows were checked
+    # against the description already, budget.resolve), so the gyro bias is estimated with its
+    # reported (Student t) 1-sigma rather than the point scale: a gyro bias the few components
+    # understated would otherwise stay unexplained
     e_est = 1.0 if ob.vel_ep is not None else 1e-3
+    axes = None if e_est == 1.0 else _level_axes(w)
+    scale = np.ones(3) if axes is None else np.array([e_est, e_est, 1.0])
 
     def run():
         return fit.fit(w.dtheta_b, w.dvel_b, w.dt, rows, ob.beta[rows], cbn0, ob.times[m] - w.t0, g=g,
-                       vrw=b.accel_vrw, arw=b.gyro_arw, s_v=ob.s_v[m], prior_accel=_accel_prior(b, g, True),
-                       prior_gyro=b.gyro_bias_est, report_accel=_accel_prior(b, g), report_gyro=b.gyro_bias,
+                       vrw=b.accel_vrw, arw=b.gyro_arw, s_v=ob.s_v[m], prior_accel=_accel_prior(b, g, True) * scale,
+                       prior_gyro=b.gyro_bias_est if axes is None else b.gyro_bias,
+                       report_accel=np.full(3, _accel_prior(b, g)), report_gyro=b.gyro_bias,
+                       accel_axes=axes,
                        prior_sf=b.gyro_sf_est * e_est if turning else 0.0,
                        prior_mis=b.gyro_mis_est * e_est if turning else 0.0,
                        report_sf=b.gyro_sf, report_mis=b.gyro_mis,
@@ -448,7 +468,7 @@ def _fit(w: Window, ob: _Observations, cbn0, g, b, rows_mask=None, robust=False,
         # fit with the bounds of a working IMU determined (posterior 1-sigma < 0.3 prior), Student t
         for which, sl, prior in (("gyro", fit.P_EPS, b.gyro_bias_est), ("accel", fit.P_NAB, _accel_prior(b, g, True)),
                                  ("matrix", fit.P_E, max(b.gyro_sf_est, b.gyro_mis_est))):
-            if b.bias_known[which] or (which == "matrix" and (not turning or e_est < 1.0)):
+            if b.bias_known[which] or (which == "matrix" and (e_est < 1.0 or not turning)):
                 continue
             x = {"gyro": res.gyro_bias, "accel": res.accel_bias, "matrix": res.gyro_matrix.ravel()}[which]
             comp, cs = fit.observed_components(x, res.cov[sl, sl], prior)
@@ -729,7 +749,7 @@ def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress
         check_gnss_coverage(gnss, w.t0, t1)
     lat, lon, h = resolve_position(opts, gnss, w.t0)
     g = float(gravity(math.sin(lat), h))
-    b = resolve_budget(w, opts, lat, g)
+    b = resolve_budget(w, opts, lat, g, quasi_static=not moving_gnss)
     notes.extend(b.notes)
     coarse_method = opts.method
     if opts.method == "kf":
