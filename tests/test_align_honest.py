@@ -29,7 +29,7 @@ from sinscli.align.pipeline import align
 from sinscli.cli import main
 from sinscli.errors import SinsError
 from sinscli.io.trajectory import read_trajectory
-from sinscli.nav.earth import OMEGA_IE, gravity
+from sinscli.nav.earth import gravity
 from sinscli.nav.rotation import dcm_to_euler
 from sinscli.sensors import load_sensor
 
@@ -396,4 +396,3 @@ def test_output_says_where_the_sigma_came_from(tmp_path):
     d = yaml.safe_load(out.read_text())
     assert d["sigma_basis"] == "data" and "no sensor description" in res.output
     assert d["sensor_budget"]["from"]["gyro_bias"].startswith("data (2 component(s) at rest")
-    assert OMEGA_IE > 0.0
