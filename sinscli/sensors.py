@@ -54,10 +54,10 @@ def preset_text(name: str) -> str:
     return resources.files("sinscli").joinpath("data", "sensors", f"{name.lower()}.yaml").read_text(encoding="utf-8")
 
 
-def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path) -> dict:
+def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path, key: str = "imu.sensor") -> dict:
     """Resolve a sensor spec (None, preset name, YAML path or mapping) plus overrides.
 
-    Returns ``{"gyro": {key: SI value(s)}, "accel": {...}}``.
+    Returns ``{"gyro": {key: SI value(s)}, "accel": {...}}``; ``key`` names the config key in errors.
     """
     data: dict = {}
     where = src
@@ -71,14 +71,14 @@ def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path) -> dict:
         if not preset and not path.is_absolute():
             path = base_dir / path
         if not preset and not path.exists():
-            raise SinsError(f"{src}: imu.sensor: no sensor preset or file {spec!r} "
+            raise SinsError(f"{src}: {key}: no sensor preset or file {spec!r} "
                             f"(presets: {', '.join(PRESETS)})")
         data = (parse_yaml(preset_text(spec), str(path)) if preset else load_yaml(path, "sensor file")) or {}
         where = str(path)
         if not isinstance(data, dict):
             raise SinsError(f"{path}: expected a mapping with 'gyro' and 'accel'")
     else:
-        raise SinsError(f"{src}: imu.sensor: expected a preset name, a file or a mapping; got {spec!r}")
+        raise SinsError(f"{src}: {key}: expected a preset name, a file or a mapping; got {spec!r}")
     out = {}
     for which, units in (("gyro", GYRO_UNITS), ("accel", ACCEL_UNITS)):
         merged = dict(data.get(which) or {})

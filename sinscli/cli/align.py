@@ -90,7 +90,8 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
     conv_name = cfg["imu"]["body"]
     conv = BODY_CONVENTIONS[conv_name]
     opts = build_options(al, str(config_path) if config_path else "command line", conv=conv,
-                         lever_arm=cfg["gnss"]["lever_arm"])
+                         lever_arm=cfg["gnss"]["lever_arm"],
+                         base_dir=config_path.parent if config_path is not None else None)
     if position is not None:
         opts.position = parse_position(position, "--position")
     imu_log = read_imu(imu, cfg)
