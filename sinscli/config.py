@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import SinsError, num
+from .errors import SinsError, num, quote
 
 GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
 ACCEL_UNITS = {"m/s^2": 1.0, "g": 9.80665, "mg": 9.80665e-3}
@@ -184,8 +184,8 @@ def validate(cfg: dict, src: str) -> None:
     for k, v in units.items():
         if k not in UNIT_CHOICES:
             _fail(src, f"imu.units.{k}", f"unknown quantity; expected one of {', '.join(UNIT_CHOICES)}")
-        if v not in UNIT_CHOICES[k]:
-            _fail(src, f"imu.units.{k}", f"expected one of {', '.join(UNIT_CHOICES[k])}, got {v!r}")
+        if not isinstance(v, str) or v not in UNIT_CHOICES[k]:
+            _fail(src, f"imu.units.{k}", f"expected one of {', '.join(UNIT_CHOICES[k])}, got {quote(v, 40)}")
     for k, v in DEFAULTS["imu"]["units"].items():
         units.setdefault(k, v)
     for section, names in (("imu", IMU_NAMES), ("gnss", GNSS_NAMES), ("odometry", ODOMETRY_NAMES)):

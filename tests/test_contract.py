@@ -4,6 +4,7 @@ examples and the mechanisms (limits as config keys, the writer guard, the naviga
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import sqlite3
 import subprocess
@@ -291,6 +292,10 @@ def test_atomic_temporaries_are_named_after_the_target(tmp_path):
         assert tmp.name == f".out.csv.{os.getpid()}.part"
         tmp.write_text("x")
     assert not stale.exists() and other.exists() and target.read_text() == "x"
+    # the writer guard names the target, also for a file inside a staged report folder
+    from sinscli.io.atomic import target_of
+    assert target_of(tmp_path / f".rep.{os.getpid()}.part" / "errors.csv") == tmp_path / "rep" / "errors.csv"
+    assert target_of(tmp_path / f".out.csv.{os.getpid()}.part") == target
 
 
 def test_numba_cache_falls_back_when_nothing_is_writable(tmp_path):
@@ -316,3 +321,111 @@ def test_numba_cache_falls_back_when_nothing_is_writable(tmp_path):
     warn = [ln for ln in p.stderr.splitlines() if ln.strip()]
     assert len(warn) == 1 and "cannot write numba's kernel cache" in warn[0], p.stderr
     assert len((work / "nav.csv").read_text().splitlines()) == 1 + 1 + 40        # header, initial row, 40 samples
+
+
+# --------------------------------------------------------------------------- main's new inputs and outputs
+
+def _fused(data, tmp_path, *extra, gnss=None, init=INIT):
+    return ["navigate", data / "imu.csv", "--gnss", gnss or SAMPLE / "gnss.csv", "--init", init, "-q",
+            "-o", tmp_path / "f.csv", *extra]
+
+
+@pytest.mark.parametrize("text,fragments", [
+    ("fusion:\n  gnss_pos_sigma: [1.5, 1.0e+300, 3.0]\n", ["c.yaml: fusion.gnss_pos_sigma[1]", "within +-1e+09"]),
+    ("fusion:\n  init_sigma: {position: 1.0e+8}\n", ["fusion.init_sigma.position: expected a number <= 1e+07"]),
+    ("fusion:\n  standstill: {window: 1.0e+30}\n", ["fusion.standstill.window"]),
+    ("fusion:\n  rejection_run: 9223372036854775807\n", ["fusion.rejection_run", "from 1 to 2147483647"]),
+    ("fusion:\n  gnss_vel_sigma: .inf\n", ["c.yaml: line 2", "fusion.gnss_vel_sigma: '.inf' is not a finite"]),
+    ("fusion:\n  sensor: {gyro: {arw: [a, b, c]}}\n", ["c.yaml: gyro.arw: expected 3 numbers or one"]),
+    ("fusion:\n  sensor: {gyro: {arw: 1.0e+300}}\n", ["gyro.arw: 1e+300 is beyond +-1e+09"]),
+    ("fusion:\n  sensor: {gyro: [1, 2]}\n", ["gyro: expected a mapping of error terms"]),
+    ("gnss:\n  time_offset: 1.0e+300\n", ["c.yaml: gnss.time_offset", "limits.time"]),
+])
+def test_fusion_config_values_that_cannot_be_physical(data, tmp_path, text, fragments):
+    (tmp_path / "c.yaml").write_text(text)
+    refused(_fused(data, tmp_path, "--config", "c.yaml"), *fragments, cwd=tmp_path)
+    assert not (tmp_path / "f.csv").exists()
+
+
+def test_fused_navigation_inputs(data, tmp_path):
+    """GNSS rows beyond the limits, an init with broken align estimates, outputs checked up front."""
+    gnss = _with_line(SAMPLE / "gnss.csv", tmp_path / "g.csv", 5, 7, "1e30")           # std_e
+    refused(_fused(data, tmp_path, gnss=gnss), "g.csv: line 6, column 'std_e': 1-sigma 1e+30 is beyond 1000000000.0")
+    gnss = _with_line(SAMPLE / "gnss.csv", tmp_path / "g.csv", 5, 4, "2e4")            # vel_e
+    refused(_fused(data, tmp_path, gnss=gnss), "g.csv: line 6, column 'vel_e'", "limits.speed")
+    for extra, *fragments in (("sigma_roll: 0.0\nsigma_pitch: 0.1\n", "sigma_roll: 0.0 is not a positive finite"),
+                              ("sigma_roll: 0.1\nsigma_pitch: 0.1\nsigma_heading: text\n",
+                               "sigma_heading: expected a 1-sigma in degrees"),
+                              ("gyro_bias: [1, 2]\naccel_bias: [1, 2, 3]\n", "gyro_bias: expected three numbers"),
+                              ("gyro_bias: [1.0e+12, 0, 0]\naccel_bias: [1, 2, 3]\n", "gyro bias", "limits.rate")):
+        init = tmp_path / "i.yaml"
+        init.write_text(INIT.read_text() + extra)
+        refused(_fused(data, tmp_path, init=init), "i.yaml", *fragments)
+    (tmp_path / "d").mkdir()
+    refused(_fused(data, tmp_path, "--innovations", tmp_path / "d"), "output is a directory")
+    refused(_fused(data, tmp_path, "--innovations", tmp_path / "g.csv" / "x.csv"), "is a file, not a folder")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d", "g.csv", "i.yaml"]
+
+
+def test_tum_inputs_of_compare(data, tmp_path):
+    tr = read_trajectory(SAMPLE / "truth.csv")
+    write_trajectory(tmp_path / "t.tum", tr)
+    text = (tmp_path / "t.tum").read_text().splitlines()
+    (tmp_path / "n.tum").write_text("\n".join(text[:5] + ["1e11 0 0 0 0 0 0 1"] + text[6:]) + "\n")
+    refused(["compare", "--truth", tmp_path / "t.tum", tmp_path / "n.tum", "-o", tmp_path / "r"],
+            "n.tum: line 6, column 'time': time stamp 100000000000.0 s is beyond", "limits.time")
+    bad = [re.sub(r"origin_lat_deg=\S+", "origin_lat_deg=95", ln) for ln in text]
+    (tmp_path / "n.tum").write_text("\n".join(bad) + "\n")
+    refused(["compare", "--truth", SAMPLE / "truth.csv", tmp_path / "n.tum", "-o", tmp_path / "r"],
+            "n.tum: line 2, column 'origin_lat_deg': latitude 95.")
+    (tmp_path / "n.tum").write_text("\n".join(text[:4] + ["3.0 1e300 0 0 0 0 0 1"] + text[5:]) + "\n")
+    refused(["compare", "--truth", tmp_path / "t.tum", tmp_path / "n.tum", "-o", tmp_path / "r"],
+            "n.tum: line 5, column 'tx': position 1e+300 m")
+    os.mkfifo(tmp_path / "fifo.tum")
+    refused(["compare", "--truth", SAMPLE / "truth.csv", tmp_path / "fifo.tum", "-o", tmp_path / "r"],
+            "fifo.tum: is a FIFO")
+    (tmp_path / "afile").write_text("x")
+    refused(["compare", "--truth", SAMPLE / "truth.csv", tmp_path / "t.tum", "-o", tmp_path / "afile"],
+            "afile")
+    assert not (tmp_path / "r").exists()
+
+
+def test_compare_metrics_alignment_names_the_file(tmp_path):
+    """The first 31 s of the sample drive stand still: no rotation fixes the Umeyama alignment."""
+    lines = (SAMPLE / "truth.csv").read_text().splitlines()[:3000]
+    (tmp_path / "n.csv").write_text("\n".join(lines) + "\n")
+    refused(["compare", "--truth", tmp_path / "n.csv", tmp_path / "n.csv", "--metrics", "ate", "--align-traj", "se3",
+             "-o", tmp_path / "r"], "n.csv: the positions do not fix a rotation")
+
+
+def test_body_velocity_csv_limits(tmp_path):
+    from sinscli.config import load_config
+    from sinscli.io.readers import read_body_velocity
+    rows = ["time,vel_x,vel_y,vel_z,std_x,std_y,std_z"] + [f"{0.1 * k!r},1.0,0.0,0.0,0.1,0.1,0.1" for k in range(10)]
+    for k, col, value, fragment in ((4, 1, "2e4", "line 5, column 'vel_x': velocity 20000.0 m/s is beyond"),
+                                    (4, 0, "1e12", "line 5, column 'time': time stamp"),
+                                    (4, 5, "1e300", r"line 5, column 'std_y': 1-sigma 1e\+300 is beyond")):
+        cells = rows[k].split(",")
+        cells[col] = value
+        (tmp_path / "o.csv").write_text("\n".join(rows[:k] + [",".join(cells)] + rows[k + 1:]) + "\n")
+        with pytest.raises(SinsError, match=fragment):
+            read_body_velocity(tmp_path / "o.csv", load_config(None))
+
+
+def test_allan_writers_guard(tmp_path):
+    from sinscli.allan.output import write_allan_csv, write_fit_csv, write_sensor_yaml
+    from sinscli.allan.pipeline import characterize
+    rng = np.random.default_rng(4)
+    n = 7000
+    imu = ImuLog(0.01 * np.arange(1, n + 1), rng.normal(0, 2e-5, (n, 3)),
+                 rng.normal(0, 2e-4, (n, 3)) + [0.0, 0.0, 0.097936], t0=0.0, source="static.csv")
+    res = characterize(imu, None, None, 0.01, 0.1, 1.0)
+    res.adev[3, 2] = np.nan
+    with pytest.raises(NonFiniteOutput, match=r"allan.csv: internal consistency check: row 4, column 'adev'"):
+        write_allan_csv(tmp_path / "allan.csv", res)
+    res.fits[1].white = float("inf")
+    with pytest.raises(NonFiniteOutput, match=r"fit.csv: .*row 2, column 'white'"):
+        write_fit_csv(tmp_path / "fit.csv", res)
+    with pytest.raises(NonFiniteOutput, match=r"sensor.yaml: .*column 'gyro.arw'"):
+        write_sensor_yaml(tmp_path / "sensor.yaml", res, "x")
+    assert list(tmp_path.iterdir()) == []

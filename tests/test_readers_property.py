@@ -198,11 +198,15 @@ def _init_docs():
                   st.just([])))
 
 
+def yaml_docs(docs):
+    """Documents of a YAML reader: its own structure edited, any YAML value, any text or bytes."""
+    return st.one_of(docs, VALUES.map(yaml.safe_dump), any_text())
+
+
 @SETTINGS
-@given(st.one_of(_init_docs(), VALUES.map(yaml.safe_dump), any_text()))
+@given(yaml_docs(_init_docs()))
 def test_init_yaml_reads_or_refuses(text):
-    path = _write(text, ".yaml")
-    s = read_or_refuse(read_init, path)
+    s = read_or_refuse(read_init, _write(text, ".yaml"))
     if s is None:
         return
     assert all(math.isfinite(x) for x in (s.time, s.lat, s.lon, s.height))
@@ -224,10 +228,9 @@ def _config_docs():
 
 
 @SETTINGS
-@given(st.one_of(_config_docs(), VALUES.map(yaml.safe_dump), any_text()))
+@given(yaml_docs(_config_docs()))
 def test_config_yaml_loads_or_refuses(text):
-    path = _write(text, ".yaml")
-    cfg = read_or_refuse(load_config, path)
+    cfg = read_or_refuse(load_config, _write(text, ".yaml"))
     if cfg is None:
         return
     nav = cfg["navigation"]
@@ -238,3 +241,93 @@ def test_config_yaml_loads_or_refuses(text):
     from sinscli.config import mounting_matrix
     m = mounting_matrix(cfg["imu"]["mounting"])
     assert np.isfinite(m).all() and np.abs(m @ m.T - np.eye(3)).max() <= 1e-6
+
+
+
+# ------------------------------------------------------------------ readers of the fusion inputs
+
+ODOM = ["time", "vel_x", "vel_y", "vel_z", "std_x", "std_y", "std_z"]
+
+
+@SETTINGS
+@given(st.one_of(structured_csv(ODOM), plausible_csv(ODOM, 0.1), any_text()))
+def test_body_velocity_csv_reads_or_refuses(text):
+    from sinscli.io.readers import read_body_velocity
+    bv = read_or_refuse(lambda p: read_body_velocity(p, load_config(None)), _write(text, ".csv"))
+    if bv is None:
+        return
+    assert np.isfinite(bv.time).all() and np.isfinite(bv.vel_b).all() and np.all(np.diff(bv.time) > 0)
+    assert np.abs(bv.time).max() <= LIM["time"] and np.linalg.norm(bv.vel_b, axis=1).max() <= LIM["speed"]
+    assert bv.std is None or (np.isfinite(bv.std).all() and (bv.std > 0).all())
+
+
+def _tum_docs():
+    """TUM rows around valid poses (unit quaternions), with junk cells and an origin line."""
+    def build(rows, junk, origin):
+        lines = [f"# origin_lat_deg={origin[0]} origin_lon_deg={origin[1]} origin_height_m={origin[2]}"]
+        for k, (p, q) in enumerate(rows):
+            q = np.asarray(q) / (np.linalg.norm(q) or 1.0)
+            lines.append(" ".join(repr(float(x)) for x in [0.1 * (k + 1), *p, *q]))
+        for (i, j), v in junk:
+            if len(lines) > 1:
+                i = 1 + i % (len(lines) - 1)
+                cells = lines[i].split()
+                cells[j % 8] = v.replace(" ", "") or "x"
+                lines[i] = " ".join(cells)
+        return "\n".join(lines) + "\n"
+    vec = st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3)
+    quat = st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4)
+    origin = st.tuples(*(st.one_of(st.floats(-100, 100).map(repr), NUMBERS) for _ in range(3)))
+    return st.builds(build, st.lists(st.tuples(vec, quat), max_size=10),
+                     st.lists(st.tuples(st.tuples(st.integers(0, 20), st.integers(0, 20)), NUMBERS), max_size=2),
+                     origin)
+
+
+@SETTINGS
+@given(st.one_of(_tum_docs(), any_text()))
+def test_tum_reads_or_refuses(text):
+    from sinscli.io.tum import read_tum
+    out = read_or_refuse(read_tum, _write(text, ".tum"))
+    if out is None:
+        return
+    t, enu, q, origin = out
+    assert np.isfinite(t).all() and np.isfinite(enu).all() and np.isfinite(q).all() and np.all(np.diff(t) > 0)
+    assert np.abs(t).max() <= LIM["time"] and np.abs(enu).max() <= 1e8
+    assert np.abs(np.linalg.norm(q, axis=1) - 1.0).max() <= 1e-3
+    assert origin is None or (abs(math.degrees(origin[0])) <= 90 and math.isfinite(origin[2]))
+
+
+def _fusion_docs():
+    from sinscli.fusion.options import FUSION_DEFAULTS
+    keys = [(k,) for k, v in FUSION_DEFAULTS.items() if not isinstance(v, dict)] + \
+        [(k, j) for k, v in FUSION_DEFAULTS.items() if isinstance(v, dict) for j in v]
+
+    def edit(changes):
+        d: dict = {}
+        for path, v in changes:
+            node = d.setdefault("fusion", {})
+            for k in path[:-1]:
+                node = node.setdefault(k, {})
+            node[path[-1]] = v
+        return yaml.safe_dump(d)
+    values = st.one_of(VALUES, st.floats(-1e12, 1e12), st.lists(st.floats(-1e12, 1e12), min_size=2, max_size=3))
+    return st.builds(edit, st.lists(st.tuples(st.sampled_from(keys), values), max_size=3))
+
+
+@SETTINGS
+@given(yaml_docs(_fusion_docs()))
+def test_fusion_section_loads_or_refuses(text):
+    from sinscli.fusion.options import build_fusion_options
+    path = _write(text, ".yaml")
+
+    def read(p):
+        cfg = load_config(p)
+        return build_fusion_options(cfg.get("fusion"), str(p), base_dir=p.parent)
+    o = read_or_refuse(read, path)
+    if o is None:
+        return
+    for name, v in vars(o).items():
+        if isinstance(v, (float, np.ndarray)) and name != "base_dir":
+            assert np.isfinite(v).all() and np.abs(v).max() <= 1e9, (name, v)
+    for sigma in (o.gnss_pos_sigma, o.gnss_vel_sigma, o.init_pos_sigma, o.init_vel_sigma, o.init_att_sigma):
+        assert (sigma > 0).all()

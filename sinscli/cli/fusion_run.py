@@ -4,7 +4,6 @@ Kept apart from :mod:`sinscli.cli.navigate` so that plain navigation does not im
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import click
@@ -13,30 +12,12 @@ import numpy as np
 from ..errors import SinsError
 from ..io.gnss_csv import check_gnss_against_imu
 from ..io.atomic import prepare_output
-from ..io.init_state import read_init
+from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
 from ..io.readers import read_gnss, read_imu
 from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
-from ..types import ImuLog, NavState
+from ..types import ImuLog
 from .base import log, progress
-
-def init_from_yaml(init: NavState) -> tuple[dict, dict | None]:
-    """1-sigma (attitude, rad) and sensor estimates (SI) that a ``sins align`` YAML carries."""
-    sig = {}
-    x = init.extra
-    if "sigma_roll" in x and "sigma_pitch" in x:
-        head = x.get("sigma_heading")
-        sig["attitude"] = np.radians([float(x["sigma_roll"]), float(x["sigma_pitch"]),
-                                      float(head) if head is not None else np.inf])
-        for k in ("sigma_roll", "sigma_pitch"):
-            v = float(x[k])
-            if not math.isfinite(v) or v <= 0:
-                raise SinsError(f"init: {k}: expected a finite sigma > 0, got {x[k]!r}")
-    bias = None
-    if "gyro_bias" in x and "accel_bias" in x:
-        bias = {"gyro": np.radians(np.asarray(x["gyro_bias"], float)) / 3600.0,
-                "accel": np.asarray(x["accel_bias"], float) * 9.80665e-6}
-    return sig, bias
 
 
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
@@ -66,7 +47,7 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts.gnss_pos_sigma)
     else:
         init = read_init(init_path, t0, opts.conv, cfg["limits"])
-        init_sigma, init_bias = init_from_yaml(init)
+        init_sigma, init_bias = align_estimates(init, init_path, cfg["limits"])
     fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias)
     step = 1 << 16
     blocks = (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],

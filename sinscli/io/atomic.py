@@ -59,12 +59,11 @@ def check_finite(path, columns: dict, time=None, first_row: int = 1, sigmas=()) 
 
 
 def target_of(path: Path) -> Path:
-    """The target of a temporary ``<folder>/.<name>.<pid>.part<suffix>`` of this process (else ``path``)."""
-    name = path.name
+    """``path`` with every temporary name of this process in it (``.<name>.<pid>.part<suffix>``, a file
+    of :func:`atomic_path` or a folder of :func:`staged_dir`) replaced by its target's name."""
     tag = f".{os.getpid()}.part"
-    if name.startswith(".") and tag in name:
-        return path.parent / name[1:name.index(tag)]
-    return path
+    parts = [p[1:p.index(tag)] if p.startswith(".") and tag in p else p for p in path.parts]
+    return Path(*parts) if parts else path
 
 
 def temp_sibling(path: Path, suffix: str = "") -> Path:

@@ -9,7 +9,8 @@ x forward, y left, z up, as ``sins convert`` writes a ``base_link`` twist;
 turned into the convention in force).  Other column names through
 ``odometry.columns``.  Checks: unknown or missing columns, values
 that are not finite numbers, a sigma of 0 or below, time that repeats or goes
-backwards (gaps are allowed: an odometer may stop publishing at rest).
+backwards (gaps are allowed: an odometer may stop publishing at rest), time
+stamps and speeds beyond the config's physical ``limits``.
 """
 from __future__ import annotations
 
@@ -30,20 +31,24 @@ STD = ["std_x", "std_y", "std_z"]
 
 
 def read_body_velocity_csv(path, cfg: dict | None = None) -> BodyVelLog:
-    """Read a body-velocity CSV; ``cfg`` is the whole validated config (odometry and imu sections) or None."""
+    """Read a body-velocity CSV; ``cfg`` is the whole validated config (odometry, imu and limits sections)
+    or None."""
     path = Path(path)
+    lim = limits_mod.resolve((cfg or {}).get("limits"))
     odo = (cfg or {}).get("odometry") or {}
     data, mapping = read_mapped_columns(
         path, odo, ODOMETRY_NAMES, ["time"] + VEL, [STD],
         "expected a body-velocity CSV: time, vel_x, vel_y, vel_z and optionally std_x, std_y, std_z (map other "
         "names with the config's odometry.columns)", "expected time, vel_x, vel_y, vel_z (m/s, body axes)")
     names = {c: mapping.get(c, c) for c in data}
+    limits_mod.check_time(path, data["time"], lim, names["time"], 2)
     check_time(path, data["time"], allow_gaps=True, what=names["time"])
+    vel = np.column_stack([data[c] for c in VEL])
+    limits_mod.check_velocity(path, vel, lim, [names[c] for c in VEL], 2)
     for c in STD:
         if c in data:
             limits_mod.check_sigma(path, data[c], names[c], 2)
     std = np.column_stack([data[c] for c in STD]) if STD[0] in data else None
-    vel = np.column_stack([data[c] for c in VEL])
     kind = odo.get("frame", "auto")
     if kind in ("sensor", "vehicle"):
         imu = (cfg or {}).get("imu") or {}

@@ -89,6 +89,42 @@ def _read_init_yaml(path: Path, conv: int, lim: dict) -> NavState:
                     np.array([vals["vel_e"], vals["vel_n"], vals["vel_u"]]), cbn, extra)
 
 
+def align_estimates(state: NavState, where, limits=None) -> tuple[dict, dict | None]:
+    """The 1-sigma (``{"attitude": rad (3,)}``, heading inf when ``sigma_heading`` is null) and the sensor
+    estimates (``{"gyro": rad/s (3,), "accel": m/s^2 (3,)}`` or None) that a ``sins align`` init YAML
+    carries in its extra keys (deg, deg/h, micro-g).  A sigma that is not positive, a bias that is not three
+    numbers or lies beyond the physical ``limits`` is refused naming the key."""
+    lim = limits_mod.resolve(limits)
+    x = state.extra
+    sig = {}
+    if "sigma_roll" in x and "sigma_pitch" in x:
+        deg = []
+        for k in ("sigma_roll", "sigma_pitch", "sigma_heading"):
+            v = x.get(k)
+            if k == "sigma_heading" and v is None:
+                deg.append(math.inf)                 # unobservable heading
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise SinsError(f"{where}: {k}: expected a 1-sigma in degrees, got {quote(v, 40)}")
+            limits_mod.check_sigma(where, np.array([v], dtype=np.float64), k, row="")
+            deg.append(float(v))
+        sig["attitude"] = np.radians(deg)
+    bias = None
+    if "gyro_bias" in x and "accel_bias" in x:
+        vals = {}
+        for k in ("gyro_bias", "accel_bias"):
+            v = x[k]
+            if not (isinstance(v, list) and len(v) == 3 and
+                    all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in v)):
+                raise SinsError(f"{where}: {k}: expected three numbers [x, y, z], got {quote(v, 60)}")
+            vals[k] = np.asarray(v, dtype=np.float64)
+        bias = {"gyro": np.radians(vals["gyro_bias"]) / 3600.0, "accel": vals["accel_bias"] * 9.80665e-6}
+        limits_mod.check_abs(where, bias["gyro"], lim["rate"], "gyro bias", "rate", " rad/s", "gyro_bias", row="")
+        limits_mod.check_abs(where, bias["accel"], lim["specific_force"], "accelerometer bias", "specific_force",
+                             " m/s^2", "accel_bias", row="")
+    return sig, bias
+
+
 def init_dict(state: NavState, conv: int = 0) -> dict:
     """FORMATS.md init keys of a state (degrees), as plain floats (exact round trip)."""
     roll, pitch, heading = dcm_to_euler(np.ascontiguousarray(state.Cbn), conv)

@@ -13,6 +13,7 @@ from ..errors import SinsError, num, quote
 
 LON_RANGE = 360.0            # deg: longitudes in [-360, 360] (both -180..180 and 0..360 conventions)
 ANGLE_RANGE = 360.0          # deg: roll and heading in [-360, 360]
+MAX_LOCAL_POSITION = 1.0e8   # m: a position in a local frame (TUM files), as far as the height limit
 MAX_SIGMA = 1.0e9            # a 1-sigma read from a file (m, m/s, deg ...): positive and at most this (its square
                              # stays far from overflow)
 

@@ -75,6 +75,7 @@ def read_body_velocity(path, cfg: dict) -> BodyVelLog:
         return read_ros_body_velocity(path, topic=ros.get("odom_topic"), time_source=ros.get("time", "header"),
                                       mounting=mounting_matrix(cfg["imu"].get("mounting")),
                                       conv=BODY_CONVENTIONS[cfg["imu"]["body"]],
-                                      frame=cfg["odometry"].get("frame", "auto"), imu_topic=ros.get("imu_topic"))
+                                      frame=cfg["odometry"].get("frame", "auto"), imu_topic=ros.get("imu_topic"),
+                                      limits=cfg.get("limits"))
     from .body_vel_csv import read_body_velocity_csv
     return read_body_velocity_csv(path, cfg)
