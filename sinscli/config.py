@@ -11,9 +11,8 @@ import math
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from .errors import SinsError
+from .errors import SinsError, num, quote
 
 GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
 ACCEL_UNITS = {"m/s^2": 1.0, "g": 9.80665, "mg": 9.80665e-3}
@@ -59,6 +58,14 @@ DEFAULTS = {
         "krylov_substep_tol": 1.0e-9,       # krylov: RK4 truncation allowed per interval / its rotation
         "launch": None,           # {lat, lon, height, azimuth} deg/m for launch-inertial
     },
+    "limits": {                   # physically impossible inputs are refused at the reader (line, column)
+        "rate": 100.0,            # rad/s: angular rate, or an increment's |dtheta| / dt
+        "specific_force": 980.665,    # m/s^2 (100 g): specific force, or |dvel| / dt
+        "speed": 10000.0,         # m/s: GNSS, init and trajectory velocity (each component and the norm)
+        "height_min": -20000.0,   # m: ellipsoidal height range of GNSS, init and trajectory rows
+        "height_max": 1.0e8,
+        "time": 1.0e10,           # s: largest time stamp magnitude (a stamp in ns instead of s is refused)
+    },
     "ros": {
         "imu_topic": None,
         "gnss_topic": None,
@@ -79,6 +86,8 @@ CHOICES = {
     ("ros", "time"): ["header", "log"],
     ("odometry", "frame"): ["auto", "body", "vehicle", "sensor"],
 }
+MAX_COUNT = 2 ** 31 - 1          # largest subsamples / every (the kernels count in int64)
+MAX_LEVER_ARM = 1000.0           # m, each lever-arm component
 UNIT_CHOICES = {"gyro": GYRO_UNITS, "accel": ACCEL_UNITS, "dtheta": ANGLE_UNITS, "dvel": VEL_UNITS}
 
 
@@ -98,15 +107,11 @@ def load_config(path=None, extra_sections=STAGE_SECTIONS) -> dict:
         cfg[name] = None
     if path is None:
         return cfg
+    from .io.inputs import load_yaml
     path = Path(path)
-    if not path.exists():
-        raise SinsError(f"{path}: config file not found")
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark else ""
-        raise SinsError(f"{path}:{where} is not valid YAML") from None
+    data = load_yaml(path, "config file")
+    if data is None:
+        data = {}
     if not isinstance(data, dict):
         raise SinsError(f"{path}: expected a mapping of sections {sorted(DEFAULTS)}")
     for section, values in data.items():
@@ -155,8 +160,8 @@ def validate(cfg: dict, src: str) -> None:
     nav = cfg["navigation"]
     for key in ("subsamples", "every"):
         v = nav[key]
-        if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-            _fail(src, f"navigation.{key}", f"expected a whole number >= 1, got {v!r}")
+        if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= MAX_COUNT:
+            _fail(src, f"navigation.{key}", f"expected a whole number from 1 to {MAX_COUNT}, got {num(v)}")
     if not isinstance(nav["allow_gaps"], bool):
         _fail(src, "navigation.allow_gaps", f"expected true or false, got {nav['allow_gaps']!r}")
     thr = nav["singularity_threshold"]
@@ -170,7 +175,7 @@ def validate(cfg: dict, src: str) -> None:
         if not isinstance(launch, dict) or set(launch) - {"lat", "lon", "height", "azimuth"}:
             _fail(src, "navigation.launch", "expected a mapping with keys lat, lon, height, azimuth")
         for k, v in launch.items():
-            if not isinstance(v, (int, float)):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 _fail(src, f"navigation.launch.{k}", f"expected a number, got {v!r}")
     imu = cfg["imu"]
     units = imu["units"]
@@ -179,8 +184,8 @@ def validate(cfg: dict, src: str) -> None:
     for k, v in units.items():
         if k not in UNIT_CHOICES:
             _fail(src, f"imu.units.{k}", f"unknown quantity; expected one of {', '.join(UNIT_CHOICES)}")
-        if v not in UNIT_CHOICES[k]:
-            _fail(src, f"imu.units.{k}", f"expected one of {', '.join(UNIT_CHOICES[k])}, got {v!r}")
+        if not isinstance(v, str) or v not in UNIT_CHOICES[k]:
+            _fail(src, f"imu.units.{k}", f"expected one of {', '.join(UNIT_CHOICES[k])}, got {quote(v, 40)}")
     for k, v in DEFAULTS["imu"]["units"].items():
         units.setdefault(k, v)
     for section, names in (("imu", IMU_NAMES), ("gnss", GNSS_NAMES), ("odometry", ODOMETRY_NAMES)):
@@ -198,13 +203,26 @@ def validate(cfg: dict, src: str) -> None:
     if not isinstance(imu["static_start"], bool):
         _fail(src, "imu.static_start", f"expected true or false, got {imu['static_start']!r}")
     mounting_matrix(imu["mounting"], src)
+    lim = cfg["limits"]
+    for k, v in lim.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or \
+                (k != "height_min" and v <= 0):
+            hint = " (YAML reads 1.0e8 as text: write 1.0e+8)" if isinstance(v, str) and "e" in v.lower() else ""
+            _fail(src, f"limits.{k}", f"expected a finite number{'' if k == 'height_min' else ' > 0'}, "
+                                      f"got {v!r}{hint}")
+        lim[k] = float(v)
+    if not lim["height_min"] < lim["height_max"]:
+        _fail(src, "limits.height_min", f"must be below limits.height_max ({lim['height_max']!r})")
     arm = cfg["gnss"]["lever_arm"]
     if (not isinstance(arm, (list, tuple)) or len(arm) != 3
-            or not all(isinstance(x, (int, float)) for x in arm)):
-        _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres, got {arm!r}")
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and abs(x) <= MAX_LEVER_ARM
+                       for x in arm)):
+        _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres (at most {MAX_LEVER_ARM:g} "
+                                     f"each), got {arm!r}")
     off = cfg["gnss"]["time_offset"]
-    if not isinstance(off, (int, float)) or isinstance(off, bool) or not math.isfinite(off):
-        _fail(src, "gnss.time_offset", f"expected a finite number of seconds, got {off!r}")
+    if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
+        _fail(src, "gnss.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the config's "
+                                       f"limits.time), got {off!r}")
 
 
 def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
@@ -219,12 +237,12 @@ def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
     if isinstance(mounting, dict):
         bad = set(mounting) - {"roll", "pitch", "yaw"}
         if bad:
-            _fail(src, f"imu.mounting.{sorted(bad)[0]}", "unknown key; expected roll, pitch, yaw (degrees)")
+            _fail(src, f"imu.mounting.{sorted(map(str, bad))[0]}", "unknown key; expected roll, pitch, yaw (degrees)")
         ang = {}
         for k in ("roll", "pitch", "yaw"):
             v = mounting.get(k, 0.0)
-            if not isinstance(v, (int, float)) or isinstance(v, bool):
-                _fail(src, f"imu.mounting.{k}", f"expected a number of degrees, got {v!r}")
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not abs(v) <= 360.0:
+                _fail(src, f"imu.mounting.{k}", f"expected a number of degrees in [-360, 360], got {v!r}")
             ang[k] = math.radians(v)
         cr, sr = math.cos(ang["roll"]), math.sin(ang["roll"])
         cp, sp = math.cos(ang["pitch"]), math.sin(ang["pitch"])
@@ -239,6 +257,7 @@ def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
         m = None
     if m is None or m.shape != (3, 3):
         _fail(src, "imu.mounting", "expected {roll, pitch, yaw} in degrees or a 3x3 rotation matrix")
-    if np.abs(m @ m.T - np.eye(3)).max() > 1e-6 or np.linalg.det(m) < 0:
+    if not np.all(np.abs(m) <= 1.0 + 1e-6) or not np.abs(m @ m.T - np.eye(3)).max() <= 1e-6 \
+            or not np.linalg.det(m) > 0:
         _fail(src, "imu.mounting", "the 3x3 matrix is not a rotation (orthonormal, det +1) within 1e-6")
     return m

@@ -1,4 +1,13 @@
-"""The one exception type a user ever sees: a one-line message, exit status 2."""
+"""The one exception type a user ever sees: a one-line message, exit status 2; and how user text and
+numbers are written into messages."""
+from __future__ import annotations
+
+import numbers
+import re
+
+MAX_MESSAGE = 480        # characters of a message; longer ones are cut (a giant header, a huge value)
+# numpy 2 writes scalars as np.float64(0.01): a message shows the number alone, wherever it was formatted
+_NUMPY_REPR = re.compile(r"np\.(?:float|int|uint|complex|str_|bool)\w*\(([^()]*)\)")
 
 
 class SinsError(Exception):
@@ -11,4 +20,26 @@ class SinsError(Exception):
     exit_code = 2
 
     def __init__(self, message: str):
-        super().__init__(" ".join(str(message).split()))
+        text = _NUMPY_REPR.sub(r"\1", " ".join(str(message).split()))
+        if len(text) > MAX_MESSAGE:
+            text = text[:MAX_MESSAGE - 3] + "..."
+        super().__init__(text)
+
+
+def quote(text, limit: int = 60) -> str:
+    """``'text'`` for a message, cut to ``limit`` characters and with unprintable characters escaped."""
+    s = repr(str(text))
+    return s if len(s) <= limit else s[:limit - 4] + "...'"
+
+
+def num(x) -> str:
+    """A number written plainly for a message: ``0.01``, ``1e+308``, ``nan`` (never ``np.float64(0.01)``)."""
+    if isinstance(x, bool):
+        return str(x)
+    if isinstance(x, numbers.Integral):
+        s = str(int(x))
+        return s if len(s) <= 24 else f"{s[:12]}... ({len(s)} digits)"
+    try:
+        return repr(float(x))
+    except (TypeError, ValueError, OverflowError):
+        return quote(x)

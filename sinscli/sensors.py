@@ -13,9 +13,9 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from .errors import SinsError
+from .errors import SinsError, num, quote
+from .io.inputs import load_yaml, parse_yaml
 
 DEG = np.pi / 180.0
 G0 = 9.80665                      # m/s^2 per g (unit conversion only)
@@ -47,6 +47,8 @@ ACCEL_UNITS = {
     "quantization": 1.0,                   # m/s per count
 }
 PRESETS = ("navigation", "tactical", "mems")
+MAX_VALUE = 1.0e9            # any value of a sensor description, in its units (squares stay finite)
+MIN_TAU = 1.0e-6             # s: shortest Gauss-Markov correlation time
 
 
 def preset_text(name: str) -> str:
@@ -70,13 +72,10 @@ def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path, key: str
         path = Path(f"<preset {spec.lower()}>") if preset else Path(spec)
         if not preset and not path.is_absolute():
             path = base_dir / path
-        try:
-            data = yaml.safe_load(preset_text(spec) if preset else path.read_text(encoding="utf-8")) or {}
-        except OSError:
+        if not preset and not path.exists():
             raise SinsError(f"{src}: {key}: no sensor preset or file {spec!r} "
-                            f"(presets: {', '.join(PRESETS)})") from None
-        except yaml.YAMLError as exc:
-            raise SinsError(f"{path}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
+                            f"(presets: {', '.join(PRESETS)})")
+        data = (parse_yaml(preset_text(spec), str(path)) if preset else load_yaml(path, "sensor file")) or {}
         where = str(path)
         if not isinstance(data, dict):
             raise SinsError(f"{path}: expected a mapping with 'gyro' and 'accel'")
@@ -84,6 +83,9 @@ def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path, key: str
         raise SinsError(f"{src}: {key}: expected a preset name, a file or a mapping; got {spec!r}")
     out = {}
     for which, units in (("gyro", GYRO_UNITS), ("accel", ACCEL_UNITS)):
+        for part, name in ((data.get(which), where), ((overrides or {}).get(which), src)):
+            if part is not None and not isinstance(part, dict):
+                raise SinsError(f"{name}: {which}: expected a mapping of error terms, got {quote(part, 40)}")
         merged = dict(data.get(which) or {})
         merged.update((overrides or {}).get(which) or {})
         out[which] = _convert(merged, units, where, which)
@@ -93,6 +95,10 @@ def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path, key: str
     return out
 
 
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
 def _convert(d: dict, units: dict, where: str, which: str) -> dict:
     out = {}
     for k, v in d.items():
@@ -100,15 +106,18 @@ def _convert(d: dict, units: dict, where: str, which: str) -> dict:
             raise SinsError(f"{where}: {which}.{k}: unknown key; expected one of {', '.join(units)}")
         n = 6 if k.startswith("misalignment") else 3
         if isinstance(v, (list, tuple)):
-            if len(v) != n:
-                raise SinsError(f"{where}: {which}.{k}: expected {n} numbers or one; got {len(v)}")
+            if len(v) != n or not all(_number(x) for x in v):
+                raise SinsError(f"{where}: {which}.{k}: expected {n} numbers or one; got {quote(v, 60)}")
             arr = np.array(v, dtype=float)
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+        elif _number(v):
             arr = np.full(n, float(v))
         else:
-            raise SinsError(f"{where}: {which}.{k}: expected a number; got {v!r}")
-        if k in ("bias_tau",) and np.any(arr <= 0.0):
-            raise SinsError(f"{where}: {which}.{k}: must be > 0")
+            raise SinsError(f"{where}: {which}.{k}: expected a number; got {quote(v, 60)}")
+        if not np.all(np.abs(arr) <= MAX_VALUE):
+            raise SinsError(f"{where}: {which}.{k}: {num(arr[np.argmax(~(np.abs(arr) <= MAX_VALUE))])} is beyond "
+                            f"+-{MAX_VALUE:g}")
+        if k in ("bias_tau",) and np.any(arr < MIN_TAU):
+            raise SinsError(f"{where}: {which}.{k}: must be at least {MIN_TAU:g} s")
         if (k.endswith("sigma") or k in ("arw", "vrw", "bias_instability", "quantization")) and np.any(arr < 0):
             raise SinsError(f"{where}: {which}.{k}: must be >= 0")
         out[k] = arr * units[k]

@@ -277,7 +277,8 @@ def test_cli_bad_input(case, tmp_path):
                                          "bias_instability: 50, bias_tau: 100}\n")
         cfg = {"fusion": {"sensor": "s.yaml"}}
     elif case == "not_pd":
-        # a pathological model: a negative bias time constant makes the covariance blow up
+        # a pathological model (a bias of 1e12 deg/h with a 1 ns time constant would make the covariance blow
+        # up): refused by the sensor reader's bounds before the filter starts
         (tmp_path / "s.yaml").write_text("gyro: {arw: 0.3, bias_sigma: 360, bias_instability: 1.0e+12, "
                                          "bias_tau: 1.0e-9}\naccel: {vrw: 100, bias_sigma: 5000, "
                                          "bias_instability: 1.0e+12, bias_tau: 1.0e-9}\n")
@@ -290,7 +291,8 @@ def test_cli_bad_input(case, tmp_path):
     assert len(lines) == 1 and lines[0].startswith("sins: error:"), r.stderr
     assert not (tmp_path / "out.csv").exists()
     expect = {"no_overlap": "does not overlap", "bad_sigma": "fusion.zupt.sigma", "nonfinite": "gnss_pos_sigma",
-              "sensor_missing_term": "gyro.bias_instability", "not_pd": "covariance"}[case]
+              "sensor_missing_term": "gyro.bias_instability",
+              "not_pd": "s.yaml: gyro.bias_instability: 1000000000000.0 is beyond"}[case]
     assert expect in lines[0], lines[0]
 
 

@@ -371,7 +371,9 @@ def _case(tmp_path, kind):
         g = _gnss()
         g["cov"] = g["cov"].copy()
         g["cov"][2] = 0.0
-        return _write(t / "x.db3", imu=imu, gnss=g), [], "topic /fix: message 2 has a zero, negative or NaN position"
+        return _write(t / "x.db3", imu=imu, gnss=g), [], ("topic /fix: message 2, column 'position variance [0] "
+                                                          "(covariance type known)': 0.0 is not a positive finite "
+                                                          "variance")
     if kind == "compression_bag":
         p = _write(t / "x.bag", imu=imu, gnss=_gnss(), bag_compression="bz2")
         _flip_compression(p, b"compression=bz2", b"compression=xz9")

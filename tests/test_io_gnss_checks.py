@@ -154,7 +154,7 @@ def _gnss_csv(tmp_path, **cols):
 @pytest.mark.parametrize("col,value", [("std_n", 0.0), ("std_u", -1.0), ("std_vel_e", 0.0), ("std_vel_u", -0.5)])
 def test_gnss_csv_refuses_a_sigma_of_zero_or_below(tmp_path, col, value):
     path = _gnss_csv(tmp_path, **{col: (3, value)})
-    with pytest.raises(SinsError, match=rf"gnss\.csv: line 5, column '{col}': {value!r} is not a positive 1-sigma"):
+    with pytest.raises(SinsError, match=rf"gnss\.csv: line 5, column '{col}': {value!r} is not a positive finite 1-sigma"):
         read_gnss_csv(path)
 
 
@@ -285,7 +285,7 @@ def test_align_refuses_a_gnss_sigma_of_zero(unix_rest, tmp_path):
     res = _align(tmp_path, "gnss.csv")
     assert res.returncode == 2 and not (tmp_path / "init.yaml").exists()
     assert res.stderr.strip().splitlines() == [
-        "sins: error: gnss.csv: line 4, column 'std_n': 0.0 is not a positive 1-sigma"]
+        "sins: error: gnss.csv: line 4, column 'std_n': 0.0 is not a positive finite 1-sigma"]
 
 
 @pytest.mark.parametrize("gnss_t", [GNSS_UNIX + 5000.0, GNSS_UNIX - T_UNIX, GNSS_UNIX * 1e3,

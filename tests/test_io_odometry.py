@@ -15,7 +15,6 @@ from sinscli.config import load_config
 from sinscli.errors import SinsError
 from sinscli.io import ros
 from sinscli.io.body_vel_csv import read_body_velocity_csv, write_body_velocity_csv
-from sinscli.io.csvcore import write_table_csv
 from sinscli.io.readers import read_body_velocity, read_gnss, read_imu
 from sinscli.io.ros.odometry import read_body_velocity as read_ros_body_velocity
 from sinscli.nav.earth import lla_to_local_enu
@@ -103,8 +102,8 @@ def test_odometry_sigmas_and_bad_messages(tmp_path):
     ros.write_log(tmp_path / "z.bag", odom=_odom(std=None))
     assert read_ros_body_velocity(tmp_path / "z.bag").std is None            # all-zero covariance: not given
     ros.write_log(tmp_path / "neg.bag", odom=_odom(std=(0.1, 0.0, 0.1)))
-    with pytest.raises(SinsError, match=r"neg\.bag: topic /odom: message 0 has a zero, negative or NaN twist "
-                                        r"velocity variance"):
+    with pytest.raises(SinsError, match=r"neg\.bag: topic /odom: message 0, column 'twist velocity variance \[1\]': "
+                                        r"0.0 is not a positive finite variance"):
         read_ros_body_velocity(tmp_path / "neg.bag")
     o = _odom()
     o["vel"] = o["vel"].copy()
@@ -160,8 +159,10 @@ def test_align_vel_topic_odometry_is_refused(tmp_path):
 # --------------------------------------------------------------------------- body-velocity CSV
 
 def _csv(tmp_path, data, name="odom.csv"):
+    """The columns as CSV text (not through the writer, whose guard refuses the non-finite values made here)."""
     path = tmp_path / name
-    write_table_csv(path, data)
+    rows = zip(*(np.asarray(v, dtype=np.float64).tolist() for v in data.values()))
+    path.write_text(",".join(data) + "\n" + "".join(",".join(repr(x) for x in r) + "\n" for r in rows))
     return path
 
 
@@ -198,8 +199,8 @@ def test_body_velocity_csv_round_trip_and_frames(tmp_path):
     (lambda d: d.pop("vel_z"), r"missing column\(s\) vel_z; expected time, vel_x, vel_y, vel_z"),
     (lambda d: d.update(speed=np.ones(6)), r"unknown column\(s\) 'speed'; expected a body-velocity CSV"),
     (lambda d: d.pop("std_y"), r"has std_x, std_z but not all of std_x, std_y, std_z"),
-    (lambda d: d["std_y"].__setitem__(2, 0.0), r"line 4, column 'std_y': 0.0 is not a positive 1-sigma"),
-    (lambda d: d["std_z"].__setitem__(4, -0.1), r"line 6, column 'std_z': -0.1 is not a positive 1-sigma"),
+    (lambda d: d["std_y"].__setitem__(2, 0.0), r"line 4, column 'std_y': 0.0 is not a positive finite 1-sigma"),
+    (lambda d: d["std_z"].__setitem__(4, -0.1), r"line 6, column 'std_z': -0.1 is not a positive finite 1-sigma"),
     (lambda d: d["vel_x"].__setitem__(1, np.inf), r"line 3, column 'vel_x': value inf is not a finite number"),
     (lambda d: d["time"].__setitem__(3, 10.0), r"line 5, column 'time'.*(backwards|repeat)"),
 ])

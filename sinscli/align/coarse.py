@@ -23,6 +23,12 @@ def _frame(v1, v2):
     """Orthonormal triad (columns) from a primary and a secondary vector; (..., 3, 3)."""
     r1 = v1 / np.linalg.norm(v1, axis=-1, keepdims=True)
     c = np.cross(v1, v2)
+    n = np.linalg.norm(c, axis=-1, keepdims=True)
+    # a secondary vector along the primary (a gyro reading zero) leaves the rotation about the primary
+    # undefined: a body axis stands in (the heading is then unobservable, which the budget says)
+    axis = np.where(np.abs(r1[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    c = np.where(n > 1e-12 * np.linalg.norm(v1, axis=-1, keepdims=True) * np.linalg.norm(v2, axis=-1, keepdims=True),
+                 c, np.cross(r1, axis))
     r2 = c / np.linalg.norm(c, axis=-1, keepdims=True)
     r3 = np.cross(r1, r2)
     return np.stack([r1, r2, r3], axis=-1)

@@ -267,6 +267,22 @@ def _rest_statistics(w: Window, opts: AlignOptions):
     return moving, dw, df
 
 
+def check_gravity(w: Window, g: float) -> None:
+    """A base at rest or swaying measures gravity on average: refuse a log that cannot be levelled."""
+    _, f = coarse.mean_rates(w.time, w.dtheta_b, w.dvel_b, w.t0)
+    mag = float(np.linalg.norm(f))
+    if 0.5 * g <= mag <= 1.5 * g:
+        return
+    if abs(mag * 9.80665 - g) < 0.1 * g:
+        hint = "the file probably holds g: set imu.units.accel: g"
+    elif abs(mag * 9.80665e-3 - g) < 0.1 * g:
+        hint = "the file probably holds mg: set imu.units.accel: mg"
+    else:
+        hint = "check the accelerometer columns and units, and that the base is not accelerating"
+    raise SinsError(f"{w.source}: the mean specific force over the alignment interval is {mag:.4g} m/s^2, far "
+                    f"from gravity ({g:.4f} m/s^2), so the attitude cannot be levelled: {hint}")
+
+
 def resolve_budget(w: Window, opts: AlignOptions, lat: float, g: float,
                    quasi_static: bool = False) -> budget_mod.Budget:
     """The sensor budget of a window: the description (``opts.sensor``) checked against the log
@@ -767,6 +783,8 @@ def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress
         wc = Window(w.t0, w.time[:k], w.dtheta_b[:k], w.dvel_b[:k], w.source)
     else:
         wc = w
+    if coarse_method in ("static", "inertial"):
+        check_gravity(wc, g)
     if coarse_method == "static":
         sol = _static(wc, opts, lat, g, b)
     elif coarse_method == "inertial":

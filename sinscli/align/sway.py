@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ..errors import SinsError
+from ..io.inputs import load_yaml
 from ..sim.jets import Jet, axis_rotation, stack
 from ..sim.segments import C_FLU_TO_RFU, Primitive
 
@@ -93,12 +93,7 @@ def sway_waves(spec: dict, src: str) -> np.ndarray:
 def load_align_scenario(path) -> tuple[dict, dict | None, dict | None, str, Path]:
     """Read an alignment scenario YAML: ``(simulator part, align section, sway section, name, folder)``."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise SinsError(f"{path}: cannot read the scenario ({exc.strerror or exc})") from None
-    except yaml.YAMLError as exc:
-        raise SinsError(f"{path}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
+    data = load_yaml(path, "scenario")
     if not isinstance(data, dict):
         raise SinsError(f"{path}: expected a mapping of scenario keys at the top level")
     data = dict(data)

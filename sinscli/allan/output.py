@@ -1,4 +1,5 @@
-"""Writers of ``sins allan``: ``sensor.yaml``, ``allan.csv``, ``fit.csv`` and ``allan.png`` (each atomically)."""
+"""Writers of ``sins allan``: ``sensor.yaml``, ``allan.csv``, ``fit.csv`` and ``allan.png`` (each atomically,
+every number through the writer guard :func:`sinscli.io.atomic.check_finite`)."""
 from __future__ import annotations
 
 import csv
@@ -9,7 +10,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ..io.atomic import atomic_path
+from ..io.atomic import atomic_path, check_finite
 from ..sensors import ACCEL_UNITS, GYRO_UNITS
 from .fit import GM_PEAK_RATIO, GM_PEAK_X, gm_avar
 from .pipeline import AXES, AllanResult, sensor_values
@@ -20,6 +21,17 @@ _UG = ACCEL_UNITS["bias_instability"]         # m/s^2 per micro-g
 
 def _r(x) -> str:
     return repr(float(x))
+
+
+def _scalar(text: str) -> str:
+    """``text`` as a YAML scalar that reads back as the same string (quoted where plain would not)."""
+    import json
+    import yaml
+    try:
+        plain = yaml.safe_load(text) == text and "\n" not in text and "#" not in text
+    except yaml.YAMLError:
+        plain = False
+    return text if plain else json.dumps(text)
 
 
 def _list(v) -> str:
@@ -34,7 +46,7 @@ def sensor_yaml_text(res: AllanResult, name: str) -> str:
              "# Units: gyro deg/h, deg/sqrt(h), rad; accel micro-g, micro-g/sqrt(Hz), m/s (as the shipped presets).",
              "# bias_instability/bias_tau: the first-order Gauss-Markov bias of the simulator, fitted to the whole",
              f"# Allan curve; its deviation peaks at tau = {GM_PEAK_X:.4f} bias_tau with {GM_PEAK_RATIO:.4f} bias_instability.",
-             f"name: {name}",
+             f"name: {_scalar(name)}",
              f"description: measured by sins allan ({res.duration / 3600.0:.3g} h static log)"]
     for which, white_key, white_unit in (("gyro", "arw", "deg/sqrt(h)"), ("accel", "vrw", "micro-g/sqrt(Hz)")):
         d = v[which]
@@ -58,6 +70,9 @@ def sensor_yaml_text(res: AllanResult, name: str) -> str:
 
 
 def write_sensor_yaml(path, res: AllanResult, name: str) -> None:
+    v = sensor_values(res.fits)
+    for which in ("gyro", "accel"):
+        check_finite(path, {f"{which}.{k}": np.asarray(x, dtype=np.float64) for k, x in v[which].items()})
     with atomic_path(path, suffix=".yaml") as tmp:
         Path(tmp).write_text(sensor_yaml_text(res, name), encoding="utf-8")
 
@@ -68,6 +83,8 @@ def write_allan_csv(path, res: AllanResult) -> None:
     for a in AXES:
         u = "rad_s" if a.startswith("gyro") else "m_s2"
         header += [f"{a}_adev_{u}", f"{a}_sigma_{u}", f"{a}_fit_{u}"]
+    check_finite(path, {"tau_s": res.tau, "adev": res.adev, "sigma": res.adev * res.rel_sigma[:, None],
+                        "fit": np.column_stack([f.model_avar for f in res.fits])})
     with atomic_path(path, suffix=".csv") as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(header)
@@ -86,6 +103,9 @@ FIT_COLUMNS = ["axis", "white", "white_unit", "bias_instability", "bias_tau_s", 
 
 def write_fit_csv(path, res: AllanResult) -> None:
     """One row per axis: every fitted term in the units of the sensor YAML, and what is identified."""
+    check_finite(path, {c: np.array([getattr(f, c) for f in res.fits], dtype=np.float64)
+                        for c in ("white", "gm_sigma", "flicker_b", "tau_min_adev", "rrw", "quantization")})
+    check_finite(path, {"gm_peak_adev": np.array([f.gm_peak[1] for f in res.fits], dtype=np.float64)})
     with atomic_path(path, suffix=".csv") as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(FIT_COLUMNS)

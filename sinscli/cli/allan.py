@@ -6,7 +6,6 @@ from pathlib import Path
 
 import click
 
-from ..errors import SinsError
 from .base import main, progress, quiet_option
 
 
@@ -42,8 +41,8 @@ def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir,
     from ..io.readers import read_imu
     from ..report.report import staged_dir
 
-    if outdir.exists() and not outdir.is_dir():
-        raise SinsError(f"{outdir}: exists and is not a directory")
+    from ..io.atomic import prepare_output
+    prepare_output(outdir, directory=True)      # before any work: a file, no permission
     cfg, al = load_align_config(config_path)
     cfg = merge(cfg, "ros", imu_topic=imu_topic)
     opts = build_options(al, str(config_path) if config_path else "command line")

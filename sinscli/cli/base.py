@@ -1,8 +1,11 @@
 """The ``sins`` command group: error handling, logging and progress shared by all commands."""
 from __future__ import annotations
 
+import contextlib
 import logging
+import signal
 import sys
+import threading
 
 import click
 
@@ -36,8 +39,49 @@ SHORT_HELP = {
 }
 
 
+_NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())    # click >= 8.2
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT, SIGTERM or SIGHUP: raised in the main thread, so every ``atomic_path`` removes its
+    temporary file on the way out, as for Ctrl-C."""
+
+    def __init__(self, signum: int = signal.SIGINT):
+        super().__init__(signum)
+        self.signum = int(signum)
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(signum)
+
+
+@contextlib.contextmanager
+def _signals_as_interrupt():
+    """SIGTERM and SIGHUP handled like SIGINT while a command runs (the old handlers restored after)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {}
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        with contextlib.suppress(ValueError, OSError):
+            old[sig] = signal.signal(sig, _raise_interrupted)
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
+def _interrupted(exc: BaseException) -> None:
+    signum = getattr(exc, "signum", signal.SIGINT)
+    name = signal.Signals(signum).name
+    click.echo(f"sins: interrupted ({name}); no output written", err=True)
+    sys.exit(128 + signum)
+
+
 class _Group(click.Group):
-    """A click group that loads its commands lazily and turns :class:`SinsError` into one line and exit 2."""
+    """A click group that loads its commands lazily and turns :class:`SinsError`, click's own usage
+    errors and internal failures into one ``sins: ...`` line (exit 2, 2 and 1)."""
 
     def list_commands(self, ctx):
         return sorted(set(COMMANDS) | set(self.commands))
@@ -47,6 +91,25 @@ class _Group(click.Group):
             import importlib
             importlib.import_module(f"{__package__}.{COMMANDS[name]}")   # registers on ``main``
         return self.commands.get(name)
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        with _signals_as_interrupt():
+            try:
+                rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+            except _NO_ARGS_IS_HELP as exc:            # bare `sins`: the help text
+                click.echo(exc.ctx.get_help() if exc.ctx else exc.format_message())
+                sys.exit(0)
+            except click.ClickException as exc:       # usage errors, bad option values, unreadable paths
+                where = exc.ctx.command_path.partition(" ")[2] if getattr(exc, "ctx", None) else ""
+                where = f"{where}: " if where else ""
+                click.echo(f"sins: error: {where}{' '.join(exc.format_message().split())}", err=True)
+                sys.exit(SinsError.exit_code)
+            except (click.exceptions.Abort, KeyboardInterrupt) as exc:
+                _interrupted(exc.__context__ if isinstance(exc, click.exceptions.Abort) and
+                             isinstance(exc.__context__, KeyboardInterrupt) else exc)
+        sys.exit(rv if isinstance(rv, int) else 0)
 
     def format_commands(self, ctx, formatter):
         """The command list of ``sins --help``, from :data:`SHORT_HELP` for commands not loaded yet."""
@@ -71,9 +134,8 @@ class _Group(click.Group):
             sys.exit(SinsError.exit_code)
         except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort, SystemExit):
             raise
-        except KeyboardInterrupt:
-            click.echo("sins: interrupted", err=True)
-            sys.exit(130)
+        except KeyboardInterrupt as exc:
+            _interrupted(exc)
         except Exception as exc:  # an internal bug: still one line, traceback with --debug
             if ctx.obj and ctx.obj.get("debug"):
                 raise
@@ -95,6 +157,9 @@ def main(ctx, debug, verbose):
     # the root logger stays at WARNING: --debug is for sins, not for numba's compiler dumps
     logging.basicConfig(level=logging.WARNING, format="sins: %(levelname)s: %(message)s", stream=sys.stderr)
     logging.getLogger("sins").setLevel(level)
+    from .. import NUMBA_CACHE_NOTE
+    if NUMBA_CACHE_NOTE:
+        log.warning(NUMBA_CACHE_NOTE)
 
 
 def progress(length: int, label: str, quiet: bool):

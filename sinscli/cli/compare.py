@@ -78,6 +78,8 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
     (nothing written); in batch mode 1 when some jobs failed (the others are
     still reported, the failures listed in summary.md and on stderr).
     """
+    from ..io.atomic import prepare_output
+    prepare_output(outdir, directory=True)      # before any work: a file, no permission
     if truth is None:
         if len(inputs) != 1 or inputs[0].suffix.lower() not in (".yaml", ".yml"):
             raise SinsError("give --truth TRUTH with one or more NAV files, or a single BATCH.yaml")
@@ -113,8 +115,6 @@ def _read(path: Path):
     if _is_tum(path):
         from ..io.tum import read_tum
         from ..report.compare_metrics import TumTrack
-        if not path.exists():
-            raise SinsError(f"{path}: file not found")
         return TumTrack(*read_tum(path), source=str(path))
     from ..io.trajectory import read_trajectory
     return read_trajectory(path)

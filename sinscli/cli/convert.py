@@ -1,13 +1,13 @@
 """``sins convert LOG -o DIR``: a ROS bag / MCAP log to ``imu.csv`` (increments), ``gnss.csv`` and ``odom.csv``."""
 from __future__ import annotations
 
-import contextlib
 from pathlib import Path
 
 import click
 import numpy as np
 
 from ..errors import SinsError
+from ..io.atomic import prepare_output, staged_dir
 from ..io.body_vel_csv import write_body_velocity_csv
 from ..io.gnss_csv import write_gnss_csv
 from ..io.imu_csv import write_imu_csv
@@ -41,14 +41,18 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
     Example:
       sins convert husky_imu_gps.bag -o husky/ --time header
     """
+    prepare_output(outdir, directory=True)
     topics = ros.log_topics(log_path)
     types = set(topics.values())
     want_imu = imu_topic is not None or ros.IMU_TYPE in types
     want_gnss = gnss_topic is not None or vel_topic is not None or ros.NAVSAT_TYPE in types
     want_odom = odom_topic is not None or list(topics.values()).count(ros.ODOMETRY_TYPE) == 1
+    listing = ", ".join(f"{n} ({t})" for n, t in sorted(topics.items())) or "none"
     if not (want_imu or want_gnss):
-        listing = ", ".join(f"{n} ({t})" for n, t in sorted(topics.items())) or "none"
         raise SinsError(f"{log_path}: no sensor_msgs/Imu or sensor_msgs/NavSatFix topic; topics: {listing}")
+    if not want_imu:
+        only = "gnss.csv and odom.csv" if want_odom else "gnss.csv"
+        log.warning("%s: no sensor_msgs/Imu topic (topics: %s): writing %s only", log_path, listing, only)
     steps = int(want_imu) + int(want_gnss) + int(want_odom)
     imu = gnss = odom = None
     with progress(steps * 2, "convert", quiet) as bar:
@@ -65,25 +69,16 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
             std = None if cov is None else np.sqrt(np.einsum("nii->ni", cov))
             odom = BodyVelLog(time=t, vel_b=v, std=std, source=where)
             bar.update(1)
-        written = []
-        try:
+        with staged_dir(outdir) as tmp:          # every file, or none
             if imu is not None:
-                write_imu_csv(outdir / "imu.csv", imu)
-                written.append(outdir / "imu.csv")
+                write_imu_csv(tmp / "imu.csv", imu)
                 bar.update(1)
             if gnss is not None:
-                write_gnss_csv(outdir / "gnss.csv", gnss)
-                written.append(outdir / "gnss.csv")
+                write_gnss_csv(tmp / "gnss.csv", gnss)
                 bar.update(1)
             if odom is not None:
-                write_body_velocity_csv(outdir / "odom.csv", odom)
-                written.append(outdir / "odom.csv")
+                write_body_velocity_csv(tmp / "odom.csv", odom)
                 bar.update(1)
-        except BaseException:
-            for p in written:
-                with contextlib.suppress(OSError):
-                    p.unlink()
-            raise
     if imu is not None:
         log.info("%s: %d IMU increments from %s (first interval starts at %.9f s)",
                  outdir / "imu.csv", len(imu), imu.source, imu.t0)

@@ -4,7 +4,6 @@ Kept apart from :mod:`sinscli.cli.navigate` so that plain navigation does not im
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import click
@@ -12,30 +11,13 @@ import numpy as np
 
 from ..errors import SinsError
 from ..io.gnss_csv import check_gnss_against_imu
-from ..io.init_state import read_init
+from ..io.atomic import prepare_output
+from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
 from ..io.readers import read_gnss, read_imu
-from ..io.trajectory import write_trajectory
-from ..types import ImuLog, NavState
+from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
+from ..types import ImuLog
 from .base import log, progress
-
-def init_from_yaml(init: NavState) -> tuple[dict, dict | None]:
-    """1-sigma (attitude, rad) and sensor estimates (SI) that a ``sins align`` YAML carries."""
-    sig = {}
-    x = init.extra
-    if "sigma_roll" in x and "sigma_pitch" in x:
-        head = x.get("sigma_heading")
-        sig["attitude"] = np.radians([float(x["sigma_roll"]), float(x["sigma_pitch"]),
-                                      float(head) if head is not None else np.inf])
-        for k in ("sigma_roll", "sigma_pitch"):
-            v = float(x[k])
-            if not math.isfinite(v) or v <= 0:
-                raise SinsError(f"init: {k}: expected a finite sigma > 0, got {x[k]!r}")
-    bias = None
-    if "gyro_bias" in x and "accel_bias" in x:
-        bias = {"gyro": np.radians(np.asarray(x["gyro_bias"], float)) / 3600.0,
-                "accel": np.asarray(x["accel_bias"], float) * 9.80665e-6}
-    return sig, bias
 
 
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
@@ -51,10 +33,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         fopts.sensor, fopts.base_dir = sensor, Path.cwd()
     if fopts.lever_arm is None:
         fopts.lever_arm = np.asarray(cfg["gnss"]["lever_arm"], dtype=float)
-    suffix = output.suffix.lower()
-    from ..io.trajectory import WRITERS
-    if suffix not in (".csv", ".parquet", *WRITERS):
-        raise SinsError(f"{output}: unknown output format '{suffix}'")
+    check_trajectory_output(output)
+    if innovations_path is not None:
+        prepare_output(innovations_path)
     imu = read_imu(imu_path, cfg, allow_gaps=cfg["navigation"]["allow_gaps"])
     if len(imu) == 0:
         raise SinsError(f"{imu_path}: no IMU samples")
@@ -65,8 +46,8 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     if align_method is not None:
         init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts.gnss_pos_sigma)
     else:
-        init = read_init(init_path, t0, opts.conv)
-        init_sigma, init_bias = init_from_yaml(init)
+        init = read_init(init_path, t0, opts.conv, cfg["limits"])
+        init_sigma, init_bias = align_estimates(init, init_path, cfg["limits"])
     fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias)
     step = 1 << 16
     blocks = (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],
@@ -80,13 +61,15 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     for r in records[~records["accepted"]]:
         log.debug("rejected %s %s at %.6f s: innovation %.4g, sigma %.4g, NIS %.3g", r["type"], r["axis"],
                   r["time"], r["innovation"], r["sigma"], r["nis"])
-    for name in traj.extra:
-        a = traj.extra[name]
-        if not np.all(np.isfinite(a)):
-            raise SinsError(f"internal: column {name} is not finite; nothing written")
+    guard_trajectory(output, traj)               # both outputs or neither: the guard before either is written
     if innovations_path is not None:
         write_innovations(innovations_path, records)
-    write_trajectory(output, traj, opts.conv)
+    try:
+        write_trajectory(output, traj, opts.conv)
+    except BaseException:
+        if innovations_path is not None:
+            Path(innovations_path).unlink(missing_ok=True)
+        raise
     click.echo(f"sins: {summary.text()}", err=True)
     log.info("wrote %s", output)
 

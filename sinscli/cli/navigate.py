@@ -101,11 +101,12 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     from ..io.imu_csv import check_static_start
     from ..io.init_state import read_init
     from ..io.readers import iter_imu
-    from ..io.trajectory import TrajectoryWriter, write_trajectory
+    from ..io.trajectory import TrajectoryWriter, check_trajectory_output, write_trajectory
     from ..nav.earth import gravity
     from ..nav.inertial import launch_frame
     from ..nav.pipeline import NavOptions, concat, navigate_blocks
 
+    check_trajectory_output(output)            # before any work: a directory, no format, no permission
     cfg = config_mod.load_config(config_path)
     cfg = config_mod.merge(cfg, "navigation", attitude=attitude, dcm_variant=dcm_variant, coning=coning,
                            subsamples=subsamples, every=every, allow_gaps=allow_gaps,
@@ -132,7 +133,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
         raise SinsError(f"{imu}: no IMU samples")
     t_start = first.t0 if first.t0 is not None else float(first.time[0] - (
         first.time[1] - first.time[0] if len(first) > 1 else 0.0))
-    init = read_init(init_path, t_start, conv)
+    init = read_init(init_path, t_start, conv, cfg["limits"])
     if opts.frame == "launch-inertial" and opts.launch is None and "launch" in init.extra:
         launch_frame(init.extra["launch"], init.time, f"{init_path}: launch")   # checked naming the file
         opts.launch = init.extra["launch"]

@@ -12,9 +12,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..config import MAX_COUNT, MAX_LEVER_ARM
 from ..errors import SinsError
 
 DEG = math.pi / 180.0
+MAX_VALUE = 1.0e9           # any number of the section: its square stays far from overflow
+MAX_POS = 1.0e7             # m: a position sigma (the size of the earth)
+MAX_VEL = 1.0e4             # m/s: a velocity sigma or a speed (the physical speed limit)
+MAX_TIME = 1.0e6            # s: a window, interval or correlation time
+MAX_RATE_DEG = 1.0e4        # deg/s: an angular-rate sigma (beyond the 100 rad/s rate limit)
 
 FUSION_DEFAULTS = {
     "states": 15,                    # 15 | 21 (+ gyro and accelerometer scale factors)
@@ -100,9 +106,12 @@ def _fail(src, key, msg):
 
 
 def _num(src, key, v, *, gt=None, ge=None, le=None, lt=None):
+    """A finite number within the bounds given, and at most :data:`MAX_VALUE` in size."""
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         _fail(src, key, f"expected a finite number, got {v!r}")
     v = float(v)
+    if not abs(v) <= MAX_VALUE:
+        _fail(src, key, f"expected a number within +-{MAX_VALUE:g}, got {v!r}")
     if gt is not None and not v > gt:
         _fail(src, key, f"expected a finite number > {gt:g}, got {v!r}")
     if ge is not None and not v >= ge:
@@ -157,49 +166,49 @@ def build_fusion_options(section, src: str, base_dir=None) -> FusionOptions:
     o.sensor = d["sensor"]
     o.propagation_interval = _num(src, "propagation_interval", d["propagation_interval"], ge=0.0, le=0.1)
     o.gate_probability = _num(src, "gate_probability", d["gate_probability"], gt=0.0, lt=1.0)
-    o.gnss_pos_sigma = _vec(src, "gnss_pos_sigma", d["gnss_pos_sigma"], 3, gt=0.0)
-    o.gnss_vel_sigma = _vec(src, "gnss_vel_sigma", d["gnss_vel_sigma"], 3, gt=0.0)
+    o.gnss_pos_sigma = _vec(src, "gnss_pos_sigma", d["gnss_pos_sigma"], 3, gt=0.0, le=MAX_POS)
+    o.gnss_vel_sigma = _vec(src, "gnss_vel_sigma", d["gnss_vel_sigma"], 3, gt=0.0, le=MAX_VEL)
     o.use_gnss_velocity = _bool(src, "use_gnss_velocity", d["use_gnss_velocity"])
     if d["lever_arm"] is not None:
-        o.lever_arm = _vec(src, "lever_arm", d["lever_arm"], 3)
+        o.lever_arm = _vec(src, "lever_arm", d["lever_arm"], 3, ge=-MAX_LEVER_ARM, le=MAX_LEVER_ARM)
     s = d["init_sigma"]
-    o.init_pos_sigma = _vec(src, "init_sigma.position", s["position"], 3, gt=0.0)
-    o.init_vel_sigma = _vec(src, "init_sigma.velocity", s["velocity"], 3, gt=0.0)
+    o.init_pos_sigma = _vec(src, "init_sigma.position", s["position"], 3, gt=0.0, le=MAX_POS)
+    o.init_vel_sigma = _vec(src, "init_sigma.velocity", s["velocity"], 3, gt=0.0, le=MAX_VEL)
     o.init_att_sigma = np.radians([_num(src, f"init_sigma.{k}", s[k], gt=0.0, le=180.0)
                                    for k in ("roll", "pitch", "heading")])
     o.zupt = _bool(src, "zupt.enabled", d["zupt"]["enabled"])
-    o.zupt_sigma = _num(src, "zupt.sigma", d["zupt"]["sigma"], gt=0.0)
-    o.zupt_max_speed = _num(src, "zupt.max_speed", d["zupt"]["max_speed"], gt=0.0)
+    o.zupt_sigma = _num(src, "zupt.sigma", d["zupt"]["sigma"], gt=0.0, le=MAX_VEL)
+    o.zupt_max_speed = _num(src, "zupt.max_speed", d["zupt"]["max_speed"], gt=0.0, le=MAX_VEL)
     o.zaru = _bool(src, "zaru.enabled", d["zaru"]["enabled"])
     if d["zaru"]["sigma"] is not None:
-        o.zaru_sigma = _num(src, "zaru.sigma", d["zaru"]["sigma"], gt=0.0) * DEG
+        o.zaru_sigma = _num(src, "zaru.sigma", d["zaru"]["sigma"], gt=0.0, le=MAX_RATE_DEG) * DEG
     ss = d["standstill"]
-    o.standstill_window = _num(src, "standstill.window", ss["window"], gt=0.0)
-    o.standstill_rate_std = _num(src, "standstill.rate_std", ss["rate_std"], gt=0.0) * DEG
+    o.standstill_window = _num(src, "standstill.window", ss["window"], gt=0.0, le=MAX_TIME)
+    o.standstill_rate_std = _num(src, "standstill.rate_std", ss["rate_std"], gt=0.0, le=MAX_RATE_DEG) * DEG
     o.standstill_accel_std = _num(src, "standstill.accel_std", ss["accel_std"], gt=0.0)
     o.standstill_accel_mag = _num(src, "standstill.accel_mag", ss["accel_mag"], gt=0.0)
     o.nhc = _bool(src, "nhc.enabled", d["nhc"]["enabled"])
-    o.nhc_sigma = _vec(src, "nhc.sigma", d["nhc"]["sigma"], 2, gt=0.0)
-    o.nhc_interval = _num(src, "nhc.interval", d["nhc"]["interval"], gt=0.0)
+    o.nhc_sigma = _vec(src, "nhc.sigma", d["nhc"]["sigma"], 2, gt=0.0, le=MAX_VEL)
+    o.nhc_interval = _num(src, "nhc.interval", d["nhc"]["interval"], gt=0.0, le=MAX_TIME)
     o.odometry = _bool(src, "odometry.enabled", d["odometry"]["enabled"])
     if d["odometry"]["sigma"] is not None:
-        o.odometry_sigma = _num(src, "odometry.sigma", d["odometry"]["sigma"], gt=0.0)
+        o.odometry_sigma = _num(src, "odometry.sigma", d["odometry"]["sigma"], gt=0.0, le=MAX_VEL)
     hi = d["heading_init"]
-    o.heading_max_sigma = _num(src, "heading_init.max_sigma", hi["max_sigma"], gt=0.0) * DEG
-    o.heading_min_speed = _num(src, "heading_init.min_speed", hi["min_speed"], gt=0.0)
-    o.heading_sigma_floor = _num(src, "heading_init.sigma_floor", hi["sigma_floor"], gt=0.0) * DEG
+    o.heading_max_sigma = _num(src, "heading_init.max_sigma", hi["max_sigma"], gt=0.0, le=180.0) * DEG
+    o.heading_min_speed = _num(src, "heading_init.min_speed", hi["min_speed"], gt=0.0, le=MAX_VEL)
+    o.heading_sigma_floor = _num(src, "heading_init.sigma_floor", hi["sigma_floor"], gt=0.0, le=180.0) * DEG
     rr = d["rejection_run"]
-    if isinstance(rr, bool) or not isinstance(rr, int) or rr < 1:
-        _fail(src, "rejection_run", f"expected a whole number >= 1, got {rr!r}")
+    if isinstance(rr, bool) or not isinstance(rr, int) or not 1 <= rr <= MAX_COUNT:
+        _fail(src, "rejection_run", f"expected a whole number from 1 to {MAX_COUNT}, got {rr!r}")
     o.rejection_run = rr
-    o.outage = _num(src, "outage", d["outage"], gt=1.0)
+    o.outage = _num(src, "outage", d["outage"], gt=1.0, le=MAX_TIME)
     ad = d["adapt"]
     o.adapt_threshold = _num(src, "adapt.threshold", ad["threshold"], ge=0.0)
     w = ad["window"]
-    if isinstance(w, bool) or not isinstance(w, int) or w < 2:
-        _fail(src, "adapt.window", f"expected a whole number >= 2, got {w!r}")
+    if isinstance(w, bool) or not isinstance(w, int) or not 2 <= w <= MAX_COUNT:
+        _fail(src, "adapt.window", f"expected a whole number from 2 to {MAX_COUNT}, got {w!r}")
     o.adapt_window = w
     o.adapt_max_scale = _num(src, "adapt.max_scale", ad["max_scale"], ge=1.0)
-    o.scale_factor_tau = _num(src, "scale_factor_tau", d["scale_factor_tau"], ge=0.0)
-    o.smoother_interval = _num(src, "smoother_interval", d["smoother_interval"], gt=0.0)
+    o.scale_factor_tau = _num(src, "scale_factor_tau", d["scale_factor_tau"], ge=0.0, le=MAX_TIME)
+    o.smoother_interval = _num(src, "smoother_interval", d["smoother_interval"], gt=0.0, le=MAX_TIME)
     return o

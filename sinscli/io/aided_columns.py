@@ -11,13 +11,14 @@ A fused navigator writes, beside the FORMATS.md trajectory columns, the
 
 Every column whose name ends in ``_std`` is a 1-sigma: "a positive finite
 number on every row" (FORMATS.md).  Readers refuse anything else naming the
-line and the column; writers refuse to write it.  No I/O here.
+line and the column (:func:`check_columns`); writers refuse to write it (the writer guard
+:func:`sinscli.io.atomic.check_finite`, given the sigma columns).  No I/O here.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..errors import SinsError
+from ..errors import SinsError, num
 
 POS_STD = ("pos_e_std", "pos_n_std", "pos_u_std")            # m, ENU
 VEL_STD = ("vel_e_std", "vel_n_std", "vel_u_std")            # m/s, ENU
@@ -46,32 +47,25 @@ def group(extra: dict, names) -> np.ndarray | None:
     return None
 
 
-def first_bad_sigma(values: np.ndarray) -> int | None:
-    """Index of the first value that is not a positive finite number, or None."""
-    v = np.asarray(values, dtype=np.float64)
-    bad = ~(np.isfinite(v) & (v > 0.0))
-    return int(np.argmax(bad)) if bad.any() else None
-
-
 def check_columns(where: str, data: dict, first_row: int = 2, row_label: str = "line") -> None:
-    """SinsError at the first non-finite value of any column, or the first sigma that is not positive.
+    """The reader's check of extra columns: SinsError at the first non-finite value of any column, or the
+    first sigma that is not positive (:func:`sinscli.io.limits.check_sigma`).  Writers do not call this:
+    their guard is :func:`sinscli.io.atomic.check_finite` (with the sigma columns).
 
     ``first_row`` is the number (``row_label`` ``line`` or ``row``) of element 0,
     e.g. 2 for the first data line of a CSV file after its header.
     """
+    from .limits import check_sigma
     for name, arr in data.items():
         a = np.asarray(arr)
         if a.dtype.kind != "f":
             continue
         if is_sigma(name):
-            k = first_bad_sigma(a)
-            if k is not None:
-                raise SinsError(f"{where}: {row_label} {first_row + k}, column '{name}': {float(a[k])!r} is not a "
-                                "positive finite 1-sigma (FORMATS.md: a sigma column holds a positive finite number "
-                                "on every row)")
+            check_sigma(where, a, name, first_row, row_label, " (FORMATS.md: a sigma column holds a positive finite "
+                                                               "number on every row)")
         else:
             bad = ~np.isfinite(a)
             if bad.any():
                 k = int(np.argmax(bad))
-                raise SinsError(f"{where}: {row_label} {first_row + k}, column '{name}': value {float(a[k])!r} is not "
+                raise SinsError(f"{where}: {row_label} {first_row + k}, column '{name}': value {num(a[k])} is not "
                                 "a finite number")

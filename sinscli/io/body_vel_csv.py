@@ -9,7 +9,8 @@ x forward, y left, z up, as ``sins convert`` writes a ``base_link`` twist;
 turned into the convention in force).  Other column names through
 ``odometry.columns``.  Checks: unknown or missing columns, values
 that are not finite numbers, a sigma of 0 or below, time that repeats or goes
-backwards (gaps are allowed: an odometer may stop publishing at rest).
+backwards (gaps are allowed: an odometer may stop publishing at rest), time
+stamps and speeds beyond the config's physical ``limits``.
 """
 from __future__ import annotations
 
@@ -18,11 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from ..config import ODOMETRY_NAMES, mounting_matrix
-from ..errors import SinsError
 from ..nav.rotation import BODY_CONVENTIONS, conv_to_flu
 from ..types import BodyVelLog
 from .atomic import atomic_path
-from .csvcore import check_positive, read_mapped_columns, write_table_csv
+from . import limits as limits_mod
+from .csvcore import read_mapped_columns, write_table_csv
 from .imu_csv import check_time
 
 VEL = ["vel_x", "vel_y", "vel_z"]
@@ -30,17 +31,24 @@ STD = ["std_x", "std_y", "std_z"]
 
 
 def read_body_velocity_csv(path, cfg: dict | None = None) -> BodyVelLog:
-    """Read a body-velocity CSV; ``cfg`` is the whole validated config (odometry and imu sections) or None."""
+    """Read a body-velocity CSV; ``cfg`` is the whole validated config (odometry, imu and limits sections)
+    or None."""
     path = Path(path)
+    lim = limits_mod.resolve((cfg or {}).get("limits"))
     odo = (cfg or {}).get("odometry") or {}
     data, mapping = read_mapped_columns(
         path, odo, ODOMETRY_NAMES, ["time"] + VEL, [STD],
         "expected a body-velocity CSV: time, vel_x, vel_y, vel_z and optionally std_x, std_y, std_z (map other "
         "names with the config's odometry.columns)", "expected time, vel_x, vel_y, vel_z (m/s, body axes)")
-    check_time(path, data["time"], allow_gaps=True, what=mapping.get("time", "time"))
-    check_positive(path, data, STD, mapping)
-    std = np.column_stack([data[c] for c in STD]) if STD[0] in data else None
+    names = {c: mapping.get(c, c) for c in data}
+    limits_mod.check_time(path, data["time"], lim, names["time"], 2)
+    check_time(path, data["time"], allow_gaps=True, what=names["time"])
     vel = np.column_stack([data[c] for c in VEL])
+    limits_mod.check_velocity(path, vel, lim, [names[c] for c in VEL], 2)
+    for c in STD:
+        if c in data:
+            limits_mod.check_sigma(path, data[c], names[c], 2)
+    std = np.column_stack([data[c] for c in STD]) if STD[0] in data else None
     kind = odo.get("frame", "auto")
     if kind in ("sensor", "vehicle"):
         imu = (cfg or {}).get("imu") or {}
@@ -70,9 +78,5 @@ def write_body_velocity_csv(path, bv: BodyVelLog) -> None:
     data = {"time": bv.time, "vel_x": bv.vel_b[:, 0], "vel_y": bv.vel_b[:, 1], "vel_z": bv.vel_b[:, 2]}
     if bv.std is not None:
         data.update({"std_x": bv.std[:, 0], "std_y": bv.std[:, 1], "std_z": bv.std[:, 2]})
-    arr = np.column_stack(list(data.values()))
-    if not np.isfinite(arr).all():
-        k = int(np.flatnonzero(~np.isfinite(arr).all(axis=1))[0])
-        raise SinsError(f"{bv.source}: body velocity row {k} is not finite; nothing written to {path}")
     with atomic_path(path) as tmp:
-        write_table_csv(tmp, data)
+        write_table_csv(tmp, data, sigmas=STD)

@@ -15,23 +15,69 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pacsv
 
-from ..errors import SinsError
+from ..errors import SinsError, num, quote
+from .atomic import check_finite
+from .inputs import input_file
+
+
+MAX_LINE_BYTES = 128 * 1024      # a numeric CSV line is far shorter; the header is refused beyond this
+MAX_COLUMNS = 1024               # header columns (bounds the header work: no parse of 100,000 columns)
 
 
 def read_header(path) -> list[str]:
-    """Column names of a CSV file, with clear errors for missing or empty files."""
-    path = Path(path)
-    if not path.exists():
-        raise SinsError(f"{path}: file not found")
-    if path.is_dir():
-        raise SinsError(f"{path}: is a directory, expected a CSV file")
+    """Column names of a CSV file (whitespace around names accepted), with clear errors for a missing,
+    empty or non-regular file, a header that is not UTF-8, too long, too wide, or names a column twice."""
+    path = input_file(path, "CSV file")
     if path.stat().st_size == 0:
         raise SinsError(f"{path}: file is empty, expected a header row and data rows")
-    with open(path, newline="", encoding="utf-8", errors="replace") as fh:
-        first = fh.readline()
-    if not first.strip():
+    with open(path, "rb") as fh:
+        first = fh.readline(MAX_LINE_BYTES + 1)
+    if len(first) > MAX_LINE_BYTES:
+        raise SinsError(f"{path}: line 1: the header is longer than {MAX_LINE_BYTES} bytes (it starts "
+                        f"{quote(first[:40].decode('utf-8', 'replace'))}); expected a CSV header row")
+    if first.startswith(b"\xef\xbb\xbf"):
+        first = first[3:]
+    try:
+        text = first.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        k = first[:exc.start].count(b",")
+        raise SinsError(f"{path}: line 1, header column {k + 1}: byte 0x{first[exc.start]:02x} is not UTF-8 "
+                        f"(save the file as UTF-8)") from None
+    if not text.strip():
         raise SinsError(f"{path}: first line is empty, expected a header row")
-    return [c.strip() for c in next(csv.reader([first]))]
+    try:
+        names = [c.strip() for c in next(csv.reader([text.rstrip("\r\n")]), [])]
+    except csv.Error as exc:
+        raise SinsError(f"{path}: line 1: cannot read the header as CSV ({exc})") from None
+    if len(names) > MAX_COLUMNS:
+        raise SinsError(f"{path}: line 1: the header has {len(names)} columns; at most {MAX_COLUMNS} are read")
+    seen = set()
+    for k, c in enumerate(names):
+        if not c:
+            raise SinsError(f"{path}: line 1, header column {k + 1}: empty column name")
+        if c in seen:
+            raise SinsError(f"{path}: line 1, header column {k + 1}: column {quote(c)} appears twice")
+        seen.add(c)
+    return names
+
+
+def name_list(names, n: int = 6) -> str:
+    """Column names for a message: the first ``n``, quoted and cut, then how many more."""
+    names = list(names)
+    more = f", ... ({len(names) - n} more)" if len(names) > n else ""
+    return ", ".join(quote(c, 40) for c in names[:n]) + more
+
+
+def _read_options(path, file_cols, **kw):
+    """pyarrow read options with the header names of :func:`read_header` (stripped), so that the
+    names asked for are exactly the file's; a name the header lacks is refused here, naming it."""
+    header = read_header(path)
+    missing = [c for c in file_cols if c not in header]
+    if missing:
+        raise SinsError(f"{path}: no column {quote(missing[0])} in the header (columns: "
+                        f"{', '.join(header[:12])}{', ...' if len(header) > 12 else ''}); check the column names "
+                        f"and the config's column mapping")
+    return pacsv.ReadOptions(column_names=header, skip_rows=1, **kw)
 
 
 def _convert_options(file_cols):
@@ -48,7 +94,7 @@ def _finite_columns(path, columns: dict[str, str], column, first_line: int) -> d
         bad = ~np.isfinite(arr)
         if bad.any():
             k = int(np.argmax(bad))
-            raise SinsError(f"{path}: line {first_line + k}, column '{theirs}': value {float(arr[k])!r} "
+            raise SinsError(f"{path}: line {first_line + k}, column {quote(theirs)}: value {num(arr[k])} "
                             f"is not a finite number")
         out[ours] = arr
     return out
@@ -65,7 +111,7 @@ def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]
     try:
         table = pacsv.read_csv(
             path,
-            read_options=pacsv.ReadOptions(use_threads=True, block_size=1 << 24),
+            read_options=_read_options(path, file_cols, use_threads=True, block_size=1 << 24),
             parse_options=pacsv.ParseOptions(newlines_in_values=False),
             convert_options=_convert_options(file_cols),
         )
@@ -93,7 +139,7 @@ def read_mapped_columns(path, section: dict, names: list[str], required: list[st
     known = [inverse.get(c, c) for c in header]
     unknown = [c for c, k in zip(header, known) if k not in names and c not in ignored]
     if unknown:
-        raise SinsError(f"{path}: unknown column(s) {', '.join(repr(c) for c in unknown)}; {unknown_hint}")
+        raise SinsError(f"{path}: unknown column(s) {name_list(unknown)}; {unknown_hint}")
     missing = [c for c in required if c not in known]
     if missing:
         raise SinsError(f"{path}: missing column(s) {', '.join(missing)}; {missing_hint}")
@@ -105,24 +151,26 @@ def read_mapped_columns(path, section: dict, names: list[str], required: list[st
     return read_numeric_columns(path, {c: mapping.get(c, c) for c in wanted}), mapping
 
 
-def check_positive(path, data: dict[str, np.ndarray], columns, mapping: dict[str, str]) -> None:
-    """SinsError at the first value of ``columns`` (present in ``data``) that is not > 0 (a 1-sigma)."""
-    for c in columns:
-        if c in data:
-            bad = ~(data[c] > 0)
-            if bad.any():
-                k = int(np.argmax(bad))
-                raise SinsError(f"{path}: line {k + 2}, column '{mapping.get(c, c)}': {float(data[c][k])!r} is not a "
-                                "positive 1-sigma")
-
-
 def _locate_bad_cell(path: Path, cols: list[str], exc: Exception) -> str:
-    """Find the first cell that does not parse as a float (slow path, only on error)."""
-    with open(path, newline="", encoding="utf-8", errors="replace") as fh:
-        reader = csv.reader(fh)
-        header = [c.strip() for c in next(reader)]
-        idx = {c: header.index(c) for c in cols if c in header}
-        for lineno, row in enumerate(reader, start=2):
+    """Find the first cell that does not parse as a float (slow path, only on error; lines are read
+    with a bound, so a giant line is reported, not parsed)."""
+    header = read_header(path)
+    idx = {c: header.index(c) for c in cols if c in header}
+    with open(path, "rb") as fh:
+        fh.readline(MAX_LINE_BYTES + 1)
+        lineno = 1
+        while True:
+            raw = fh.readline(MAX_LINE_BYTES + 1)
+            if not raw:
+                break
+            lineno += 1
+            if len(raw) > MAX_LINE_BYTES:
+                return f"{path}: line {lineno}: longer than {MAX_LINE_BYTES} bytes; expected {len(header)} numbers"
+            line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
+            try:
+                row = next(csv.reader([line]), [])
+            except csv.Error as exc:
+                return f"{path}: line {lineno}: cannot read as CSV ({exc})"
             if not row or all(not x.strip() for x in row):
                 return f"{path}: line {lineno}: empty row, expected {len(header)} comma-separated values"
             if len(row) != len(header):
@@ -131,7 +179,7 @@ def _locate_bad_cell(path: Path, cols: list[str], exc: Exception) -> str:
                 try:
                     float(row[i])
                 except ValueError:
-                    return f"{path}: line {lineno}, column '{c}': {row[i].strip()!r} is not a number"
+                    return f"{path}: line {lineno}, column {quote(c)}: {quote(row[i].strip())} is not a number"
     first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
     return f"{path}: cannot parse as CSV: {first}"
 
@@ -148,7 +196,7 @@ def iter_numeric_columns(path, columns: dict[str, str], block_bytes: int = 1 << 
         # no threaded read-ahead: the reader would run ahead of the navigator and buffer the file
         reader = pacsv.open_csv(
             path,
-            read_options=pacsv.ReadOptions(use_threads=False, block_size=block_bytes),
+            read_options=_read_options(path, file_cols, use_threads=False, block_size=block_bytes),
             convert_options=_convert_options(file_cols))
     except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as exc:
         raise SinsError(_locate_bad_cell(path, file_cols, exc)) from None
@@ -174,17 +222,23 @@ class CsvTableWriter:
     """Stream float64 columns to a CSV file in chunks (exact round-trip floats).
 
     Use inside :func:`sinscli.io.atomic.atomic_path`; ``write`` takes a dict of
-    equally long 1-D arrays with the same keys each time.
+    equally long 1-D arrays with the same keys each time.  Every chunk passes
+    :func:`sinscli.io.atomic.check_finite` (``sigmas``: the 1-sigma columns, which must be positive).
     """
 
-    def __init__(self, path, columns: list[str]):
+    def __init__(self, path, columns: list[str], sigmas=()):
         self.columns = list(columns)
+        self.path = path
+        self.sigmas = tuple(sigmas)
+        self._rows = 0
         self._fh = open(path, "wb")
         self._fh.write((",".join(self.columns) + "\n").encode())
         self._opts = pacsv.WriteOptions(include_header=False, quoting_style="none", batch_size=1 << 16)
 
     def write(self, data: dict[str, np.ndarray]) -> None:
+        check_finite(self.path, {c: data[c] for c in self.columns}, data.get("time"), self._rows + 1, self.sigmas)
         table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in self.columns})
+        self._rows += table.num_rows
         buf = io.BytesIO()
         pacsv.write_csv(table, buf, write_options=self._opts)
         self._fh.write(buf.getbuffer())
@@ -202,9 +256,10 @@ class CsvTableWriter:
             self._fh.close()
 
 
-def write_table_csv(path, data: dict[str, np.ndarray], columns: list[str] | None = None) -> None:
-    """Write a dict of columns to ``path`` (already an atomic temporary path)."""
+def write_table_csv(path, data: dict[str, np.ndarray], columns: list[str] | None = None, sigmas=()) -> None:
+    """Write a dict of columns to ``path`` (already an atomic temporary path); ``sigmas`` as for
+    :class:`CsvTableWriter`."""
     cols = columns or list(data)
-    with CsvTableWriter(path, cols) as w:
+    with CsvTableWriter(path, cols, sigmas) as w:
         w.write(data)
         w.close()

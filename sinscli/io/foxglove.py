@@ -161,12 +161,6 @@ def _covariances(traj: Trajectory, c_flu: np.ndarray, heading: np.ndarray):
     """``(pos var (N,3) or None, pose cov (N,36) or None, twist cov (N,36) or None)`` from the sigma columns."""
     x = traj.extra
     pos_s, vel_s, att_s = ac.group(x, ac.POS_STD), ac.group(x, ac.VEL_STD), ac.group(x, ac.ATT_STD)
-    for name in ac.SIGMA_COLUMNS:
-        if name in x:
-            k = ac.first_bad_sigma(x[name])
-            if k is not None:
-                raise SinsError(f"{traj.source}: row {k} (time {float(traj.time[k])!r}), column '{name}': "
-                                f"{float(np.asarray(x[name])[k])!r} is not a positive finite 1-sigma; cannot write MCAP")
     n = len(traj)
     pos_var = pos_s ** 2 if pos_s is not None else None
     pose = twist = None
@@ -187,7 +181,8 @@ def _covariances(traj: Trajectory, c_flu: np.ndarray, heading: np.ndarray):
 
 
 def write_trajectory_mcap(path, traj: Trajectory, conv: int = 0) -> None:
-    """Write the trajectory as MCAP (see module docstring), atomically."""
+    """Write the trajectory as MCAP (see module docstring), atomically.  Called through
+    :func:`sinscli.io.trajectory.write_trajectory`, whose guard has refused non-finite values and sigmas."""
     from mcap.writer import Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -199,17 +194,10 @@ def write_trajectory_mcap(path, traj: Trajectory, conv: int = 0) -> None:
     v_body = np.einsum("nji,nj->ni", c_flu, np.asarray(traj.vel_n, dtype=np.float64))   # C_n^FLU v_n
     lat_deg, lon_deg = np.degrees(traj.lat), np.degrees(traj.lon)
     fields = np.column_stack([lat_deg, lon_deg, traj.height, enu, q, v_body])
-    if not np.isfinite(fields).all():
-        k = int(np.flatnonzero(~np.isfinite(fields).all(axis=1))[0])
-        raise SinsError(f"{traj.source}: row {k} (time {traj.time[k]!r}) has a non-finite value; cannot write MCAP")
     heading = dcm_to_euler_many(np.ascontiguousarray(traj.Cbn, dtype=np.float64), conv)[:, 2]
     pos_var, pose_cov, twist_cov = _covariances(traj, c_flu, heading)
     bias_cols = [c for c in ac.BIAS_COLUMNS if c in traj.extra]
     bias = np.column_stack([np.asarray(traj.extra[c], dtype=np.float64) for c in bias_cols]) if bias_cols else None
-    if bias is not None and not np.isfinite(bias).all():
-        k, j = (int(v[0]) for v in np.nonzero(~np.isfinite(bias)))
-        raise SinsError(f"{traj.source}: row {k} (time {traj.time[k]!r}), column '{bias_cols[j]}' is not finite; "
-                        "cannot write MCAP")
     sec, nsec = t_ns // 1_000_000_000, t_ns % 1_000_000_000
     ts = get_typestore(Stores.ROS2_HUMBLE)
     odom_def, _ = ts.generate_msgdef("nav_msgs/msg/Odometry", ros_version=2)

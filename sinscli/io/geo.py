@@ -35,16 +35,14 @@ def _track(traj: Trajectory):
     if len(traj) == 0:
         raise SinsError(f"{traj.source}: trajectory is empty; nothing to write")
     lon, lat = np.degrees(traj.lon), np.degrees(traj.lat)
-    if not (np.isfinite(lon).all() and np.isfinite(lat).all() and np.isfinite(traj.height).all()):
-        raise SinsError(f"{traj.source}: trajectory has non-finite positions; cannot write a map track")
     return lon.tolist(), lat.tolist(), np.asarray(traj.height, dtype=np.float64).tolist()
 
 
 def _columns(traj: Trajectory) -> dict[str, np.ndarray]:
-    """``time`` and the extra columns, checked: finite, sigmas positive (rows counted from 0)."""
+    """``time`` and the extra columns (checked by the guard of
+    :func:`sinscli.io.trajectory.write_trajectory`: finite, sigmas positive)."""
     cols = {"time": np.asarray(traj.time, dtype=np.float64)}
     cols.update({c: np.asarray(v, dtype=np.float64) for c, v in traj.extra.items()})
-    ac.check_columns(f"{traj.source}: cannot write a map track", cols, first_row=0, row_label="row")
     return cols
 
 

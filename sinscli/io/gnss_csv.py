@@ -10,7 +10,8 @@ from ..config import GNSS_NAMES
 from ..errors import SinsError
 from ..types import GnssLog
 from .atomic import atomic_path
-from .csvcore import check_positive, read_mapped_columns, write_table_csv
+from . import limits as limits_mod
+from .csvcore import read_mapped_columns, write_table_csv
 from .imu_csv import check_time
 from .timebase import diagnose
 
@@ -21,20 +22,30 @@ GROUPS = {"vel_n": ["vel_e", "vel_n", "vel_u"], "std_pos": ["std_e", "std_n", "s
           "std_vel": ["std_vel_e", "std_vel_n", "std_vel_u"]}
 
 
-def read_gnss_csv(path, cfg=None) -> GnssLog:
-    """Read ``gnss.csv``: required time, lat, lon (deg), height (m); optional velocity and sigmas."""
+def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
+    """Read ``gnss.csv``: required time, lat, lon (deg), height (m); optional velocity and sigmas.
+
+    Values beyond the physical ``limits`` (the config's section; default: the defaults) and sigmas that
+    are not positive are refused naming the line and column.
+    """
+    lim = limits_mod.resolve(limits)
     path = Path(path)
     data, mapping = read_mapped_columns(
         path, cfg or {}, GNSS_NAMES, REQUIRED, list(GROUPS.values()),
         f"expected {', '.join(GNSS_NAMES)} (map other names with the config's gnss.columns)",
         "expected time, lat, lon, height")
-    check_time(path, data["time"], allow_gaps=True, what=mapping.get("time", "time"))
-    lat = data["lat"]
-    if np.any(np.abs(lat) > 90):
-        k = int(np.argmax(np.abs(lat) > 90))
-        raise SinsError(f"{path}: line {k + 2}, column 'lat': {lat[k]!r} is outside [-90, 90] degrees")
-    check_positive(path, data, GROUPS["std_pos"] + GROUPS["std_vel"], mapping)
-    out = GnssLog(data["time"], lat, data["lon"], data["height"], source=str(path))
+    names = {c: mapping.get(c, c) for c in data}
+    limits_mod.check_time(path, data["time"], lim, names["time"], 2)
+    check_time(path, data["time"], allow_gaps=True, what=names["time"])
+    limits_mod.check_position(path, data["lat"], data["lon"], data["height"], lim,
+                              (names["lat"], names["lon"], names["height"]), 2)
+    if "vel_e" in data:
+        limits_mod.check_velocity(path, np.column_stack([data[c] for c in GROUPS["vel_n"]]), lim,
+                                  [names[c] for c in GROUPS["vel_n"]], 2)
+    for c in GROUPS["std_pos"] + GROUPS["std_vel"]:
+        if c in data:
+            limits_mod.check_sigma(path, data[c], names[c], 2)
+    out = GnssLog(data["time"], data["lat"], data["lon"], data["height"], source=str(path))
     for name, group in GROUPS.items():
         if group[0] in data:
             setattr(out, name, np.column_stack([data[c] for c in group]))
@@ -54,7 +65,7 @@ def write_gnss_csv(path, gnss: GnssLog) -> None:
             for i, c in enumerate(group):
                 data[c] = arr[:, i]
     with atomic_path(path) as tmp:
-        write_table_csv(tmp, data)
+        write_table_csv(tmp, data, sigmas=GROUPS["std_pos"] + GROUPS["std_vel"])
 
 
 def check_gnss_against_imu(gnss: GnssLog, t_imu0: float, t_imu1: float) -> None:

@@ -16,8 +16,9 @@ import numpy as np
 from ..config import ACCEL_UNITS, ANGLE_UNITS, GYRO_UNITS, IMU_NAMES, VEL_UNITS, mounting_matrix
 from ..errors import SinsError
 from ..types import ImuLog
+from . import limits as limits_mod
 from .atomic import atomic_path
-from .csvcore import iter_numeric_columns, read_header, write_table_csv
+from .csvcore import iter_numeric_columns, name_list, read_header, write_table_csv
 
 log = logging.getLogger("sins")
 
@@ -49,7 +50,7 @@ def _resolve_columns(path, header, cfg_imu):
     ignored = set(cfg_imu.get("ignore_columns") or [])
     unknown = [c for c in header if inverse.get(c, c) not in IMU_NAMES and c not in ignored]
     if unknown:
-        raise SinsError(f"{path}: unknown column(s) {', '.join(repr(c) for c in unknown)}; expected time with "
+        raise SinsError(f"{path}: unknown column(s) {name_list(unknown)}; expected time with "
                         f"gyro_x..accel_z (rates) or dtheta_x..dvel_z (increments); map other names with the "
                         f"config's imu.columns or list them in imu.ignore_columns")
     has_rates = any(c in known for c in RATE_COLS)
@@ -112,30 +113,37 @@ def check_time(path, time, allow_gaps=False, what="time"):
     TimeChecker(path, allow_gaps, f"column '{what}'").check(np.asarray(time, dtype=float), 2)
 
 
-def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=1 << 24):
+def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=1 << 24, limits=None):
     """Stream an IMU CSV (either form) as :class:`ImuLog` blocks of increments, SI units, body axes.
 
-    ``cfg`` is the config's ``imu`` section (column mapping, units, mounting).
+    ``cfg`` is the config's ``imu`` section (column mapping, units, mounting), ``limits`` its
+    ``limits`` section (default: the defaults): rates, forces and the rates an increment implies
+    beyond them are refused naming the line and column.
     Rate logs carry their last sample into the next block, so the increments
     are the same as for the whole file at once.
     """
     from ..config import DEFAULTS
     cfg_imu = cfg if cfg is not None else DEFAULTS["imu"]
+    lim = limits_mod.resolve(limits)
     path = Path(path)
     header = read_header(path)
     form, cols = _resolve_columns(path, header, cfg_imu)
     units = {**DEFAULTS["imu"]["units"], **(cfg_imu.get("units") or {})}
     c_sb = mounting_matrix(cfg_imu.get("mounting"))
     checker = TimeChecker(path, allow_gaps, what=f"column '{cols['time']}'")
+    value_cols = [cols[c] for c in (RATE_COLS if form == "rates" else INC_COLS)]
     last = None       # last rate sample (time, gyro, accel) of the previous block
     rows = 0
     for line, data in iter_numeric_columns(path, cols, block_bytes):
         time = data["time"]
+        limits_mod.check_time(path, time, lim, cols["time"], line)
+        prev_time = checker.prev
         checker.check(time, line)
         rows += time.shape[0]
         if form == "rates":
             gyro = np.column_stack([data[c] for c in RATE_COLS[:3]]) * GYRO_UNITS[units["gyro"]]
             accel = np.column_stack([data[c] for c in RATE_COLS[3:]]) * ACCEL_UNITS[units["accel"]]
+            limits_mod.check_imu_rates(path, gyro, accel, lim, value_cols, line)
             if last is None:
                 check_rate_units(path, gyro, units["gyro"])
             else:
@@ -150,6 +158,12 @@ def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=1 << 24):
         else:
             dtheta = np.column_stack([data[c] for c in INC_COLS[:3]]) * ANGLE_UNITS[units["dtheta"]]
             dvel = np.column_stack([data[c] for c in INC_COLS[3:]]) * VEL_UNITS[units["dvel"]]
+            # the interval of each row; the first row's (which starts at the initial time) is taken
+            # as long as the next one, so a shorter true first interval only makes the check milder
+            dt = np.diff(time, prepend=prev_time if prev_time is not None else np.nan)
+            if prev_time is None:
+                dt[0] = dt[1] if dt.shape[0] > 1 else np.inf
+            limits_mod.check_imu_increments(path, dt, dtheta, dvel, lim, value_cols, line)
             imu = ImuLog(time, dtheta, dvel, t0=None, source=str(path), kind="increments")
         yield apply_mounting(imu, c_sb)
     if form == "rates" and rows < 2:

@@ -1,41 +1,44 @@
 """Initial state: an init YAML (FORMATS.md keys) or a row of a trajectory file."""
 from __future__ import annotations
 
+import difflib
 import math
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from ..errors import SinsError
+from ..errors import SinsError, num, quote
 from ..nav.rotation import dcm_to_euler, euler_to_dcm
 from ..types import NavState, time_tolerance
-from .atomic import atomic_path
+from .atomic import atomic_path, check_finite
+from . import limits as limits_mod
+from .inputs import input_file, load_yaml
 
 INIT_KEYS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading"]
 
 
-def read_init(path, t_start: float | None = None, conv: int = 0) -> NavState:
+def read_init(path, t_start: float | None = None, conv: int = 0, limits=None) -> NavState:
     """Read the initial state.
 
     A YAML file must hold every key of FORMATS.md (extra keys from ``sins
     align`` are kept in ``extra``).  A trajectory CSV/Parquet gives the row at
-    the IMU start ``t_start``: the last row at or before it.
+    the IMU start ``t_start``: the last row at or before it.  Values beyond the
+    physical ``limits`` (the config's section) are refused naming the key or row.
     """
-    path = Path(path)
-    if not path.exists():
-        raise SinsError(f"{path}: init file not found")
+    path = input_file(path, "init file")
+    lim = limits_mod.resolve(limits)
     if path.suffix.lower() in (".yaml", ".yml"):
-        return _read_init_yaml(path, conv)
+        return _read_init_yaml(path, conv, lim)
     from .trajectory import read_trajectory
-    traj = read_trajectory(path)
+    traj = read_trajectory(path, lim)
     if t_start is None:
         k = 0
     else:
         idx = np.nonzero(traj.time <= t_start + time_tolerance(t_start))[0]
         if idx.size == 0:
-            raise SinsError(f"{path}: no row at or before the IMU start time {t_start!r} "
-                            f"(the trajectory starts at {traj.time[0]!r})")
+            raise SinsError(f"{path}: no row at or before the IMU start time {num(t_start)} "
+                            f"(the trajectory starts at {num(traj.time[0])})")
         k = int(idx[-1])
     _check_lat(path, math.degrees(traj.lat[k]), f"row {k + 1}, column 'lat'")
     return NavState(float(traj.time[k]), float(traj.lat[k]), float(traj.lon[k]), float(traj.height[k]),
@@ -44,37 +47,82 @@ def read_init(path, t_start: float | None = None, conv: int = 0) -> NavState:
 
 def _check_lat(path, lat_deg, where):
     if not -90.0 <= lat_deg <= 90.0:
-        raise SinsError(f"{path}: {where}: latitude {lat_deg!r} deg is outside [-90, 90]")
+        raise SinsError(f"{path}: {where}: latitude {num(lat_deg)} deg is outside [-90, 90]")
     if abs(lat_deg) > 89.99:
-        raise SinsError(f"{path}: {where}: latitude {lat_deg!r} deg is within 0.01 deg of a pole, where the "
+        raise SinsError(f"{path}: {where}: latitude {num(lat_deg)} deg is within 0.01 deg of a pole, where the "
                         f"ENU frame is undefined; use --frame launch-inertial")
 
 
-def _read_init_yaml(path: Path, conv: int) -> NavState:
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError:
-        raise SinsError(f"{path}: is not valid YAML") from None
+def _read_init_yaml(path: Path, conv: int, lim: dict) -> NavState:
+    data = load_yaml(path, "init file")
     if not isinstance(data, dict):
         raise SinsError(f"{path}: expected a mapping with keys {', '.join(INIT_KEYS)}")
     missing = [k for k in INIT_KEYS if k not in data]
     if missing:
-        raise SinsError(f"{path}: missing key(s) {', '.join(missing)}; an init file needs "
+        stray = [str(k) for k in data if k not in INIT_KEYS and
+                 difflib.get_close_matches(str(k), missing, n=1, cutoff=0.6)]
+        hint = f" (found {', '.join(quote(k, 30) for k in stray)}: misspelt?)" if stray else ""
+        raise SinsError(f"{path}: missing key(s) {', '.join(missing)}{hint}; an init file needs "
                         f"{', '.join(INIT_KEYS)}")
     vals = {}
     for k in INIT_KEYS:
         v = data[k]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise SinsError(f"{path}: {k}: expected a finite number, got {v!r}")
+            raise SinsError(f"{path}: {k}: expected a finite number, got {quote(v, 40)}")
         vals[k] = float(v)
+    row = np.array
+    limits_mod.check_time(path, row([vals["time"]]), lim, "time", row="")
     _check_lat(path, vals["lat"], "lat")
+    limits_mod.check_position(path, row([vals["lat"]]), row([vals["lon"]]), row([vals["height"]]), lim,
+                              row="")
+    limits_mod.check_velocity(path, row([[vals["vel_e"], vals["vel_n"], vals["vel_u"]]]), lim,
+                              ["vel_e", "vel_n", "vel_u"], row="")
     if not -90.0 <= vals["pitch"] <= 90.0:
-        raise SinsError(f"{path}: pitch: {vals['pitch']!r} deg is outside [-90, 90]")
+        raise SinsError(f"{path}: pitch: {num(vals['pitch'])} deg is outside [-90, 90]")
+    for k in ("roll", "heading"):
+        limits_mod.check_range(path, row([vals[k]]), -limits_mod.ANGLE_RANGE, limits_mod.ANGLE_RANGE, k, None,
+                               " deg", k, row="")
     r = math.radians
     cbn = euler_to_dcm(r(vals["roll"]), r(vals["pitch"]), r(vals["heading"]), conv)
     extra = {k: v for k, v in data.items() if k not in INIT_KEYS}
     return NavState(vals["time"], r(vals["lat"]), r(vals["lon"]), vals["height"],
                     np.array([vals["vel_e"], vals["vel_n"], vals["vel_u"]]), cbn, extra)
+
+
+def align_estimates(state: NavState, where, limits=None) -> tuple[dict, dict | None]:
+    """The 1-sigma (``{"attitude": rad (3,)}``, heading inf when ``sigma_heading`` is null) and the sensor
+    estimates (``{"gyro": rad/s (3,), "accel": m/s^2 (3,)}`` or None) that a ``sins align`` init YAML
+    carries in its extra keys (deg, deg/h, micro-g).  A sigma that is not positive, a bias that is not three
+    numbers or lies beyond the physical ``limits`` is refused naming the key."""
+    lim = limits_mod.resolve(limits)
+    x = state.extra
+    sig = {}
+    if "sigma_roll" in x and "sigma_pitch" in x:
+        deg = []
+        for k in ("sigma_roll", "sigma_pitch", "sigma_heading"):
+            v = x.get(k)
+            if k == "sigma_heading" and v is None:
+                deg.append(math.inf)                 # unobservable heading
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise SinsError(f"{where}: {k}: expected a 1-sigma in degrees, got {quote(v, 40)}")
+            limits_mod.check_sigma(where, np.array([v], dtype=np.float64), k, row="")
+            deg.append(float(v))
+        sig["attitude"] = np.radians(deg)
+    bias = None
+    if "gyro_bias" in x and "accel_bias" in x:
+        vals = {}
+        for k in ("gyro_bias", "accel_bias"):
+            v = x[k]
+            if not (isinstance(v, list) and len(v) == 3 and
+                    all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in v)):
+                raise SinsError(f"{where}: {k}: expected three numbers [x, y, z], got {quote(v, 60)}")
+            vals[k] = np.asarray(v, dtype=np.float64)
+        bias = {"gyro": np.radians(vals["gyro_bias"]) / 3600.0, "accel": vals["accel_bias"] * 9.80665e-6}
+        limits_mod.check_abs(where, bias["gyro"], lim["rate"], "gyro bias", "rate", " rad/s", "gyro_bias", row="")
+        limits_mod.check_abs(where, bias["accel"], lim["specific_force"], "accelerometer bias", "specific_force",
+                             " m/s^2", "accel_bias", row="")
+    return sig, bias
 
 
 def init_dict(state: NavState, conv: int = 0) -> dict:
@@ -91,6 +139,8 @@ def write_init_yaml(path, state: NavState, conv: int = 0, extra: dict | None = N
     data = init_dict(state, conv)
     for k, v in {**state.extra, **(extra or {})}.items():
         data[k] = _plain(v)
+    check_finite(path, {k: v for k, v in data.items() if isinstance(v, (int, float)) or
+                        (isinstance(v, list) and all(isinstance(x, (int, float)) for x in v))})
     with atomic_path(path) as tmp:
         Path(tmp).write_text(yaml.safe_dump(data, sort_keys=False, default_flow_style=False))
 

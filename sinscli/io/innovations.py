@@ -13,8 +13,9 @@ One row per measured component, in the order the filter processed them:
 | ``accepted`` | | ``true`` / ``false``: passed the chi-square gate and was applied |
 
 Floats are written in shortest round-trip form.  Every value is finite and
-every sigma positive: the writer refuses anything else (a NaN innovation is a
-filter failure, not a row).  The records are a numpy structured array of
+every sigma positive: the writer refuses anything else through the writer guard
+(:func:`sinscli.io.atomic.check_finite`; a NaN innovation is a filter failure,
+not a row), the reader names the line and column.  The records are a numpy structured array of
 :data:`DTYPE`.
 """
 from __future__ import annotations
@@ -24,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import SinsError
-from .atomic import atomic_path
+from ..errors import SinsError, num
+from .atomic import atomic_path, check_finite
 
 DTYPE = np.dtype([("time", "f8"), ("type", "U16"), ("axis", "U8"), ("innovation", "f8"), ("sigma", "f8"),
                   ("nis", "f8"), ("accepted", "?")])
@@ -35,26 +36,20 @@ AXES = ("e", "n", "u", "x", "y", "z")
 FLOATS = ("time", "innovation", "sigma", "nis")
 
 
-def check_records(where: str, rec: np.ndarray, first_row: int = 0, row_label: str = "record") -> None:
-    """SinsError at the first record with an unknown type or axis, a non-finite value, sigma <= 0 or nis < 0."""
+def check_records(where: str, rec: np.ndarray, first_row: int = 1, row_label: str = "record") -> None:
+    """SinsError at the first record with an unknown type or axis, or a NIS below 0 (the values' finiteness
+    and the sigma's sign are checked by the writer guard and the reader, as for every file)."""
     for name, known in (("type", TYPES), ("axis", AXES)):
         bad = ~np.isin(rec[name], known)
         if bad.any():
             k = int(np.argmax(bad))
             raise SinsError(f"{where}: {row_label} {first_row + k}, column '{name}': {str(rec[name][k])!r} is not one "
                             f"of {', '.join(known)}")
-    for name in FLOATS:
-        v = rec[name]
-        bad = ~np.isfinite(v)
-        if name == "sigma":
-            bad |= ~(v > 0)
-        elif name == "nis":
-            bad |= ~(v >= 0)
-        if bad.any():
-            k = int(np.argmax(bad))
-            what = {"sigma": "a positive finite 1-sigma", "nis": "a finite number >= 0"}.get(name, "a finite number")
-            raise SinsError(f"{where}: {row_label} {first_row + k} (time {float(rec['time'][k])!r}, "
-                            f"{rec['type'][k]} {rec['axis'][k]}), column '{name}': {float(v[k])!r} is not {what}")
+    bad = ~(rec["nis"] >= 0)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise SinsError(f"{where}: {row_label} {first_row + k} (time {num(rec['time'][k])}, {rec['type'][k]} "
+                        f"{rec['axis'][k]}), column 'nis': {num(rec['nis'][k])} is not a finite number >= 0")
 
 
 def write_innovations(path, records: np.ndarray) -> None:
@@ -73,6 +68,7 @@ def write_innovations(path, records: np.ndarray) -> None:
         raise SinsError(f"{path}: innovation records lack the field(s) {', '.join(missing)}; expected "
                         f"{', '.join(COLUMNS)}")
     rec = rec.reshape(-1)
+    check_finite(path, {c: rec[c] for c in FLOATS}, rec["time"], sigmas=("sigma",))
     check_records(f"{path}: cannot write innovations", rec)
     table = pa.table({"time": np.ascontiguousarray(rec["time"], dtype=np.float64),
                       "type": pa.array(rec["type"].astype(str).tolist(), pa.string()),
@@ -94,7 +90,8 @@ def read_innovations(path) -> np.ndarray:
     """Read an innovations CSV back into a structured array of :data:`DTYPE` (checks as the writer)."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
-    from .csvcore import _locate_bad_cell, read_header
+    from .csvcore import _finite_columns, _locate_bad_cell, read_header
+    from .limits import check_sigma
     path = Path(path)
     header = read_header(path)
     if header != COLUMNS:
@@ -115,5 +112,7 @@ def read_innovations(path) -> np.ndarray:
     for c in COLUMNS:
         col = table.column(c)
         rec[c] = col.to_numpy(zero_copy_only=False) if c not in ("type", "axis") else np.array(col.to_pylist(), dtype=str)
+    _finite_columns(path, {c: c for c in FLOATS}, table.column, 2)
+    check_sigma(path, rec["sigma"], "sigma", 2)
     check_records(str(path), rec, first_row=2, row_label="line")
     return rec

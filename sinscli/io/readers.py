@@ -26,10 +26,10 @@ def iter_imu(path, cfg: dict, allow_gaps: bool = False):
         from .ros import read_imu as read_ros_imu
         ros = cfg["ros"]
         imu = read_ros_imu(path, topic=ros.get("imu_topic"), time_source=ros.get("time", "header"),
-                           allow_gaps=allow_gaps)
+                           allow_gaps=allow_gaps, limits=cfg.get("limits"))
         yield apply_mounting(imu, mounting_matrix(cfg["imu"].get("mounting")))
         return
-    yield from iter_imu_csv(path, cfg["imu"], allow_gaps)
+    yield from iter_imu_csv(path, cfg["imu"], allow_gaps, limits=cfg.get("limits"))
 
 
 def read_imu(path, cfg: dict, allow_gaps: bool = False) -> ImuLog:
@@ -46,10 +46,10 @@ def read_gnss(path, cfg: dict) -> GnssLog:
         from .ros import read_gnss as read_ros_gnss
         ros = cfg["ros"]
         gnss = read_ros_gnss(path, topic=ros.get("gnss_topic"), vel_topic=ros.get("vel_topic"),
-                             time_source=ros.get("time", "header"))
+                             time_source=ros.get("time", "header"), limits=cfg.get("limits"))
     else:
         from .gnss_csv import read_gnss_csv
-        gnss = read_gnss_csv(path, cfg["gnss"])
+        gnss = read_gnss_csv(path, cfg["gnss"], limits=cfg.get("limits"))
     offset = float(cfg["gnss"].get("time_offset", 0.0))
     if offset:
         gnss.time = gnss.time + offset
@@ -75,6 +75,7 @@ def read_body_velocity(path, cfg: dict) -> BodyVelLog:
         return read_ros_body_velocity(path, topic=ros.get("odom_topic"), time_source=ros.get("time", "header"),
                                       mounting=mounting_matrix(cfg["imu"].get("mounting")),
                                       conv=BODY_CONVENTIONS[cfg["imu"]["body"]],
-                                      frame=cfg["odometry"].get("frame", "auto"), imu_topic=ros.get("imu_topic"))
+                                      frame=cfg["odometry"].get("frame", "auto"), imu_topic=ros.get("imu_topic"),
+                                      limits=cfg.get("limits"))
     from .body_vel_csv import read_body_velocity_csv
     return read_body_velocity_csv(path, cfg)

@@ -14,18 +14,22 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 
 from ..errors import SinsError
+from .inputs import input_file
 from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, quat_to_dcm_many
 from ..types import Trajectory
 from . import aided_columns
-from .atomic import atomic_path
+from . import limits as limits_mod
+from .atomic import atomic_path, check_finite, prepare_output
 from .csvcore import CsvTableWriter, read_header, read_numeric_columns
 
 BASE_COLUMNS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading",
                 "qw", "qx", "qy", "qz"]
 DCM_COLUMNS = [f"c{i}{j}" for i in range(1, 4) for j in range(1, 4)]
 REQUIRED = BASE_COLUMNS
+ROTATION_TOL = 1e-3          # a read attitude (c11..c33, or the quaternion's norm) is a rotation within this
 
 # suffix -> writer(path, traj, conv); filled by format modules (MCAP, TUM, GeoJSON, KML).
 WRITERS: dict = {}
@@ -57,12 +61,13 @@ class TrajectoryWriter:
     """
 
     def __init__(self, path, conv: int = 0, extra_columns=()):
-        self.path = Path(path)
+        self.path = check_trajectory_output(path)
         self.conv = conv
         self.suffix = self.path.suffix.lower()
         if self.suffix not in (".csv", ".parquet"):
             raise SinsError(f"{path}: streaming output supports .csv and .parquet")
         self.columns = BASE_COLUMNS + DCM_COLUMNS + list(extra_columns)
+        self.sigmas = [c for c in self.columns if aided_columns.is_sigma(c)]
         self._ctx = atomic_path(self.path)
         self._tmp = self._ctx.__enter__()
         self._writer = None
@@ -70,13 +75,12 @@ class TrajectoryWriter:
 
     def write(self, traj: Trajectory) -> None:
         cols = trajectory_columns(traj, self.conv)
-        # no writer emits NaN, infinity or a sigma <= 0 (rows counted from the initial row, 0)
-        aided_columns.check_columns(f"{self.path}: cannot write", {c: cols[c] for c in self.columns},
-                                    first_row=self._rows, row_label="row")
+        if self.suffix != ".csv":            # (the CSV table writer applies the same guard)
+            check_finite(self.path, {c: cols[c] for c in self.columns}, cols["time"], self._rows + 1, self.sigmas)
         self._rows += len(traj)
         if self.suffix == ".csv":
             if self._writer is None:
-                self._writer = CsvTableWriter(self._tmp, self.columns)
+                self._writer = CsvTableWriter(self._tmp, self.columns, self.sigmas)
             self._writer.write(cols)
         else:
             import pyarrow as pa
@@ -120,18 +124,41 @@ def write_trajectory(path, traj: Trajectory, conv: int = 0) -> None:
         with TrajectoryWriter(path, conv, extra_columns=list(traj.extra)) as w:
             w.write(traj)
         return
-    if suffix not in WRITERS:
-        known = ", ".join(sorted({".csv", ".parquet", *WRITERS}))
-        raise SinsError(f"{path}: unknown output format '{suffix}'; expected one of {known}")
+    check_trajectory_output(path)
+    guard_trajectory(path, traj)
     WRITERS[suffix](path, traj, conv)
 
 
-def read_trajectory(path) -> Trajectory:
-    """Read a trajectory CSV or Parquet.  ``c11..c33`` are used when present, else the quaternion."""
+def guard_trajectory(path, traj: Trajectory) -> None:
+    """The writer guard (:func:`sinscli.io.atomic.check_finite`) on a whole trajectory: every value finite,
+    every ``*_std`` column positive (the writers of :data:`WRITERS` rely on it)."""
+    check_finite(path, {"time": traj.time, "lat": traj.lat, "lon": traj.lon, "height": traj.height,
+                        "velocity": traj.vel_n, "attitude": traj.Cbn, **traj.extra}, traj.time,
+                 sigmas=[c for c in traj.extra if aided_columns.is_sigma(c)])
+
+
+def check_trajectory_output(path) -> Path:
+    """Refuse, before any work, an output that is a directory or has no known trajectory format."""
     path = Path(path)
+    if path.is_dir():
+        raise SinsError(f"{path}: output is a directory; give a file name")
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".parquet", *WRITERS):
+        known = ", ".join(sorted({".csv", ".parquet", *WRITERS}))
+        what = f"unknown output format '{suffix}'" if suffix else "no file suffix to tell the output format"
+        raise SinsError(f"{path}: {what}; expected one of {known}")
+    return prepare_output(path)
+
+
+def read_trajectory(path, limits=None) -> Trajectory:
+    """Read a trajectory CSV or Parquet.  ``c11..c33`` are used when present, else the quaternion.
+
+    Rows beyond the physical ``limits`` (the config's section; default: the defaults), Euler angles
+    out of range and an attitude that is not a rotation are refused naming the row and column.
+    """
+    lim = limits_mod.resolve(limits)
+    path = input_file(path, "trajectory file")
     if path.suffix.lower() == ".parquet":
-        if not path.exists():
-            raise SinsError(f"{path}: file not found")
         import pyarrow.parquet as pq
         try:
             table = pq.read_table(path)
@@ -139,29 +166,49 @@ def read_trajectory(path) -> Trajectory:
             raise SinsError(f"{path}: cannot read as Parquet ({type(exc).__name__})") from None
         header = table.column_names
         _check_columns(path, header)
-        data = {c: table.column(c).to_numpy().astype(float) for c in header}
+        try:
+            data = {c: table.column(c).to_numpy().astype(float) for c in header}
+        except (TypeError, ValueError, pa.ArrowException) as exc:
+            raise SinsError(f"{path}: a column is not numeric ({type(exc).__name__})") from None
         for c, a in data.items():
             if not np.all(np.isfinite(a)):
                 k = int(np.argmax(~np.isfinite(a)))
                 raise SinsError(f"{path}: row {k + 1}, column '{c}': value is not a finite number")
+        first, row = 1, "row"
     else:
         header = read_header(path)
         _check_columns(path, header)
         data = read_numeric_columns(path, {c: c for c in header})
+        first, row = 2, "line"
     from .imu_csv import check_time
+    limits_mod.check_time(path, data["time"], lim, "time", first, row)
     check_time(path, data["time"], allow_gaps=True)
+    limits_mod.check_position(path, data["lat"], data["lon"], data["height"], lim, first=first, row=row)
+    vel = np.column_stack([data["vel_e"], data["vel_n"], data["vel_u"]])
+    limits_mod.check_velocity(path, vel, lim, ["vel_e", "vel_n", "vel_u"], first, row)
+    a = limits_mod.ANGLE_RANGE
+    for c, lo, hi in (("roll", -a, a), ("pitch", -90.0, 90.0), ("heading", -a, a)):
+        limits_mod.check_range(path, data[c], lo, hi, c, None, " deg", c, first, row)
     d2r = math.radians(1.0)
     if all(c in data for c in DCM_COLUMNS):
         cbn = np.stack([np.stack([data[f"c{i}{j}"] for j in range(1, 4)], axis=-1) for i in range(1, 4)],
                        axis=-2)
+        limits_mod.check_abs(path, cbn.reshape(-1, 9), 1.0 + ROTATION_TOL, "direction cosine", None, "",
+                             DCM_COLUMNS, first, row)
+        err = np.abs(np.einsum("nij,nkj->nik", cbn, cbn) - np.eye(3)).max(axis=(1, 2))
+        limits_mod.check_abs(path, err, ROTATION_TOL, "departure of c11..c33 from a rotation (|C C^T - I|)",
+                             None, "", "c11..c33", first, row)
     else:
         q = np.column_stack([data["qw"], data["qx"], data["qy"], data["qz"]])
-        cbn = quat_to_dcm_many(q / np.linalg.norm(q, axis=1, keepdims=True))
+        limits_mod.check_abs(path, q, 1.0 + ROTATION_TOL, "quaternion element", None, "",
+                             ["qw", "qx", "qy", "qz"], first, row)
+        norm = np.linalg.norm(q, axis=1)
+        limits_mod.check_abs(path, norm - 1.0, ROTATION_TOL, "departure of the quaternion norm from 1", None, "",
+                             "qw..qz", first, row)
+        cbn = quat_to_dcm_many(q / norm[:, None])
     extra = {c: data[c] for c in data if c not in BASE_COLUMNS and c not in DCM_COLUMNS}
-    parquet = path.suffix.lower() == ".parquet"
-    aided_columns.check_columns(str(path), extra, first_row=1 if parquet else 2, row_label="row" if parquet else "line")
-    return Trajectory(data["time"], data["lat"] * d2r, data["lon"] * d2r, data["height"],
-                      np.column_stack([data["vel_e"], data["vel_n"], data["vel_u"]]), cbn, extra,
+    aided_columns.check_columns(str(path), extra, first, row)
+    return Trajectory(data["time"], data["lat"] * d2r, data["lon"] * d2r, data["height"], vel, cbn, extra,
                       source=str(path))
 
 

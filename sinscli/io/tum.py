@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import logging
 import re
-from pathlib import Path
 
 import numpy as np
 
@@ -23,7 +22,9 @@ from ..errors import SinsError
 from ..nav.earth import local_enu_to_lla
 from ..nav.rotation import cbn_from_flu, quat_to_dcm_many
 from ..types import Trajectory
+from . import limits as limits_mod
 from .atomic import atomic_path
+from .inputs import input_file
 from .local_frame import trajectory_enu_quat
 
 TUM_COLUMNS = ("time", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
@@ -50,9 +51,15 @@ def write_tum(path, traj: Trajectory, conv: int = 0) -> None:
             f.writelines(" ".join(row) + "\n" for row in zip(*cols))
 
 
-def read_tum(path):
-    """``(time, enu (N,3), q_xyzw (N,4), origin (lat rad, lon rad, h) or None)`` from a TUM file."""
-    path = Path(path)
+def read_tum(path, limits=None):
+    """``(time, enu (N,3), q_xyzw (N,4), origin (lat rad, lon rad, h) or None)`` from a TUM file.
+
+    Time stamps, positions (at most :data:`sinscli.io.limits.MAX_LOCAL_POSITION` from the origin) and the
+    origin line beyond the physical ``limits`` (the config's section; default: the defaults) are refused
+    naming the line and column.
+    """
+    lim = limits_mod.resolve(limits)
+    path = input_file(path, "TUM file")
     origin = None
     rows = []
     lines = []
@@ -67,7 +74,13 @@ def read_tum(path):
         if s.startswith("#"):
             m = _ORIGIN_RE.search(s)
             if m:
-                origin = (np.radians(float(m.group(1))), np.radians(float(m.group(2))), float(m.group(3)))
+                try:
+                    o = [float(x) for x in m.groups()]
+                except ValueError:
+                    raise SinsError(f"{path}: line {lineno}: the origin line holds a value that is not a number") from None
+                limits_mod.check_position(path, o[:1], o[1:2], o[2:], lim,
+                                          ("origin_lat_deg", "origin_lon_deg", "origin_height_m"), lineno)
+                origin = (np.radians(o[0]), np.radians(o[1]), o[2])
             continue
         parts = s.split()
         if len(parts) != 8:
@@ -84,6 +97,12 @@ def read_tum(path):
     if bad.any():
         k, c = (int(v[0]) for v in np.nonzero(bad))
         raise SinsError(f"{path}: line {lines[k]}, column '{TUM_COLUMNS[c]}': value is not a finite number")
+    rows_at = np.asarray(lines)
+    limits_mod.check_time(path, a[:, 0], lim, "time", rows_at)
+    limits_mod.check_abs(path, a[:, 1:4], limits_mod.MAX_LOCAL_POSITION, "position", None, " m", ["tx", "ty", "tz"],
+                         rows_at)
+    limits_mod.check_abs(path, a[:, 4:8], 1.0 + 1e-3, "quaternion element", None, "", ["qx", "qy", "qz", "qw"],
+                         rows_at)
     qn = np.linalg.norm(a[:, 4:8], axis=1)
     if np.any(np.abs(qn - 1.0) > 1e-3):
         k = int(np.argmax(np.abs(qn - 1.0) > 1e-3))

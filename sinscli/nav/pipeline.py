@@ -152,6 +152,8 @@ class Navigator:
             b = min(a + BLOCK, time.shape[0])
             chunks.append(self._run(np.ascontiguousarray(time[a:b]), np.ascontiguousarray(dth[a:b]),
                                     np.ascontiguousarray(dv[a:b])))
+            chunks[-1].source = self._source
+            self._check_finite(chunks[-1], time[a], time[b - 1])
             if self.stopped:
                 break
         self.applied += time.shape[0]
@@ -177,6 +179,20 @@ class Navigator:
         self._report_angle_events(events, n_ev)
         return Trajectory(out_t[:n], out_pos[:n, 0], out_pos[:n, 1], out_pos[:n, 2], out_vel[:n], out_cbn[:n],
                           self._angle_columns(out_ang[:n]))
+
+    def _check_finite(self, chunk: Trajectory, t_first: float, t_last: float) -> None:
+        """Stop with the epoch when the kernel state turned non-finite in the block just run."""
+        state = self.state if self.inertial is None else self.inertial.state
+        if np.isfinite(state).all():
+            return
+        rows = np.column_stack([chunk.time, chunk.lat, chunk.lon, chunk.height, chunk.vel_n,
+                                chunk.Cbn.reshape(len(chunk), 9)]) if len(chunk) else np.empty((0, 1))
+        bad = ~np.isfinite(rows).all(axis=1)
+        when = (f"at t = {float(chunk.time[int(np.argmax(bad))])!r} s" if bad.any() else
+                f"between t = {float(t_first)!r} and {float(t_last)!r} s")
+        raise SinsError(f"{self._source}: the navigation state became non-finite {when}: the input drives the "
+                        f"mechanization outside its range (check units, time stamps and the initial state); "
+                        f"nothing written")
 
     def _report_angle_events(self, events, n_ev) -> None:
         """Log Krylov set transfers and RK4 sub-steps (debug), and the 3-angle singularity (warning, or stop)."""
@@ -221,7 +237,7 @@ def concat(parts: list[Trajectory]) -> Trajectory:
     return Trajectory(np.concatenate([p.time for p in parts]), np.concatenate([p.lat for p in parts]),
                       np.concatenate([p.lon for p in parts]), np.concatenate([p.height for p in parts]),
                       np.vstack([p.vel_n for p in parts]), np.concatenate([p.Cbn for p in parts]), extra,
-                      source=parts[0].source)
+                      source=next((p.source for p in parts if p.source != "<memory>"), parts[0].source))
 
 
 def navigate_blocks(blocks, init: NavState, opts: NavOptions, progress=None):

@@ -30,9 +30,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ..errors import SinsError
+from ..io.inputs import load_yaml
 from ..io.atomic import atomic_path
 from .errors import ErrorSeries, ErrorTable, build_table, compare_trajectories
 from .html import error_table_html, simple_table_html, write_summary_html
@@ -196,13 +196,7 @@ def _unique(src, what, names):
 def load_batch(path) -> BatchSpec:
     """Read and validate a batch YAML; every error names the file and the key."""
     src = Path(path)
-    if not src.exists():
-        raise SinsError(f"{src}: batch file not found")
-    try:
-        data = yaml.safe_load(src.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise SinsError(f"{src}:{f' line {mark.line + 1}:' if mark else ''} is not valid YAML") from None
+    data = load_yaml(src, "batch file")
     if not isinstance(data, dict):
         raise SinsError(f"{src}: expected a mapping with keys datasets, methods (and seeds, title, ...)")
     for key in data:

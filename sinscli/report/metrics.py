@@ -128,7 +128,10 @@ def align_poses(est: Poses, ref: Poses, mode: str) -> tuple[Poses, Alignment]:
         raise SinsError(f"--align-traj: expected one of {', '.join(ALIGN_MODES)}, got {mode!r}")
     if mode == "none":
         return est, Alignment("none", np.eye(3), np.zeros(3), 1.0)
-    r, t, s = umeyama(est.pos, ref.pos, mode == "sim3")
+    try:
+        r, t, s = umeyama(est.pos, ref.pos, mode == "sim3")
+    except SinsError as exc:                     # name the trajectory that cannot be aligned
+        raise SinsError(f"{est.source}: {exc} (against {ref.source})") from None
     pos = (s * est.pos) @ r.T + t
     rot = np.einsum("ij,njk->nik", r, est.rot)
     return Poses(est.time, pos, rot, est.source), Alignment(mode, r, t, s)

@@ -6,38 +6,13 @@ report (files of an earlier report in the directory are replaced one by one).
 """
 from __future__ import annotations
 
-import contextlib
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
+from ..io.atomic import staged_dir  # noqa: F401  (re-exported: the batch runner writes reports through it)
 from .errors import ErrorSeries, ErrorTable, build_consistency, build_table
 from .figures import plot_all, plot_metrics
 from .html import consistency_table_html, summary_html, write_report_html
 from .tables import write_errors_csv, write_errors_md, write_metric_series_csv, write_timeseries_csv
-
-
-
-@contextlib.contextmanager
-def staged_dir(outdir):
-    """Yield a temporary directory; on success move its files into ``outdir`` (created if needed)."""
-    outdir = Path(outdir)
-    parent = outdir.parent
-    parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", suffix=".part", dir=parent))
-    try:
-        yield tmp
-        outdir.mkdir(parents=True, exist_ok=True)
-        for p in sorted(tmp.rglob("*")):
-            rel = p.relative_to(tmp)
-            if p.is_dir():
-                (outdir / rel).mkdir(parents=True, exist_ok=True)
-            else:
-                (outdir / rel).parent.mkdir(parents=True, exist_ok=True)
-                os.replace(p, outdir / rel)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def write_report_files(outdir: Path, series: dict[str, ErrorSeries], table: ErrorTable, title: str,

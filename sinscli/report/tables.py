@@ -10,7 +10,7 @@ import csv
 
 import numpy as np
 
-from ..io.atomic import atomic_path
+from ..io.atomic import atomic_path, check_finite
 from .errors import CONSISTENCY_UNITS, METRIC_STATISTICS, ROW_UNITS, ConsistencyTable, ErrorSeries, ErrorTable
 
 #: How Tables 1-2 of seed 000 name each row (subscript g = truth, n = navigation).
@@ -60,6 +60,9 @@ def _r(x: float) -> str:
 def write_errors_csv(path, table: ErrorTable, consistency: ConsistencyTable | None = None) -> None:
     """``quantity,unit,<method>...``: one row per table row, full precision; then the consistency rows
     (``in3sigma_*``, ``nees_*``) when some method has sigma columns (empty cells for the others)."""
+    check_finite(path, dict(zip(table.rows, table.values)))
+    if consistency is not None:                  # NaN: the method has no such sigma (an empty cell)
+        check_finite(path, {k: v[~np.isnan(v)] for k, v in zip(consistency.rows, consistency.values)})
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(["quantity", "unit", *table.methods])
@@ -151,6 +154,10 @@ def timeseries_frame(series: dict[str, ErrorSeries], every: int = 1):
 
 def write_timeseries_csv(path, series: dict[str, ErrorSeries], every: int = 1) -> None:
     """``timeseries.csv`` (see :func:`timeseries_frame`); floats in shortest round-trip form."""
+    for name, s in series.items():
+        check_finite(path, {f"{name}.{attr}": getattr(s, attr) for _, attr, _, _ in
+                            TIMESERIES_QUANTITIES + TIMESERIES_SIGMAS if getattr(s, attr) is not None}, s.time,
+                     sigmas=[f"{name}.{attr}" for _, attr, _, _ in TIMESERIES_SIGMAS])
     frame = timeseries_frame(series, every)
     with atomic_path(path) as tmp:
         frame.to_csv(tmp, index=True, na_rep="", lineterminator="\n")
@@ -161,6 +168,11 @@ def write_metric_series_csv(outdir, results) -> list[str]:
     from pathlib import Path
     outdir = Path(outdir)
     written = []
+    for m, r in results.items():
+        check_finite(outdir / "ate.csv", {f"{m}.ate_m": r.ate_m} if r.ate_m is not None else {}, r.time)
+        if r.rpe_i is not None:
+            check_finite(outdir / "rpe.csv", {f"{m}.trans_m": r.rpe_trans_m, f"{m}.rot_deg": r.rpe_rot_deg},
+                         r.time[r.rpe_i])
     ate = {m: r for m, r in results.items() if r.ate_m is not None}
     if ate:
         with atomic_path(outdir / "ate.csv") as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:

@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ..errors import SinsError
+from ..io.inputs import load_yaml
 from ..nav.rotation import BODY_CONVENTIONS
 from .imu_synth import GRAVITY_MODELS
 from .segments import AXES
@@ -80,16 +80,7 @@ def load_scenario(scenario) -> Scenario:
     if isinstance(scenario, dict):
         return validate(scenario, "<scenario>", Path.cwd())
     path = Path(scenario)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SinsError(f"{path}: cannot read the scenario ({exc.strerror or exc})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise SinsError(f"{path}: not valid YAML{where}: {getattr(exc, 'problem', exc)}") from None
+    data = load_yaml(path, "scenario")
     if not isinstance(data, dict):
         raise SinsError(f"{path}: expected a mapping of scenario keys at the top level")
     return validate(data, str(path), path.parent)

@@ -24,9 +24,9 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 import numpy as np
-import yaml
 
 from ...errors import SinsError
+from ..inputs import input_file, load_yaml
 from . import decode
 from .decode import ImuBlock
 
@@ -157,7 +157,10 @@ class _RosbagsLog(_Log):
     def __init__(self, path: Path):
         from rosbags.highlevel import AnyReader
         self.path = path
-        with guard(path, None, "cannot open log (truncated, corrupt or unsupported)"):
+        what = "cannot open log (truncated, corrupt or unsupported)"
+        if path.suffix.lower() == ".bag":
+            what += "; a ROS 1 bag with a damaged index can be rebuilt with `rosbag reindex` (or rosbags-convert)"
+        with guard(path, None, what):
             self.reader = AnyReader([path])
             self.reader.open()
         self.is2 = self.reader.is2
@@ -188,7 +191,7 @@ class _RosbagsLog(_Log):
 
     def _metadata(self) -> dict:
         with guard(self.path, None, "cannot read metadata.yaml"):
-            meta = yaml.safe_load((self.path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+            meta = load_yaml(self.path / "metadata.yaml", "bag metadata")["rosbag2_bagfile_information"]
         return meta
 
     def close(self):
@@ -578,9 +581,7 @@ class _McapLog(_Log):
 
 def open_log(path) -> _Log:
     """Open a log with the right library; SinsError when it does not exist or cannot be read."""
-    p = Path(path)
-    if not p.exists():
-        raise SinsError(f"{p}: no such file or directory")
+    p = input_file(path, "ROS log", allow_dir=True)      # a FIFO or device would block or fail deep inside
     if p.is_dir():
         if not (p / "metadata.yaml").is_file():
             raise SinsError(f"{p}: not a ROS 2 bag directory (no metadata.yaml)")

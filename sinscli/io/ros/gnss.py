@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import SinsError
+from .. import limits as limits_mod
 from ...types import GnssLog
 from .containers import _Log, choose_topic, guard, open_log
 from .decode import NAVSAT_TYPE, ODOMETRY_TYPE, VEL_TYPES, check_increasing, check_time_source, message_times
@@ -30,7 +31,7 @@ def refuse_odometry(lg: _Log, topic: str | None, role: str = "GNSS velocity") ->
                         f"{role}; give it as body-velocity (odometry) input instead (ros.odom_topic, --odom-topic)")
 
 
-def _velocity(lg: _Log, topic: str, time_source: str):
+def _velocity(lg: _Log, topic: str, time_source: str, lim: dict):
     """(time s, vel (N,3), std (N,3) or None) from a TwistStamped / TwistWithCovarianceStamped topic, ENU.
 
     GNSS receiver drivers (nmea_navsat_driver, ublox, septentrio) publish these with the antenna's frame
@@ -59,19 +60,19 @@ def _velocity(lg: _Log, topic: str, time_source: str):
     if not np.isfinite(v).all():
         k = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise SinsError(f"{where}: message {k} has a non-finite velocity")
+    limits_mod.check_velocity(where, v, lim, ("x", "y", "z"), 0, "message")
     check_increasing(t, where, f"{time_source} stamp")
     return t, v, std
 
 
-def variance_to_std(where: str, var: np.ndarray, what: str) -> np.ndarray | None:
-    """1-sigma from (N, 3) covariance diagonals; None when all are zero (not given); SinsError at a zero,
-    negative or NaN variance among given ones."""
+def variance_to_std(where: str, var: np.ndarray, what: str, messages=0) -> np.ndarray | None:
+    """1-sigma from (N, 3) covariance diagonals; None when all are zero (not given); SinsError at a
+    variance among given ones that is not positive and finite (:func:`limits.check_sigma`), naming the
+    message (``messages``: index of row 0, or the message index of every row)."""
     if np.all(var == 0):
         return None
-    bad = ~np.isfinite(var).all(axis=1) | (var <= 0).any(axis=1)
-    if bad.any():
-        k = int(np.flatnonzero(bad)[0])
-        raise SinsError(f"{where}: message {k} has a zero, negative or NaN {what} variance ({var[k].tolist()})")
+    for j in range(3):
+        limits_mod.check_sigma(where, var[:, j], f"{what} variance [{j}]", messages, "message", variance=True)
     return np.sqrt(var)
 
 
@@ -83,7 +84,7 @@ def _interp_rows(t_out, t_in, y):
     return out
 
 
-def read_gnss(path, topic=None, vel_topic=None, time_source="header") -> GnssLog:
+def read_gnss(path, topic=None, vel_topic=None, time_source="header", limits=None) -> GnssLog:
     """Read a ``sensor_msgs/NavSatFix`` topic (and optionally a velocity topic) as a :class:`GnssLog`.
 
     Fixes with status "no fix" (-1) are dropped (count logged).  The ENU position
@@ -93,6 +94,8 @@ def read_gnss(path, topic=None, vel_topic=None, time_source="header") -> GnssLog
     TwistWithCovarianceStamped, ENU; an Odometry topic is refused: its twist is a
     body velocity) is interpolated linearly at the fix times; fixes outside the
     velocity topic's time span are dropped (count logged).
+    Positions, velocities and variances beyond ``limits`` (the config's section) are refused naming the
+    message.
     """
     check_time_source(time_source)
     path = Path(path)
@@ -100,10 +103,10 @@ def read_gnss(path, topic=None, vel_topic=None, time_source="header") -> GnssLog
         topic = choose_topic(lg, topic, NAVSAT_TYPE, "GNSS", "--gnss-topic")
         where = f"{path}: topic {topic}"
         with guard(path, topic, "cannot decode sensor_msgs/NavSatFix messages"):
-            return _read_navsat(lg, topic, where, vel_topic, time_source)
+            return _read_navsat(lg, topic, where, vel_topic, time_source, limits_mod.resolve(limits))
 
 
-def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source) -> GnssLog:
+def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source, lim: dict) -> GnssLog:
     """The body of :func:`read_gnss` on an open log."""
     path = lg.path
     log_ns, msgs = lg.decode_all(topic)
@@ -125,32 +128,28 @@ def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source) -> Gn
     if bad.any():
         k = int(keep[np.flatnonzero(bad)[0]])
         raise SinsError(f"{where}: message {k} has a fix with NaN or infinite latitude/longitude/altitude")
-    if np.any(np.abs(lla[:, 0]) > 90) or np.any(np.abs(lla[:, 1]) > 180):
-        k = int(keep[np.flatnonzero((np.abs(lla[:, 0]) > 90) | (np.abs(lla[:, 1]) > 180))[0]])
-        raise SinsError(f"{where}: message {k} has latitude/longitude out of range")
+    limits_mod.check_position(where, lla[:, 0], lla[:, 1], lla[:, 2], lim, ("latitude", "longitude", "altitude"),
+                              keep, "message")
     check_increasing(t, where, f"{time_source} stamp")
     ctype = np.array([int(m.position_covariance_type) for m in msgs])
     cov = np.array([np.asarray(m.position_covariance, dtype=np.float64) for m in msgs]).reshape(-1, 9)
     std = None
     known = ctype != 0
     if known.any():
-        var = cov[:, [0, 4, 8]]
-        bad = known & (~np.isfinite(var).all(axis=1) | (var <= 0).any(axis=1))
-        if bad.any():
-            k = int(keep[np.flatnonzero(bad)[0]])
-            raise SinsError(f"{where}: message {k} has a zero, negative or NaN position covariance "
-                            f"({var[np.flatnonzero(bad)[0]].tolist()}) with covariance type "
-                            f"{ctype[np.flatnonzero(bad)[0]]}")
-        std = np.sqrt(var)
+        std = np.full((len(msgs), 3), np.nan)    # NaN: unknown for this fix, the user's configured sigma
+        var = cov[known][:, [0, 4, 8]]
+        for j in range(3):
+            limits_mod.check_sigma(where, var[:, j], f"position variance [{j}] (covariance type known)", keep[known],
+                                   "message", variance=True)
+        std[known] = np.sqrt(var)
         if not known.all():
-            std[~known] = np.nan                 # unknown for these fixes: the user's configured sigma
             log.warning("%s: %d of %d fixes have covariance type UNKNOWN; their sigma is left to the config",
                         where, int((~known).sum()), len(msgs))
     vel = std_vel = None
     if vel_topic is not None:
         refuse_odometry(lg, vel_topic)
         vtopic = choose_topic(lg, vel_topic, VEL_TYPES, "GNSS velocity", "--vel-topic")
-        tv, v, sv = _velocity(lg, vtopic, time_source)
+        tv, v, sv = _velocity(lg, vtopic, time_source, lim)
         vel = _interp_rows(t, tv, v)
         std_vel = _interp_rows(t, tv, sv) if sv is not None else None
         covered = ~np.isnan(vel[:, 0])

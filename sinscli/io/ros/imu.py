@@ -14,6 +14,8 @@ from ...types import ImuLog
 from .containers import choose_topic, guard, open_log
 from .decode import ACCEL, GYRO, IMU_TYPE, check_increasing, check_time_source, stamp_seconds
 
+IMU_FIELDS = [f"{f}.{a}" for f in ("angular_velocity", "linear_acceleration") for a in "xyz"]
+
 
 def read_imu_block(path, topic=None, bulk=True):
     """``(topic, log ns, ImuBlock)`` of an Imu topic (raw decode, no checks): used by tests and ``info``."""
@@ -25,15 +27,17 @@ def read_imu_block(path, topic=None, bulk=True):
 
 
 def read_imu(path, topic=None, time_source="header", start=None, end=None, bulk=True,
-             allow_gaps=True) -> ImuLog:
+             allow_gaps=True, limits=None) -> ImuLog:
     """Read a ``sensor_msgs/Imu`` topic as increments (rates integrated by ``rates_to_increments``).
 
     Axes stay as in the message; the caller applies mounting and body convention.
     ``start``/``end`` (s, same time source) keep samples with ``start <= t <= end``.
     Gaps over 5 nominal intervals follow the CSV rule (:class:`sinscli.io.imu_csv.TimeChecker`):
     refused unless ``allow_gaps``, which bridges them with a warning naming each.
-    ``source`` is ``"file:topic"``.
+    Rates and specific forces beyond ``limits`` (the config's section; default: the defaults) are
+    refused naming the message.  ``source`` is ``"file:topic"``.
     """
+    from .. import limits as limits_mod
     from ..imu_csv import TimeChecker, rates_to_increments
     check_time_source(time_source)
     path = Path(path)
@@ -69,5 +73,6 @@ def read_imu(path, topic=None, time_source="header", start=None, end=None, bulk=
     if not finite.all():
         k = int(np.flatnonzero(~finite)[0])
         raise SinsError(f"{where}: message {k} has a non-finite angular_velocity or linear_acceleration")
+    limits_mod.check_imu_rates(where, gyro, accel, limits_mod.resolve(limits), IMU_FIELDS, 0, "message")
     time_end, dtheta, dvel, t0 = rates_to_increments(t, np.ascontiguousarray(gyro), np.ascontiguousarray(accel))
     return ImuLog(time=time_end, dtheta_b=dtheta, dvel_b=dvel, t0=t0, source=f"{path}:{topic}", kind="rates")

@@ -31,6 +31,7 @@ from ...errors import SinsError
 from ...types import BodyVelLog
 from .containers import _Log, choose_topic, guard, open_log
 from .decode import BODY_VEL_TYPES, IMU_TYPE, ODOMETRY_TYPE, check_increasing, check_time_source, message_times
+from .. import limits as limits_mod
 from ..body_vel_csv import to_body_axes
 from .gnss import variance_to_std
 
@@ -69,8 +70,11 @@ def velocity_frame(where: str, child: str, imu_frame: str | None, frame: str) ->
     return "sensor" if same else "vehicle"
 
 
-def read_twist_topic(path, topic=None, time_source="header", imu_topic=None):
+def read_twist_topic(path, topic=None, time_source="header", imu_topic=None, limits=None):
     """The raw twists of an Odometry topic (the single one when ``topic`` is None) or a named Twist topic.
+
+    Velocities beyond the physical ``limits`` (the config's section; default: the defaults) and
+    covariances that are not positive are refused naming the message.
 
     Returns ``(where, time (N,), vel (N,3), cov (N,3,3) or None, frame name, IMU frame_id or None)``,
     the velocity in the axes of its frame (child frame of an Odometry, header frame of a Twist).
@@ -109,6 +113,7 @@ def read_twist_topic(path, topic=None, time_source="header", imu_topic=None):
     if not np.isfinite(v).all():
         k = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise SinsError(f"{where}: message {k} has a non-finite twist velocity")
+    limits_mod.check_velocity(where, v, limits_mod.resolve(limits), ("x", "y", "z"), 0, "message")
     check_increasing(t, where, f"{time_source} stamp")
     if cov is not None and variance_to_std(where, np.einsum("nii->ni", cov), "twist velocity") is None:
         cov = None
@@ -116,14 +121,14 @@ def read_twist_topic(path, topic=None, time_source="header", imu_topic=None):
 
 
 def read_body_velocity(path, topic=None, time_source="header", mounting=None, conv: int = 0, frame="auto",
-                       imu_topic=None) -> BodyVelLog:
+                       imu_topic=None, limits=None) -> BodyVelLog:
     """Body velocity from an Odometry topic (the single one when ``topic`` is None) or a named Twist topic.
 
     ``mounting``: ``C_sensor^body`` (identity when None); ``conv``: body convention code; ``frame``:
     auto | body | sensor (module docstring).  ``source`` is ``"file:topic"``.
     """
     mounting = np.eye(3) if mounting is None else np.asarray(mounting, dtype=np.float64)
-    where, t, v, cov, child, imu_frame = read_twist_topic(path, topic, time_source, imu_topic)
+    where, t, v, cov, child, imu_frame = read_twist_topic(path, topic, time_source, imu_topic, limits)
     kind = velocity_frame(where, child, imu_frame, frame)
     v_b, cov_b = to_body_axes(v, cov, kind, mounting, conv)
     std = None if cov_b is None else np.sqrt(np.einsum("nii->ni", cov_b))
