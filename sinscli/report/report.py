@@ -12,6 +12,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from .digest import SeriesDigest, digest
 from .errors import ErrorSeries, ErrorTable, build_table
 from .figures import plot_all
 from .html import write_report_html
@@ -41,15 +42,15 @@ def staged_dir(outdir):
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def write_report_files(outdir: Path, series: dict[str, ErrorSeries], table: ErrorTable, title: str,
-                       timeseries_every: int = 1, notes: list[str] = (), extra_files: list[str] = (),
-                       extra_html: str = "") -> list[str]:
-    """Write the report files into ``outdir`` (an existing, usually staging, directory)."""
+def write_report_files(outdir: Path, digests: dict[str, SeriesDigest], table: ErrorTable, title: str,
+                       notes: list[str] = (), extra_files: list[str] = (), extra_html: str = "") -> list[str]:
+    """Write the report files into ``outdir`` (an existing, usually staging, directory) from each
+    method's :class:`~sinscli.report.digest.SeriesDigest` (the batch gets them from its workers)."""
     outdir = Path(outdir)
     write_errors_csv(outdir / "errors.csv", table)
     write_errors_md(outdir / "errors.md", table, title)
-    write_timeseries_csv(outdir / "timeseries.csv", series, timeseries_every)
-    figures = plot_all(outdir, series, title)
+    write_timeseries_csv(outdir / "timeseries.csv", {n: d.timeseries for n, d in digests.items()})
+    figures = plot_all(outdir, {n: d.lines for n, d in digests.items()}, title)
     files = REPORT_FILES + list(extra_files)
     write_report_html(outdir / "index.html", title, table, figures, files, notes, extra_html)
     return files + figures + ["index.html"]
@@ -60,5 +61,5 @@ def write_report(outdir, series: dict[str, ErrorSeries], title: str, epoch: floa
     """Build the table (may raise :class:`SinsError`) and write the whole report atomically."""
     table = build_table(series, epoch)
     with staged_dir(outdir) as tmp:
-        write_report_files(tmp, series, table, title, timeseries_every, notes)
+        write_report_files(tmp, {n: digest(s, timeseries_every) for n, s in series.items()}, table, title, notes)
     return table
