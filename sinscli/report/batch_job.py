@@ -115,20 +115,24 @@ def run_group(ds, seed: int | None, jobs: list[tuple], opts: JobOptions) -> list
     trajectory path or None)``) on it.  Returns ``(key, meta, arrays)`` per job; a failure is
     ``meta['ok'] = False`` with its ``error``, the others still run."""
     host = where()
+    t0 = time.perf_counter()
     try:
         prep = prepare_data(ds, seed)
     except Exception as exc:  # noqa: BLE001 - every job of the group fails with it
         msg = f"data preparation failed: {describe(exc)}"
         return [(key, dict(meta, ok=False, error=msg, host=host), {}) for key, meta, _, _ in jobs]
+    share = (time.perf_counter() - t0) / len(jobs)          # the preparation, shared by the group's jobs
     out = []
     for key, meta, method, traj_path in jobs:
+        t1 = time.perf_counter()
         try:
             series, seconds = navigate_job(prep, method, opts.interpolate, traj_path)
             tail = tail_table(series, opts.epoch)
             arrays = {"tail.time": tail.time, "tail.columns": tail.columns}
             if opts.per_run:
                 arrays.update(digest(series, opts.timeseries_every).arrays())
-            out.append((key, dict(meta, ok=True, error="", seconds=seconds, host=host), arrays))
+            out.append((key, dict(meta, ok=True, error="", seconds=seconds, host=host,
+                                  worker_seconds=share + time.perf_counter() - t1), arrays))
         except Exception as exc:  # noqa: BLE001
             out.append((key, dict(meta, ok=False, error=describe(exc), host=host), {}))
     return out

@@ -69,6 +69,7 @@ class JobResult:
     ok: bool = False
     error: str = ""
     seconds: float = 0.0
+    worker_seconds: float = 0.0        # the job's time on its worker, its share of the data preparation included
     host: str = ""
     maxima: np.ndarray | None = field(default=None, repr=False)     # rows 16-22
 
@@ -98,7 +99,7 @@ def results_schema() -> pa.Schema:
     """``results.parquet`` columns (``method`` is the partition)."""
     return pa.schema([("dataset", pa.string()), ("seed", pa.int64()), ("label", pa.string()),
                       ("status", pa.string()), ("error", pa.string()), ("nav_seconds", pa.float64()),
-                      ("host", pa.string()), ("epoch", pa.float64())]
+                      ("worker_seconds", pa.float64()), ("host", pa.string()), ("epoch", pa.float64())]
                      + [(r, pa.float64()) for r in ROWS])
 
 
@@ -191,12 +192,14 @@ def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: di
                 jr = JobResult(r.dataset, r.seed, r.method, r.label, ok=ok,
                                error="" if ok else failed.get(r.key, "not run"),
                                seconds=float(meta["seconds"]) if ok else 0.0, host=meta["host"] if ok else "",
+                               worker_seconds=float(meta.get("worker_seconds", 0.0)) if ok else 0.0,
                                maxima=loaded[r.key][0].columns[-1][len(ROWS) - len(MAX_ROWS):] if ok else None)
                 results.append(jr)
                 values = table.values[:, col[r.label]] if ok and r.label in col else [None] * len(ROWS)
                 parquet.add({"method": r.method, "dataset": r.dataset, "seed": r.seed, "label": r.label,
                              "status": "ok" if ok else "failed", "error": jr.error,
-                             "nav_seconds": jr.seconds if ok else None, "host": jr.host,
+                             "nav_seconds": jr.seconds if ok else None,
+                             "worker_seconds": jr.worker_seconds if ok else None, "host": jr.host,
                              "epoch": None if table is None else float(table.epoch),
                              **{row: (None if v is None else float(v)) for row, v in zip(ROWS, values)}})
             loaded.clear()
@@ -209,7 +212,7 @@ def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: di
 
 SUMMARY_COLUMNS = ["dataset", "seed", "method", "status", "max_att_deg",
                    "max_pos_E", "max_pos_N", "max_pos_U", "max_vel_E", "max_vel_N", "max_vel_U", "error"]
-TIMING_COLUMNS = ["dataset", "seed", "method", "status", "nav_seconds", "host"]
+TIMING_COLUMNS = ["dataset", "seed", "method", "status", "nav_seconds", "worker_seconds", "host"]
 _MAX_ORDER = ["max_att_deg", "max_pos_E", "max_pos_N", "max_pos_U", "max_vel_E", "max_vel_N", "max_vel_U"]
 
 
@@ -237,7 +240,8 @@ def write_summary(outdir: Path, spec, result: BatchResult) -> None:
     _write_csv(outdir / "summary.csv", SUMMARY_COLUMNS, rows)
     _write_csv(outdir / "timing.csv", TIMING_COLUMNS,
                [[j.dataset, "" if j.seed is None else j.seed, j.method, "ok" if j.ok else "failed",
-                 round(j.seconds, 3) if j.ok else None, j.host] for j in result.jobs])
+                 round(j.seconds, 4) if j.ok else None, round(j.worker_seconds, 4) if j.ok else None, j.host]
+                for j in result.jobs])
     n_fail = len(result.failed)
     head = (f"{len(result.jobs)} jobs, {len(result.jobs) - n_fail} succeeded, {n_fail} failed. "
             f"Batch file: {spec.source.name}.")

@@ -46,8 +46,12 @@ def file_digest(path) -> str:
 
 
 def file_stamp(path) -> list:
-    """Size and modification time of a (large) input file, for the fingerprint of a batch."""
-    st = os.stat(path)
+    """Size and modification time of a (large) input file, for the fingerprint of a batch (None for
+    both when the client does not see it: the workers read it)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return [str(path), None, None]
     return [str(path), st.st_size, st.st_mtime_ns]
 
 
