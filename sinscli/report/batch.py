@@ -290,7 +290,7 @@ def _tasks(spec: BatchSpec, refs: list[JobRef], store: JobStore, capacity: int, 
 
 def run_batch(spec: BatchSpec, outdir, jobs: int | None = None, on_progress=None, on_error=None, *,
               scheduler: str | None = None, resume: bool = False, figures: str = "auto", on_info=None,
-              verbose: bool = False) -> BatchResult:
+              verbose: bool = False, backend=None) -> BatchResult:
     """Run every job of ``spec`` on the chosen back end; write the reports and the summary into ``outdir``.
 
     Raises :class:`~sinscli.report.jobs.StudyInterrupted` on SIGINT, SIGTERM or SIGHUP, after
@@ -323,5 +323,5 @@ def run_batch(spec: BatchSpec, outdir, jobs: int | None = None, on_progress=None
     result, _ = run_study(outdir, store, [r.key for r in refs],
                           lambda capacity: _tasks(spec, refs, store, capacity, per_run), finish, describe,
                           jobs=jobs, scheduler=scheduler, on_job=on_job, on_resumed=tick, on_info=on_info,
-                          verbose=verbose)
+                          verbose=verbose, backend=backend)
     return result

@@ -15,6 +15,8 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import SinsError
 from .digest import digest, tail_table
 from .errors import compare_trajectories
@@ -128,7 +130,7 @@ def run_group(ds, seed: int | None, jobs: list[tuple], opts: JobOptions) -> list
         try:
             series, seconds = navigate_job(prep, method, opts.interpolate, traj_path)
             tail = tail_table(series, opts.epoch)
-            arrays = {"tail.time": tail.time, "tail.columns": tail.columns}
+            arrays = {"tail.time": tail.time, "tail.columns": tail.columns, "tail.last": np.array(tail.last)}
             if opts.per_run:
                 arrays.update(digest(series, opts.timeseries_every).arrays())
             out.append((key, dict(meta, ok=True, error="", seconds=seconds, host=host,

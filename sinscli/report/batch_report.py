@@ -175,7 +175,7 @@ def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: di
                     continue
                 meta, arrays = store.read(r.key)
                 metas[r.key] = meta
-                tail = TailTable(arrays["tail.time"], arrays["tail.columns"])
+                tail = TailTable(arrays["tail.time"], arrays["tail.columns"], int(arrays["tail.last"]))
                 loaded[r.key] = (tail, SeriesDigest.from_arrays(arrays) if per_run else None)
             table = None
             try:

@@ -71,6 +71,12 @@ class TailTable:
     """Error-table columns of one run at a few of its epochs: ``columns[k]`` is the column at ``time[k]``."""
     time: np.ndarray          # (K,) s, increasing; the run's first and last epochs included
     columns: np.ndarray       # (K, len(ROWS))
+    last: int = 0             # the final ``last`` entries are the run's last epochs, consecutive
+
+    @property
+    def tail(self) -> TailTable:
+        """Only the run's last epochs (where the default table epoch is looked for)."""
+        return TailTable(self.time[-self.last:], self.columns[-self.last:], self.last)
 
 
 def tail_table(s: ErrorSeries, epoch: float | None = None, tail: int = TAIL_EPOCHS) -> TailTable:
@@ -80,15 +86,15 @@ def tail_table(s: ErrorSeries, epoch: float | None = None, tail: int = TAIL_EPOC
     if epoch is not None:
         idx.add(int(np.argmin(np.abs(s.time - epoch))))
     idx = np.array(sorted(idx))
-    return TailTable(time=s.time[idx].copy(),
-                     columns=np.stack([error_column(s, float(s.time[k])) for k in idx]))
+    return TailTable(time=s.time[idx].copy(), columns=np.stack([error_column(s, float(s.time[k])) for k in idx]),
+                     last=min(tail, n))
 
 
 def table_from_tails(tails: dict[str, TailTable], epoch: float | None = None) -> ErrorTable:
     """The error table of several runs (label -> :class:`TailTable`), as
     :func:`sinscli.report.errors.build_table` gives it from the whole series."""
     try:
-        t = common_epoch(tails, epoch)
+        t = common_epoch(tails if epoch is not None else {k: tt.tail for k, tt in tails.items()}, epoch)
     except SinsError as exc:
         if epoch is not None:
             raise

@@ -84,6 +84,14 @@ def _title(ax, title: str, what: str) -> None:
     ax.set_title(f"{short}\n{what}" if short else what, fontsize=9)
 
 
+MAX_LEGEND = 20            # lines labelled in a legend; more are told apart in timeseries.csv
+
+
+def _legend(ax, n: int) -> None:
+    if n <= MAX_LEGEND:
+        ax.legend(fontsize=8)
+
+
 def _line_plot(ax, lines: dict[str, dict], quantity: str, scale: float = 1.0) -> None:
     """One line per method; line styles cycle too, so that coinciding methods stay visible."""
     for k, (name, ln) in enumerate(lines.items()):
@@ -105,7 +113,7 @@ def plot_attitude(outdir, lines: dict[str, dict], title: str = "") -> list[str]:
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"truth - navigation ({unit})")
         _title(ax, title, label)
-        ax.legend(fontsize=8)
+        _legend(ax, len(lines))
         fig.tight_layout()
         _save(fig, outdir / fname)
         names.append(fname)
@@ -117,7 +125,7 @@ def plot_attitude(outdir, lines: dict[str, dict], title: str = "") -> list[str]:
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"angle ({unit})")
     _title(ax, title, "Attitude error angle |phi| (log scale)")
-    ax.legend(fontsize=8)
+    _legend(ax, len(lines))
     fig.tight_layout()
     _save(fig, outdir / "att_angle.png")
     return names + ["att_angle.png"]
@@ -130,7 +138,7 @@ def _three_panel(outdir, fname, lines, prefix, unit, what, title) -> str:
         _line_plot(ax, lines, f"{prefix}_{axis[0]}")
         ax.set_ylabel(f"{axis} ({unit})")
     _title(axes[0], title, f"{what} error, truth - navigation")
-    axes[0].legend(fontsize=8)
+    _legend(axes[0], len(lines))
     axes[-1].set_xlabel("time (s)")
     fig.tight_layout()
     _save(fig, outdir / fname)
