@@ -43,6 +43,28 @@ def load() -> str:
     return "load average " + " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
+def _spin(n: int) -> float:
+    t = time.perf_counter()
+    s = 0
+    for i in range(n):
+        s += i
+    return time.perf_counter() - t
+
+
+def machine_parallelism(n: int = 10_000_000) -> float:
+    """What the machine gives right now: the throughput of 2 processes running a pure-Python loop over
+    that of 1 (2.0 on 2 idle cores; other jobs on a shared machine lower it).  The batch ratios are
+    to be read against it."""
+    import multiprocessing as mp
+    one = _spin(n)
+    with mp.get_context("spawn").Pool(2) as pool:
+        pool.map(_spin, [1000, 1000])
+        t = time.perf_counter()
+        pool.map(_spin, [n, n])
+        two = time.perf_counter() - t
+    return 2.0 * one / two
+
+
 def batch_file(d: Path, seeds: int, duration: float) -> Path:
     d.mkdir(parents=True, exist_ok=True)
     (d / "drive.yaml").write_text(yaml.safe_dump(dict(DRIVE, segments=[dict(DRIVE["segments"][0],
@@ -70,6 +92,8 @@ def timed_batch(batch: Path, out: Path, **backend):
 
 def scaling(tmp: Path) -> None:
     batch = batch_file(tmp / "scaling", seeds=40, duration=240.0)
+    print(f"scaling machine_parallelism={machine_parallelism():.2f} (2 spinning processes / 1; {load()})",
+          flush=True)
     from sinscli.report.exec import PoolBackend
     # (--jobs 1 runs in this process: a pool of one process is the fair baseline of a pool of two)
     for kind, one, two in (("dask-local", {"scheduler": "local:1"}, {"scheduler": "local:2"}),
@@ -82,7 +106,7 @@ def scaling(tmp: Path) -> None:
             print(f"scaling {kind} workers={w} jobs={len(stamps)} wall_s={total:.2f} jobs_per_s={res[w][0]:.3f} "
                   f"steady_jobs_per_s={steady:.3f} job_cpu_s={own.mean():.3f}", flush=True)
         print(f"scaling {kind} ratio_total={res[2][0] / res[1][0]:.3f} ratio_steady={res[2][1] / res[1][1]:.3f} "
-              f"(target >= 1.7; {load()})", flush=True)
+              f"(target >= 1.7; machine_parallelism={machine_parallelism():.2f}; {load()})", flush=True)
 
 
 def overhead(tmp: Path) -> None:

@@ -321,7 +321,7 @@ def run_batch(spec: BatchSpec, outdir, jobs: int | None = None, on_progress=None
         return result
 
     result, _ = run_study(outdir, store, [r.key for r in refs],
-                          lambda capacity: _tasks(spec, refs, store, capacity, per_run), finish, describe,
+                          lambda backend: _tasks(spec, refs, store, backend.capacity, per_run), finish, describe,
                           jobs=jobs, scheduler=scheduler, on_job=on_job, on_resumed=tick, on_info=on_info,
                           verbose=verbose, backend=backend)
     return result

@@ -191,6 +191,11 @@ class Backend:
     def run(self, tasks: Iterable[tuple]) -> Iterator[tuple]:
         raise NotImplementedError
 
+    def share(self, obj):
+        """An argument that many tasks take: sent to the workers once where the back end can (Dask:
+        scattered to every worker), else passed as it is."""
+        return obj
+
     def stop(self, interrupted: bool = False) -> None:
         """Release the workers; with ``interrupted``, at once (running tasks are abandoned)."""
 
@@ -388,6 +393,10 @@ class DaskBackend(Backend):
             fut.release()
             yield key, out
             top_up()
+
+    def share(self, obj):
+        with deferred_signals():
+            return self.client.scatter(obj, broadcast=True, hash=False)
 
     def _close_quietly(self):
         with contextlib.suppress(Exception):

@@ -276,13 +276,14 @@ def publish(stage: Path, outdir: Path) -> None:
             os.replace(p, target)
 
 
-def run_study(outdir, store: JobStore, keys: list[tuple], make_tasks: Callable[[int], Iterable[tuple]],
+def run_study(outdir, store: JobStore, keys: list[tuple], make_tasks: Callable[[object], Iterable[tuple]],
               finish: Callable[[Path, RunCounts], object], describe: Callable[[BaseException], str], *,
               jobs: int | None = None, scheduler: str | None = None, on_job=None, on_resumed=None,
               on_info=None, verbose: bool = False, backend: Callable[[], object] | None = None):
     """Run a study's jobs (``keys``) and write its report; the one loop of every batch command.
 
-    ``make_tasks(capacity)`` gives the tasks of the unfinished jobs (see :func:`run_tasks`);
+    ``make_tasks(backend)`` gives the tasks of the unfinished jobs (see :func:`run_tasks`; it may use
+    ``backend.capacity`` and ``backend.share``);
     ``finish(stage, counts)`` writes the report into ``stage`` (a folder inside ``outdir``, moved into
     place when complete) and returns the result.  ``backend``: a factory of the back end, instead of
     the one of ``jobs`` / ``scheduler`` (:func:`~sinscli.report.exec.open_backend`).  Any error or signal stops the workers at once and
@@ -304,7 +305,7 @@ def run_study(outdir, store: JobStore, keys: list[tuple], make_tasks: Callable[[
                 counts.resumed = sum(1 for k in keys if store.done(k))
                 if on_resumed:
                     on_resumed(counts.resumed)
-                run_tasks(runner, store, make_tasks(runner.capacity), describe, on_job, counts)
+                run_tasks(runner, store, make_tasks(runner), describe, on_job, counts)
             stage = Path(tempfile.mkdtemp(prefix=".report.", suffix=".part", dir=outdir))
             result = finish(stage, counts)
             publish(stage, outdir)

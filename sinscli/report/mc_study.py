@@ -21,6 +21,7 @@ same whichever back end ran them, and writes:
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -124,10 +125,13 @@ def run_mc_study(path, outdir, runs: int | None = None, seed0: int | None = None
             err(f"run seed {meta['seed']} failed: {failed[meta['seed']]}")
         tick(1)
 
-    def tasks(capacity):
-        for s in plan.seeds:
-            if not store.done(mc_key(s)):
-                yield (("mc", s), mc_task, (plan, digest, s, max_epochs), [(mc_key(s), {"seed": s})])
+    def tasks(backend):
+        todo = [s for s in plan.seeds if not store.done(mc_key(s))]
+        if not todo:
+            return
+        shared = backend.share(dataclasses.replace(plan, seeds=[]))      # sent once; a worker needs no seed list
+        for s in todo:
+            yield (("mc", s), mc_task, (shared, digest, s, max_epochs), [(mc_key(s), {"seed": s})])
 
     def finish(stage, counts):
         study = write_mc_report(stage, plan, store, failed, None if per_run else PER_RUN_MAX)
