@@ -1,7 +1,7 @@
 """Batches on the execution back ends (issue 12): scaling, scheduling overhead, client memory.
 
     python benchmarks/bench_batch.py              # all three (about 5 minutes on 2 idle cores)
-    python benchmarks/bench_batch.py scaling      # 40 CPU-bound jobs on 1 and 2 workers
+    python benchmarks/bench_batch.py scaling [dask-local|pool]   # 40 CPU-bound jobs on 1 and 2 workers
     python benchmarks/bench_batch.py overhead     # 1,000 tiny jobs
     python benchmarks/bench_batch.py memory [N]   # an N-run (default 10,000) alignment Monte Carlo
 
@@ -90,7 +90,7 @@ def timed_batch(batch: Path, out: Path, **backend):
     return total, [t - t0 for t in job_stamps], own
 
 
-def scaling(tmp: Path) -> None:
+def scaling(tmp: Path, only: str | None = None) -> None:
     batch = batch_file(tmp / "scaling", seeds=40, duration=240.0)
     print(f"scaling machine_parallelism={machine_parallelism():.2f} (2 spinning processes / 1; {load()})",
           flush=True)
@@ -98,6 +98,8 @@ def scaling(tmp: Path) -> None:
     # (--jobs 1 runs in this process: a pool of one process is the fair baseline of a pool of two)
     for kind, one, two in (("dask-local", {"scheduler": "local:1"}, {"scheduler": "local:2"}),
                            ("pool", {"backend": lambda: PoolBackend(1)}, {"backend": lambda: PoolBackend(2)})):
+        if only and kind != only:
+            continue
         res = {}
         for w, opts in ((1, one), (2, two)):
             total, stamps, own = timed_batch(batch, tmp / f"scaling-{kind}-{w}", **opts)
@@ -151,7 +153,7 @@ def main(argv):
         tmp = Path(d)
         print(f"# {os.cpu_count()} cores, {load()}", flush=True)
         if what in ("scaling", "all"):
-            scaling(tmp)
+            scaling(tmp, argv[1] if what == "scaling" and len(argv) > 1 else None)
         if what in ("overhead", "all"):
             overhead(tmp)
         if what in ("memory", "all"):

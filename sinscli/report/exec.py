@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import itertools
 import logging
 import multiprocessing
 import os
@@ -177,6 +178,11 @@ def worker_info() -> dict:
 
 # --------------------------------------------------------------------------- back ends
 
+def more_tasks(it: Iterator, room: int) -> list:
+    """Up to ``room`` more tasks from ``it`` (none once it is exhausted)."""
+    return list(itertools.islice(it, max(room, 0)))
+
+
 class Backend:
     """Runs tasks; see the module docstring.  Use as a context manager (``stop`` on exit)."""
 
@@ -234,14 +240,8 @@ class PoolBackend(Backend):
     def run(self, tasks):
         it = iter(tasks)
         pending: dict = {}
-        exhausted = False
         while True:
-            while not exhausted and len(pending) < self.window:
-                try:
-                    key, fn, args = next(it)
-                except StopIteration:
-                    exhausted = True
-                    break
+            for key, fn, args in more_tasks(it, self.window - len(pending)):
                 with _spawning():                 # processes are spawned on submit
                     pending[self._ex.submit(fn, *args)] = key
             if not pending:
@@ -368,16 +368,9 @@ class DaskBackend(Backend):
         keys: dict = {}
         ac = self._distributed.as_completed(loop=self.client.loop, with_results=True, raise_errors=False)
         self._pending = keys
-        exhausted = False
 
         def top_up():
-            nonlocal exhausted
-            while not exhausted and len(keys) < self.window:
-                try:
-                    key, fn, args = next(it)
-                except StopIteration:
-                    exhausted = True
-                    return
+            for key, fn, args in more_tasks(it, self.window - len(keys)):
                 name = "-".join(str(k) for k in (key if isinstance(key, tuple) else (key,)))
                 with deferred_signals():
                     fut = self.client.submit(fn, *args, key=f"sins-{name}-{token}", pure=False, retries=0)
