@@ -152,12 +152,24 @@ def _cell(v) -> str:
     return "" if v is None else (v if isinstance(v, str) else repr(v))
 
 
+def _end_frame(mc) -> pd.DataFrame:
+    """One row per run and variant (variant by variant, runs in seed order): the end errors."""
+    parts = []
+    for name, v in mc.variants.items():
+        cols = {"variant": name, "seed": mc.seeds}
+        for w, end in (("current", v.end_current), ("start", v.end_start)):
+            for i, a in enumerate(ANGLES):
+                cols[f"{w}_{a}"] = np.full(mc.runs, np.nan) if end is None else end[:, i]
+        parts.append(pd.DataFrame(cols))
+    return pd.concat(parts, ignore_index=True)
+
+
 def write_mc_report(outdir: Path, plan, store: JobStore, failed: dict, keep: int | None) -> McStudy:
     """Every file of the study from the finished runs under ``store`` (read in seed order)."""
     from ..align.figures import plot_monte_carlo
 
     acc = mcmod.McAccumulator(plan, keep)
-    timing, rows = [], []
+    timing = []
     schema = pa.schema([("seed", pa.int64()), ("status", pa.string()), ("error", pa.string()),
                         ("seconds", pa.float64()), ("host", pa.string())]
                        + [(q, pa.float64()) for q in END_QUANTITIES + [f"start_at_window_{a}" for a in ANGLES]])
@@ -173,11 +185,10 @@ def write_mc_report(outdir: Path, plan, store: JobStore, failed: dict, keep: int
             acc.add(s, errs)
             timing.append([s, "ok", round(float(meta["seconds"]), 4), meta["host"]])
             for name, e in errs.items():
-                row = {"method": name, "variant": name, "seed": s}
+                row = {"method": name, "seed": s}
                 for w, end in (("current", e.end_current), ("start", e.end_start)):
                     for i, a in enumerate(ANGLES):
                         row[f"{w}_{a}"] = None if end is None else float(end[i])
-                rows.append(row)
                 parquet.add({**row, "status": "ok", "error": "", "seconds": float(meta["seconds"]),
                              "host": meta["host"],
                              **{f"start_at_window_{a}": None if e.start_at_window is None else
@@ -215,7 +226,7 @@ def write_mc_report(outdir: Path, plan, store: JobStore, failed: dict, keep: int
     with atomic_path(outdir / "runs.csv", suffix=".csv") as tmp:
         write_table_csv(tmp, data)
     _csv(outdir / "timing.csv", ["seed,status,seconds,host"] + [",".join(_cell(v) for v in r) for r in timing])
-    frame = pd.DataFrame(rows)
+    frame = _end_frame(mc)
     quantities = [q for q in END_QUANTITIES if frame[q].notna().any()]
     units = {q: "deg" for q in quantities}
     labels = {q: f"{q.split('_')[1]} error, {q.split('_')[0]} attitude" for q in quantities}
