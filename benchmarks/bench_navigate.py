@@ -3,11 +3,18 @@
 Prints ``METHOD samples_per_s=<float>`` and the ratio to a baseline run in the
 same process: the same kernel with attitude ``quat`` and coning order 1 is
 the reference of the methods; the plain-numpy cumulative sum of the
-increments shows the memory-bound floor.  Run: ``python benchmarks/bench_navigate.py``.
+increments shows the memory-bound floor.  Then the per-sample cost of
+``krylov`` against ``quat`` on real motions: the vehicle drive
+(``sample_data/imu.csv`` repeated to 720,000 samples; no RK4 sub-steps, issue 14
+target <= 1.5) and the 2 rev/s spin boost (``configs/scenarios/spin_boost.yaml``,
+its first 32 s simulated error-free, repeated), with the sub-steps the Krylov update took.
+Run: ``python benchmarks/bench_navigate.py``.
 """
 import math
 import sys
 import time
+
+from pathlib import Path
 
 import numpy as np
 
@@ -16,6 +23,7 @@ from sinscli.types import ImuLog, NavState
 
 N = 720_000
 RATE = 200.0
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def make_log(n=N):
@@ -56,7 +64,44 @@ def main():
             quat_el = el
         if name == "krylov":
             print(f"krylov per-step cost / quat = {el / quat_el:.2f}")
+    krylov_on_motions()
     return 0
+
+
+def _repeat(imu, n=N):
+    """``imu`` repeated to ``n`` samples on a uniform time grid (a cost test, not a trajectory)."""
+    reps = -(-n // len(imu))
+    dt = float(np.median(np.diff(imu.time)))
+    t0 = imu.t0 if imu.t0 is not None else float(imu.time[0]) - dt
+    return ImuLog(t0 + dt * np.arange(1, n + 1), np.tile(imu.dtheta_b, (reps, 1))[:n],
+                  np.tile(imu.dvel_b, (reps, 1))[:n], t0=t0)
+
+
+def krylov_on_motions():
+    """krylov / quat per-sample cost on the vehicle drive and on the 2 rev/s spin boost (same process)."""
+    from sinscli.io.imu_csv import read_imu_csv
+    from sinscli.io.init_state import read_init
+    from sinscli.nav.krylov import SUBSTEP_ANGLE, substep_counts
+    from sinscli.sim import simulate
+
+    drive = read_imu_csv(ROOT / "sample_data" / "imu.csv")
+    init_drive = read_init(ROOT / "sample_data" / "init.yaml", drive.t0, 0)
+    spin = simulate(ROOT / "configs" / "scenarios" / "spin_boost.yaml", perfect=True, duration=32.0)
+    for label, imu, init in (("vehicle drive (sample_data, repeated)", drive, init_drive),
+                             ("spin boost 2 rev/s (repeated)", spin.imu, spin.init)):
+        log = _repeat(imu)
+        m = substep_counts(log.dtheta_b, SUBSTEP_ANGLE)
+        for att in ("quat", "krylov"):
+            navigate(ImuLog(log.time[:1000], log.dtheta_b[:1000], log.dvel_b[:1000], t0=log.t0), init,
+                     NavOptions(attitude=att))
+        el = {}
+        for _ in range(2):                      # interleaved, best of 2 x 2: load changes between runs
+            for att in ("quat", "krylov"):
+                el[att] = min(el.get(att, math.inf), best_of(lambda: navigate(log, init, NavOptions(attitude=att)),
+                                                             repeat=2))
+        print(f"{label}: quat samples_per_s={N / el['quat']:.0f} krylov samples_per_s={N / el['krylov']:.0f} "
+              f"krylov per-sample cost / quat = {el['krylov'] / el['quat']:.2f} "
+              f"(RK4 sub-steps per interval: max {m.max()}, mean {m.mean():.3f})")
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@ Writes N (default 1,000,000) Imu messages at 200 Hz with the libraries'
 serializers as a ROS 1 ``.bag`` (rosbags), a bare rosbag2 ``.db3`` (rosbags)
 and an ``.mcap`` (mcap writer, CDR), then for each file measures
 
-- ``msgs_per_s``: ``sinscli.io.rosbag.read_imu_block`` (open, index, bulk decode);
+- ``msgs_per_s``: ``sinscli.io.ros.read_imu_block`` (open, index, bulk decode);
 - ``library_msgs_per_s``: the same library iterating the topic and
   deserializing every message (rosbags ``AnyReader.messages`` +
   ``deserialize`` for .bag/.db3; ``mcap`` ``iter_decoded_messages`` with the
@@ -28,8 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sinscli.io import ros_bulk
-from sinscli.io.rosbag import read_imu_block, write_log
+from sinscli.io.ros import decode, read_imu_block, write_log
 
 
 def library_rate(path: Path, count: int):
@@ -42,18 +41,18 @@ def library_rate(path: Path, count: int):
         with open(path, "rb") as f:
             reader = make_reader(f, decoder_factories=[DecoderFactory()])
             for _s, _c, _m, msg in itertools.islice(reader.iter_decoded_messages(topics=["/imu/data"]), count):
-                rows.append(ros_bulk.imu_from_message(msg))
+                rows.append(decode.imu_from_message(msg))
     else:
         from rosbags.highlevel import AnyReader
         with AnyReader([path]) as reader:
             conns = [c for c in reader.connections if c.topic == "/imu/data"]
             for conn, _t, raw in itertools.islice(reader.messages(conns), count):
-                rows.append(ros_bulk.imu_from_message(reader.deserialize(raw, conn.msgtype)))
+                rows.append(decode.imu_from_message(reader.deserialize(raw, conn.msgtype)))
     dt = time.perf_counter() - t0
     sec = np.array([r[0] for r in rows], dtype=np.int64)
     nsec = np.array([r[1] for r in rows], dtype=np.int64)
     values = np.array([r[2] for r in rows])
-    return len(rows) / dt, ros_bulk.ImuBlock(sec, nsec, values)
+    return len(rows) / dt, decode.ImuBlock(sec, nsec, values)
 
 
 def library_raw_rate(path: Path, count: int) -> float:

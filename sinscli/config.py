@@ -23,6 +23,7 @@ IMU_NAMES = ["time", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_
              "dtheta_x", "dtheta_y", "dtheta_z", "dvel_x", "dvel_y", "dvel_z"]
 GNSS_NAMES = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u",
               "std_e", "std_n", "std_u", "std_vel_e", "std_vel_n", "std_vel_u"]
+ODOMETRY_NAMES = ["time", "vel_x", "vel_y", "vel_z", "std_x", "std_y", "std_z"]
 
 DEFAULTS = {
     "imu": {
@@ -37,6 +38,12 @@ DEFAULTS = {
         "columns": {},
         "ignore_columns": [],
         "lever_arm": [0.0, 0.0, 0.0],   # antenna position in body axes, m
+        "time_offset": 0.0,             # s added to every GNSS time on reading (e.g. -18: GPS time -> UTC)
+    },
+    "odometry": {
+        "columns": {},            # FORMATS name (time, vel_x.., std_x..) -> column name in the CSV
+        "ignore_columns": [],
+        "frame": "auto",          # auto | body | vehicle | sensor: axes of the velocity (configs/navigation.yaml)
     },
     "navigation": {
         "attitude": "quat",       # dcm | quat | krylov | euler
@@ -49,12 +56,14 @@ DEFAULTS = {
         "euler_integrator": "rk4",          # euler | rk4 (3-angle baseline)
         "singularity_threshold": 0.01,      # |cos psi| under which the 3-angle method warns
         "on_singularity": "continue",       # continue | stop
+        "krylov_substep_tol": 1.0e-9,       # krylov: RK4 truncation allowed per interval / its rotation
         "launch": None,           # {lat, lon, height, azimuth} deg/m for launch-inertial
     },
     "ros": {
         "imu_topic": None,
         "gnss_topic": None,
         "vel_topic": None,
+        "odom_topic": None,       # body velocity: nav_msgs/Odometry (or a body-frame Twist*) topic
         "time": "header",         # header | log
     },
 }
@@ -68,19 +77,20 @@ CHOICES = {
     ("navigation", "euler_integrator"): ["euler", "rk4"],
     ("navigation", "on_singularity"): ["continue", "stop"],
     ("ros", "time"): ["header", "log"],
+    ("odometry", "frame"): ["auto", "body", "vehicle", "sensor"],
 }
 UNIT_CHOICES = {"gyro": GYRO_UNITS, "accel": ACCEL_UNITS, "dtheta": ANGLE_UNITS, "dvel": VEL_UNITS}
 
 
 # sections that belong to another stage, which validates them itself (`sins align`); one config
 # file can then serve every command
-STAGE_SECTIONS = ("align",)
+STAGE_SECTIONS = ("align", "fusion")
 
 
 def load_config(path=None, extra_sections=STAGE_SECTIONS) -> dict:
     """Load and validate a config YAML (or the defaults when ``path`` is None).
 
-    ``extra_sections`` (default: the ``align`` section) are accepted and returned raw
+    ``extra_sections`` (default: the ``align`` and ``fusion`` sections) are accepted and returned raw
     under their name (None when absent) for the stage that validates them.
     """
     cfg = copy.deepcopy(DEFAULTS)
@@ -152,6 +162,9 @@ def validate(cfg: dict, src: str) -> None:
     thr = nav["singularity_threshold"]
     if not isinstance(thr, (int, float)) or not 0 < thr < 1:
         _fail(src, "navigation.singularity_threshold", f"expected a number in (0, 1), got {thr!r}")
+    tol = nav["krylov_substep_tol"]
+    if not isinstance(tol, (int, float)) or isinstance(tol, bool) or not 0 < tol < 1:
+        _fail(src, "navigation.krylov_substep_tol", f"expected a number in (0, 1), got {tol!r}")
     if nav["launch"] is not None:
         launch = nav["launch"]
         if not isinstance(launch, dict) or set(launch) - {"lat", "lon", "height", "azimuth"}:
@@ -170,7 +183,7 @@ def validate(cfg: dict, src: str) -> None:
             _fail(src, f"imu.units.{k}", f"expected one of {', '.join(UNIT_CHOICES[k])}, got {v!r}")
     for k, v in DEFAULTS["imu"]["units"].items():
         units.setdefault(k, v)
-    for section, names in (("imu", IMU_NAMES), ("gnss", GNSS_NAMES)):
+    for section, names in (("imu", IMU_NAMES), ("gnss", GNSS_NAMES), ("odometry", ODOMETRY_NAMES)):
         cols = cfg[section]["columns"]
         if not isinstance(cols, dict):
             _fail(src, f"{section}.columns", "expected a mapping {FORMATS name: file column}")
@@ -189,6 +202,9 @@ def validate(cfg: dict, src: str) -> None:
     if (not isinstance(arm, (list, tuple)) or len(arm) != 3
             or not all(isinstance(x, (int, float)) for x in arm)):
         _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres, got {arm!r}")
+    off = cfg["gnss"]["time_offset"]
+    if not isinstance(off, (int, float)) or isinstance(off, bool) or not math.isfinite(off):
+        _fail(src, "gnss.time_offset", f"expected a finite number of seconds, got {off!r}")
 
 
 def mounting_matrix(mounting, src: str = "config") -> np.ndarray:

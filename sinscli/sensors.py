@@ -54,10 +54,10 @@ def preset_text(name: str) -> str:
     return resources.files("sinscli").joinpath("data", "sensors", f"{name.lower()}.yaml").read_text(encoding="utf-8")
 
 
-def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path) -> dict:
+def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path, key: str = "imu.sensor") -> dict:
     """Resolve a sensor spec (None, preset name, YAML path or mapping) plus overrides.
 
-    Returns ``{"gyro": {key: SI value(s)}, "accel": {...}}``.
+    Returns ``{"gyro": {key: SI value(s)}, "accel": {...}}``; ``key`` names the config key in errors.
     """
     data: dict = {}
     where = src
@@ -73,7 +73,7 @@ def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path) -> dict:
         try:
             data = yaml.safe_load(preset_text(spec) if preset else path.read_text(encoding="utf-8")) or {}
         except OSError:
-            raise SinsError(f"{src}: imu.sensor: no sensor preset or file {spec!r} "
+            raise SinsError(f"{src}: {key}: no sensor preset or file {spec!r} "
                             f"(presets: {', '.join(PRESETS)})") from None
         except yaml.YAMLError as exc:
             raise SinsError(f"{path}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
@@ -81,7 +81,7 @@ def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path) -> dict:
         if not isinstance(data, dict):
             raise SinsError(f"{path}: expected a mapping with 'gyro' and 'accel'")
     else:
-        raise SinsError(f"{src}: imu.sensor: expected a preset name, a file or a mapping; got {spec!r}")
+        raise SinsError(f"{src}: {key}: expected a preset name, a file or a mapping; got {spec!r}")
     out = {}
     for which, units in (("gyro", GYRO_UNITS), ("accel", ACCEL_UNITS)):
         merged = dict(data.get(which) or {})

@@ -31,7 +31,13 @@ class ImuLog:
 
 @dataclass
 class GnssLog:
-    """GNSS fixes: position, optional ENU velocity and 1-sigma."""
+    """GNSS fixes: position, optional ENU velocity and 1-sigma.
+
+    ``std_pos`` rows are NaN for fixes whose sigma is unknown while others have
+    one (a NavSatFix with COVARIANCE_TYPE_UNKNOWN among known ones): use
+    :meth:`position_sigma` with the configured value.  Every other value is finite
+    and every sigma positive (the readers check it).
+    """
     time: np.ndarray                    # (N,) s
     lat: np.ndarray                     # (N,) deg
     lon: np.ndarray                     # (N,) deg
@@ -43,6 +49,29 @@ class GnssLog:
 
     def __len__(self) -> int:
         return int(self.time.shape[0])
+
+    def position_sigma(self, default_enu) -> np.ndarray:
+        """``(N, 3)`` position 1-sigma (m, ENU): the fix's own, else ``default_enu`` (3 values)."""
+        default = np.broadcast_to(np.asarray(default_enu, dtype=np.float64), (len(self), 3))
+        if self.std_pos is None:
+            return default.copy()
+        return np.where(np.isnan(self.std_pos), default, self.std_pos)
+
+
+@dataclass
+class BodyVelLog:
+    time: np.ndarray        # (N,) s
+    vel_b: np.ndarray       # (N, 3) m/s, velocity of the vehicle in body axes (after mounting)
+    std: np.ndarray | None  # (N, 3) m/s 1-sigma
+    source: str = "<memory>"
+
+
+@dataclass
+class BodyVelLog:
+    time: np.ndarray        # (N,) s
+    vel_b: np.ndarray       # (N, 3) m/s, velocity of the vehicle in body axes (after mounting)
+    std: np.ndarray | None  # (N, 3) m/s 1-sigma
+    source: str = "<memory>"
 
 
 @dataclass

@@ -134,6 +134,27 @@ def test_monte_carlo_cli(tmp_path):
     assert "inertial+roll-window" in text and "3 runs" in text
 
 
+def test_short_interval_runs_with_a_warning_naming_the_recommended_length(data, tmp_path):
+    out = tmp_path / "init.yaml"
+    imu = data["rest"] / "imu.csv"
+    res = run(["align", imu, "--method", "inertial", "--position", "30,114,50", "--duration", 12, "--config",
+               data["cfg"], "-o", out])
+    assert res.exit_code == 0, res.output
+    assert ("warning: the alignment interval is 12 s, shorter than the 30 s recommended for --method inertial "
+            "(align.min_duration.inertial)") in res.output
+    d = yaml.safe_load(out.read_text())
+    assert d["duration"] == pytest.approx(12.0) and d["sigma_heading"] > 0.0
+    # the recommended lengths are config keys
+    cfg = tmp_path / "short.yaml"
+    cfg.write_text(yaml.safe_dump({"align": dict(CONFIG["align"], min_duration={"inertial": 10})}))
+    res = run(["align", imu, "--method", "inertial", "--position", "30,114,50", "--duration", 12, "--config", cfg,
+               "-o", out])
+    assert res.exit_code == 0 and "warning" not in res.output, res.output
+    cfg.write_text(yaml.safe_dump({"align": {"min_duration": {"inertial": -1}}}))
+    _bad(["align", imu, "--config", cfg, "--position", "30,114,50", "-o", tmp_path / "x.yaml"], tmp_path / "x.yaml",
+         "align.min_duration.inertial: must be >= 0")
+
+
 def _bad(args, out, *expect):
     res = run(args)
     assert res.exit_code == 2, res.output
@@ -147,10 +168,10 @@ def _bad(args, out, *expect):
 def test_bad_inputs(data, tmp_path):
     out = tmp_path / "init.yaml"
     imu = data["rest"] / "imu.csv"
-    _bad(["align", imu, "--method", "inertial", "--position", "30,114,50", "--duration", 12, "-o", out],
-         out, "alignment interval is 12 s", "needs at least 30 s")
-    _bad(["align", imu, "--method", "kf", "--position", "30,114,50", "--duration", 40, "-o", out],
-         out, "needs at least 60 s")
+    _bad(["align", imu, "--method", "inertial", "--position", "30,114,50", "--duration", 2, "-o", out],
+         out, "alignment interval is 2 s", "needs at least 3 s", "recommended: 30 s", "align.min_duration.inertial")
+    _bad(["align", imu, "--method", "kf", "--position", "30,114,50", "--duration", 4, "-o", out],
+         out, "needs at least 6 s")
     _bad(["align", imu, "--method", "static", "--position", "30,114,50", "--duration", 500, "-o", out],
          out, "the log holds only 200 s")
     _bad(["align", data["sway"] / "imu.csv", "--method", "static", "--position", "30,114,50", "-o", out],

@@ -2,7 +2,6 @@
 closed-form increments, topic choice, GNSS, and every listed bad input through the CLI."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +10,8 @@ from click.testing import CliRunner
 
 from sinscli.cli import main
 from sinscli.errors import SinsError
-from sinscli.io import ros_bulk, rosbag
+from sinscli.io import ros
+from sinscli.io.ros import decode, write
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 HUSKY = SHARED / "data" / "ros1_husky" / "husky_imu_gps.bag"
@@ -27,7 +27,7 @@ def _write(path: Path, imu=None, gnss=None, vel=None, **kw):
         kw.setdefault("mcap_encoding", "ros1")
     if name.endswith("dir_mcap"):
         kw.setdefault("storage", "mcap")
-    rosbag.write_log(path, imu=imu, gnss=gnss, vel=vel, **kw)
+    ros.write_log(path, imu=imu, gnss=gnss, vel=vel, **kw)
     return path
 
 
@@ -59,19 +59,19 @@ def husky(tmp_path_factory):
 
 
 def test_husky_three_formats_give_identical_samples(husky):
-    ref_imu = rosbag.read_imu(husky["bag"])
-    ref_gnss = rosbag.read_gnss(husky["bag"])
+    ref_imu = ros.read_imu(husky["bag"])
+    ref_gnss = ros.read_gnss(husky["bag"])
     assert len(ref_imu) == 11865 - 1 and len(ref_gnss) == 989
     for name, path in husky.items():
-        imu = rosbag.read_imu(path)
-        gnss = rosbag.read_gnss(path)
+        imu = ros.read_imu(path)
+        gnss = ros.read_gnss(path)
         assert imu.source == f"{path}:/imu/data"
         assert imu.t0 == ref_imu.t0, name
         for a, b in [(imu.time, ref_imu.time), (imu.dtheta_b, ref_imu.dtheta_b), (imu.dvel_b, ref_imu.dvel_b),
                      (gnss.time, ref_gnss.time), (gnss.lat, ref_gnss.lat), (gnss.lon, ref_gnss.lon),
                      (gnss.height, ref_gnss.height), (gnss.std_pos, ref_gnss.std_pos)]:
             assert np.array_equal(a, b), name
-        _, _, block = rosbag.read_imu_block(path)
+        _, _, block = ros.read_imu_block(path)
         assert block.n_bulk == 11865, name            # every message through the numpy path
 
 
@@ -90,26 +90,18 @@ def test_husky_against_rosbags_decode(husky):
     t = [m.header.stamp.sec + m.header.stamp.nanosec / 1e9 for m in msgs]
     w = [np.array([m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z]) for m in msgs]
     f = [np.array([m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z]) for m in msgs]
-    imu = rosbag.read_imu(husky["mcap"])
+    imu = ros.read_imu(husky["mcap"])
     assert imu.t0 == pytest.approx(t[0], abs=1e-6)
     assert imu.time[:2] == pytest.approx(t[1:], abs=1e-6)
     for k in range(2):
         np.testing.assert_allclose(imu.dtheta_b[k], 0.5 * (w[k] + w[k + 1]) * (t[k + 1] - t[k]), rtol=1e-6, atol=1e-15)
         np.testing.assert_allclose(imu.dvel_b[k], 0.5 * (f[k] + f[k + 1]) * (t[k + 1] - t[k]), rtol=1e-6, atol=1e-15)
-    gnss = rosbag.read_gnss(husky["db3"])
+    gnss = ros.read_gnss(husky["db3"])
     assert gnss.lat[0] == fix0.latitude and gnss.lon[0] == fix0.longitude and gnss.height[0] == fix0.altitude
     np.testing.assert_allclose(gnss.std_pos[0], np.sqrt(fix0.position_covariance[[0, 4, 8]]), rtol=1e-15)
     # the README's description of the recording: imu_link has its y axis up, |f| about g
     f_mean = imu.dvel_b.sum(axis=0) / (imu.time[-1] - imu.t0)
     assert 9.7 < f_mean[1] < 9.9 and abs(f_mean[0]) < 0.5 and abs(f_mean[2]) < 0.5
-
-
-def test_husky_odometry_velocity_is_rotated_into_the_parent_frame(husky):
-    gnss = rosbag.read_gnss(husky["bag"], vel_topic="/husky_velocity_controller/odom")
-    assert 987 <= len(gnss) <= 989 and gnss.vel_n.shape == (len(gnss), 3) and gnss.std_vel is not None
-    assert np.isfinite(gnss.vel_n).all() and np.isfinite(gnss.std_vel).all()
-    speed = np.linalg.norm(gnss.vel_n, axis=1)
-    assert speed.max() < 3.0 and speed.mean() > 0.1      # a Husky drives at walking speed
 
 
 # --------------------------------------------------------------------------- bulk = library, bit for bit
@@ -121,15 +113,15 @@ def test_bulk_decode_equals_library_decode(tmp_path, name):
     ori[5] = [np.nan, -0.0, np.inf, 5e-324]                # bit patterns that must survive
     imu["orientation"] = ori
     path = _write(tmp_path / name, imu=imu, gnss=_gnss(), log_delay=0.001)
-    t_bulk, t_lib = rosbag.read_imu_block(path, bulk=True), rosbag.read_imu_block(path, bulk=False)
+    t_bulk, t_lib = ros.read_imu_block(path, bulk=True), ros.read_imu_block(path, bulk=False)
     (_, ln_b, b), (_, ln_l, lib) = t_bulk, t_lib
     assert b.n_bulk == 300 and lib.n_bulk == 0
     assert np.array_equal(ln_b, ln_l)
     assert np.array_equal(b.sec, lib.sec) and np.array_equal(b.nsec, lib.nsec)
     assert b.values.tobytes() == lib.values.tobytes()
     # and the library decode is what was written
-    assert np.array_equal(lib.values[:, ros_bulk.GYRO], imu["gyro"])
-    assert np.array_equal(lib.values[:, ros_bulk.ACCEL], imu["accel"])
+    assert np.array_equal(lib.values[:, decode.GYRO], imu["gyro"])
+    assert np.array_equal(lib.values[:, decode.ACCEL], imu["accel"])
 
 
 @pytest.mark.parametrize("encoding", ["cdr", "ros1"])
@@ -143,24 +135,24 @@ def test_bulk_block_all_frame_id_alignments(encoding):
     des = ts.deserialize_ros1 if ros1 else ts.deserialize_cdr
     frames = ["", "a", "ab", "abc", "abcd", "abcde", "abcdef", "abcdefg", "abcdefgh", "abcdefghi", "陀螺"]
     imu = _imu(n=4 * len(frames) + 1)
-    msgs = list(rosbag._imu_messages(ts, ros1, imu, "x"))
+    msgs = list(write._imu_messages(ts, ros1, imu, "x"))
     raws = []
     for k, m in enumerate(msgs):
         fid = frames[k % len(frames)] if k < len(msgs) - 1 else "odd one out"
         m.header.frame_id = fid
         raws.append(bytes(ser(m, "sensor_msgs/msg/Imu")))
-    out = ros_bulk.decode_imu_messages(raws, encoding, lambda r: des(r, "sensor_msgs/msg/Imu"))
-    ref = ros_bulk.decode_imu_messages(raws, encoding, lambda r: des(r, "sensor_msgs/msg/Imu"), bulk=False)
+    out = decode.decode_imu_messages(raws, encoding, lambda r: des(r, "sensor_msgs/msg/Imu"))
+    ref = decode.decode_imu_messages(raws, encoding, lambda r: des(r, "sensor_msgs/msg/Imu"), bulk=False)
     assert out.n_bulk == len(raws) - 1                     # all but the odd one out
     assert out.values.tobytes() == ref.values.tobytes()
     assert np.array_equal(out.sec, ref.sec) and np.array_equal(out.nsec, ref.nsec)
-    assert np.array_equal(ref.values[:, ros_bulk.GYRO], imu["gyro"])
+    assert np.array_equal(ref.values[:, decode.GYRO], imu["gyro"])
     # a group of one length per frame_id: each decodes in bulk on its own
     for fid in frames:
         group = [raws[k] for k in range(len(raws) - 1) if frames[k % len(frames)] == fid]
-        blk = ros_bulk.decode_imu_block(np.frombuffer(b"".join(group), np.uint8).reshape(len(group), -1), encoding)
+        blk = decode.decode_imu_block(np.frombuffer(b"".join(group), np.uint8).reshape(len(group), -1), encoding)
         assert blk is not None, fid
-        lib = ros_bulk.decode_imu_messages(group, encoding, lambda r: des(r, "sensor_msgs/msg/Imu"), bulk=False)
+        lib = decode.decode_imu_messages(group, encoding, lambda r: des(r, "sensor_msgs/msg/Imu"), bulk=False)
         assert blk.values.tobytes() == lib.values.tobytes(), fid
 
 
@@ -168,24 +160,24 @@ def test_bulk_block_refuses_foreign_layouts():
     from rosbags.typesys import Stores, get_typestore
     ts = get_typestore(Stores.ROS2_HUMBLE)
     raws = [bytes(ts.serialize_cdr(m, "sensor_msgs/msg/Imu"))
-            for m in rosbag._imu_messages(ts, False, _imu(n=4), "imu")]
+            for m in write._imu_messages(ts, False, _imu(n=4), "imu")]
     block = np.frombuffer(b"".join(raws), np.uint8).reshape(4, -1).copy()
-    assert ros_bulk.decode_imu_block(block, "cdr") is not None
+    assert decode.decode_imu_block(block, "cdr") is not None
     be = block.copy()
     be[:, 1] = 0                                              # big-endian CDR: the library's job
-    assert ros_bulk.decode_imu_block(be, "cdr") is None
+    assert decode.decode_imu_block(be, "cdr") is None
     other = block.copy()
     other[2, 16] = ord("X")                                   # another frame_id of the same length: fine
-    assert ros_bulk.decode_imu_block(other, "cdr") is not None
+    assert decode.decode_imu_block(other, "cdr") is not None
     other[2, 16] = 0xFF                                       # not UTF-8: the library's error, not ours
-    assert ros_bulk.decode_imu_block(other, "cdr") is None
+    assert decode.decode_imu_block(other, "cdr") is None
     other[2, 16] = ord("i")
     other[2, 19] = ord("X")                                   # the string's NUL terminator overwritten
-    assert ros_bulk.decode_imu_block(other, "cdr") is None
+    assert decode.decode_imu_block(other, "cdr") is None
     bad_ns = block.copy()
     bad_ns[1, 8:12] = np.frombuffer(np.uint32(2_000_000_000).tobytes(), np.uint8)
-    assert ros_bulk.decode_imu_block(bad_ns, "cdr") is None
-    assert ros_bulk.decode_imu_block(block[:, :-8], "cdr") is None
+    assert decode.decode_imu_block(bad_ns, "cdr") is None
+    assert decode.decode_imu_block(block[:, :-8], "cdr") is None
 
 
 # --------------------------------------------------------------------------- increments and times
@@ -199,7 +191,7 @@ def test_read_imu_increments_closed_form(tmp_path, name):
     fa, fb = np.array([0.5, -0.1, 9.8]), np.array([-0.2, 0.05, 0.0])
     gyro, accel = a + np.outer(t - t0, b), fa + np.outer(t - t0, fb)
     path = _write(tmp_path / name, imu={"time": t, "gyro": gyro, "accel": accel}, log_delay=0.25)
-    imu = rosbag.read_imu(path)
+    imu = ros.read_imu(path)
     assert imu.t0 == pytest.approx(t0, abs=1e-9) and len(imu) == n - 1 and imu.kind == "rates"
     s0, s1 = (t[:-1] - t0), (t[1:] - t0)
     exact_dth = np.outer(s1 - s0, a) + np.outer((s1 ** 2 - s0 ** 2) / 2, b)
@@ -207,11 +199,11 @@ def test_read_imu_increments_closed_form(tmp_path, name):
     np.testing.assert_allclose(imu.dtheta_b, exact_dth, rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(imu.dvel_b, exact_dv, rtol=1e-9, atol=1e-15)
     # log time = header stamp + 0.25 s here
-    imu_log = rosbag.read_imu(path, time_source="log")
+    imu_log = ros.read_imu(path, time_source="log")
     np.testing.assert_allclose(imu_log.time - imu.time, 0.25, atol=1e-9)
     assert np.array_equal(imu_log.dtheta_b, imu.dtheta_b)
     # an interval keeps the samples inside it
-    part = rosbag.read_imu(path, start=t0 + 0.1, end=t0 + 0.2)
+    part = ros.read_imu(path, start=t0 + 0.1, end=t0 + 0.2)
     assert part.t0 == pytest.approx(t0 + 0.1, abs=1e-9) and len(part) == 20
 
 
@@ -224,7 +216,7 @@ def test_gnss_fields_velocity_and_no_fix(tmp_path, caplog):
            "std": np.tile([0.1, 0.2, 0.3], (8, 1))}
     path = _write(tmp_path / "g.mcap", imu=_imu(), gnss=g, vel=vel)
     with caplog.at_level("WARNING", logger="sins"):
-        out = rosbag.read_gnss(path, vel_topic="/fix_velocity")
+        out = ros.read_gnss(path, vel_topic="/fix_velocity")
     keep = g["status"] >= 0
     assert "dropped 2 of 8" in caplog.text
     assert np.array_equal(out.lat, g["lat"][keep]) and np.array_equal(out.height, g["height"][keep])
@@ -232,29 +224,8 @@ def test_gnss_fields_velocity_and_no_fix(tmp_path, caplog):
     assert np.array_equal(out.std_pos, np.tile([2.0, 3.0, 4.0], (6, 1)))
     assert np.array_equal(out.vel_n, vel["vel"][keep])
     np.testing.assert_allclose(out.std_vel, np.tile([0.1, 0.2, 0.3], (6, 1)), rtol=1e-15)
-    nostd = rosbag.read_gnss(_write(tmp_path / "u.bag", gnss={**_gnss(), "cov_type": np.zeros(6)}))
+    nostd = ros.read_gnss(_write(tmp_path / "u.bag", gnss={**_gnss(), "cov_type": np.zeros(6)}))
     assert nostd.std_pos is None and nostd.vel_n is None
-
-
-def test_odometry_velocity_rotation(tmp_path):
-    """Odometry twist is in the child frame: yaw +90 deg turns body +x (1 m/s) into parent +y."""
-    from rosbags.rosbag2 import Writer
-    from rosbags.typesys import Stores, get_typestore
-    ts = get_typestore(Stores.ROS2_HUMBLE)
-    path = tmp_path / "odom"
-    g = _gnss(n=3)
-    s = math.sqrt(0.5)
-    with Writer(path, version=9) as w:
-        cf = w.add_connection("/fix", "sensor_msgs/msg/NavSatFix", typestore=ts)
-        co = w.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=ts)
-        for k, m in enumerate(rosbag._navsat_messages(ts, False, g)):
-            tn = int(round(g["time"][k] * 1e9))
-            w.write(cf, tn, ts.serialize_cdr(m, "sensor_msgs/msg/NavSatFix"))
-            from sinscli.io.foxglove import odometry_message
-            om = odometry_message(ts, tn // 10**9, tn % 10**9, [0, 0, 0], [0, 0, s, s], [1.0, 0.0, 0.0])
-            w.write(co, tn, ts.serialize_cdr(om, "nav_msgs/msg/Odometry"))
-    out = rosbag.read_gnss(path, vel_topic="/odom")
-    np.testing.assert_allclose(out.vel_n, np.tile([0.0, 1.0, 0.0], (3, 1)), atol=1e-15)
 
 
 # --------------------------------------------------------------------------- topic choice
@@ -268,19 +239,19 @@ def test_topic_choice(tmp_path):
         c1 = w.add_connection("/imu_a", "sensor_msgs/msg/Imu", typestore=ts)
         c2 = w.add_connection("/imu_b", "sensor_msgs/msg/Imu", typestore=ts)
         imu = _imu(n=5)
-        for k, m in enumerate(rosbag._imu_messages(ts, True, imu, "imu")):
+        for k, m in enumerate(write._imu_messages(ts, True, imu, "imu")):
             raw = ts.serialize_ros1(m, "sensor_msgs/msg/Imu")
             w.write(c1, int(imu["time"][k] * 1e9), raw)
             w.write(c2, int(imu["time"][k] * 1e9), raw)
     with pytest.raises(SinsError, match=r"several sensor_msgs/msg/Imu topics \(/imu_a, /imu_b\).*--imu-topic"):
-        rosbag.read_imu(path)
-    assert len(rosbag.read_imu(path, topic="/imu_b")) == 4
+        ros.read_imu(path)
+    assert len(ros.read_imu(path, topic="/imu_b")) == 4
     with pytest.raises(SinsError, match="topic /nope not found; topics: /imu_a .*, /imu_b"):
-        rosbag.read_imu(path, topic="/nope")
+        ros.read_imu(path, topic="/nope")
     with pytest.raises(SinsError, match="no sensor_msgs/msg/NavSatFix topic"):
-        rosbag.read_gnss(path)
-    assert rosbag.is_log(path) and rosbag.is_log(tmp_path / "a.mcap") and rosbag.is_log(tmp_path / "b.db3")
-    assert not rosbag.is_log(tmp_path / "imu.csv") and not rosbag.is_log(tmp_path)
+        ros.read_gnss(path)
+    assert ros.is_log(path) and ros.is_log(tmp_path / "a.mcap") and ros.is_log(tmp_path / "b.db3")
+    assert not ros.is_log(tmp_path / "imu.csv") and not ros.is_log(tmp_path)
 
 
 # --------------------------------------------------------------------------- CLI: info, convert
@@ -312,18 +283,24 @@ def test_convert_cli_writes_formats_csv(husky, tmp_path):
     out = tmp_path / "out"
     res = _run(["convert", str(husky["ros2_mcap_dir"]), "-o", str(out), "-q"])
     assert res.exit_code == 0, res.output
-    imu, gnss = rosbag.read_imu(husky["bag"]), rosbag.read_gnss(husky["bag"])
+    imu, gnss = ros.read_imu(husky["bag"]), ros.read_gnss(husky["bag"])
     back = read_imu_csv(out / "imu.csv")
     assert np.array_equal(back.time, imu.time) and np.array_equal(back.dtheta_b, imu.dtheta_b)
     assert np.array_equal(back.dvel_b, imu.dvel_b)
     g = read_gnss_csv(out / "gnss.csv")
     assert np.array_equal(g.lat, gnss.lat) and np.array_equal(g.std_pos, gnss.std_pos)
+    # the Odometry topic is body velocity: odom.csv, in the axes of its child frame base_link
+    from sinscli.io.body_vel_csv import read_body_velocity_csv
+    from sinscli.io.ros.odometry import read_body_velocity
+    odom = read_body_velocity_csv(out / "odom.csv")
+    ref = read_body_velocity(husky["bag"])
+    assert np.array_equal(odom.time, ref.time) and np.array_equal(odom.vel_b, ref.vel_b)
+    assert np.array_equal(odom.std, ref.std)
+    # ... and never ENU GNSS velocity
     out2 = tmp_path / "out2"
     res = _run(["convert", str(husky["bag"]), "-o", str(out2), "-q", "--vel-topic", "/husky_velocity_controller/odom"])
-    assert res.exit_code == 0, res.output
-    gv = rosbag.read_gnss(husky["bag"], vel_topic="/husky_velocity_controller/odom")
-    g2 = read_gnss_csv(out2 / "gnss.csv")
-    assert np.array_equal(g2.vel_n, gv.vel_n) and np.array_equal(g2.std_vel, gv.std_vel)
+    assert res.exit_code == 2 and "is nav_msgs/msg/Odometry" in res.output and "not an ENU velocity" in res.output
+    assert not out2.exists()
 
 
 # --------------------------------------------------------------------------- bad input through the CLI

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from sinscli.errors import SinsError
-from sinscli.io import rosbag
+from sinscli.io import ros
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared"
 HUSKY = SHARED / "data" / "ros1_husky" / "husky_imu_gps.bag"
@@ -78,7 +78,7 @@ def _generated_logs(d: Path) -> list[tuple[Path, bool]]:
     for name, kw, checked in [("gen.bag", {}, False), ("gen_bz2.bag", {"bag_compression": "bz2"}, True),
                               ("gen_lz4.bag", {"bag_compression": "lz4"}, False), ("gen.mcap", {}, True),
                               ("gen_ros1.mcap", {"mcap_encoding": "ros1"}, True), ("gen.db3", {}, False)]:
-        rosbag.write_log(d / name, imu=imu, gnss=gnss, **kw)
+        ros.write_log(d / name, imu=imu, gnss=gnss, **kw)
         out.append((d / name, checked))
     return out
 
@@ -130,7 +130,7 @@ def _only_hit_rows_differ(path: Path, ref_block, mut) -> bool:
     a checksum, by any reader)."""
     if mut[0] == "trunc":
         return False
-    blk = _bounded(rosbag.read_imu_block, path)[2]
+    blk = _bounded(ros.read_imu_block, path)[2]
     if len(blk) != len(ref_block):
         return False
     changed = ((blk.sec != ref_block.sec) | (blk.nsec != ref_block.nsec)
@@ -146,7 +146,7 @@ def _library_agrees(path: Path, imu) -> bool:
     path does not use, the rosbags deserializer on every stored row (in row order).
     """
     try:
-        lib = _bounded(rosbag.read_imu, path, bulk=False)
+        lib = _bounded(ros.read_imu, path, bulk=False)
         return _same_imu(imu, lib)
     except SinsError:
         if path.suffix != ".db3":
@@ -181,16 +181,16 @@ def test_fuzz_readers(sources, tmp_path):
     n_flip = max(N_FLIP, -(-550 // len(sources)) - N_TRUNC - N_BLOCK)   # at least 500 cases in all
     for src, checked in sources:
         data = src.read_bytes()
-        ref_imu = rosbag.read_imu(src)
-        ref_gnss = rosbag.read_gnss(src)
-        ref_block = rosbag.read_imu_block(src)[2]
+        ref_imu = ros.read_imu(src)
+        ref_gnss = ros.read_gnss(src)
+        ref_block = ros.read_imu_block(src)[2]
         target = tmp_path / src.name
         for k, (label, mut) in enumerate(_mutations(len(data), rng, n_flip)):
             target.write_bytes(_apply(data, mut))
             case = f"{src.name}: {label}"
             n_cases += 1
             try:
-                kind, imu = _outcome(rosbag.read_imu, target)
+                kind, imu = _outcome(ros.read_imu, target)
                 if kind == "ok":
                     n_ok += 1
                     if not _same_imu(imu, ref_imu):
@@ -201,7 +201,7 @@ def test_fuzz_readers(sources, tmp_path):
                 else:
                     n_err += 1
                 if k % 3 == 0:
-                    kind, gnss = _outcome(rosbag.read_gnss, target)
+                    kind, gnss = _outcome(ros.read_gnss, target)
                     if kind == "ok" and checked and not _same_gnss(gnss, ref_gnss):
                         failures.append(f"{case}: checksummed log read to different GNSS fixes")
             except _Hang:

@@ -211,7 +211,7 @@ def test_one_config_serves_align_and_navigate(simdir, tmp_path):
 def test_gap_rule_applies_to_ros_logs(tmp_path):
     """The CSV gap rule holds for bags too: refused by default (file, topic, message named), bridged
     with --allow-gaps."""
-    from sinscli.io.rosbag import write_log
+    from sinscli.io.ros import write_log
     t = np.concatenate([np.arange(0, 1, 0.01), np.arange(1.5, 2, 0.01)]) + 1000.0
     n = len(t)
     bag = tmp_path / "gap.bag"

@@ -22,6 +22,8 @@ CASES = {
     "coning.yaml": (60.0, "enu", "att", 16.0),        # 2-sample coning drift: fourth order
     "sculling.yaml": (60.0, "enu", "vel", 16.0),      # 2-sample sculling: fourth order
     "long_range_flight.yaml": (120.0, "launch-inertial", "att", 8.0),
+    "spin_boost.yaml": (32.0, "enu", "att", 8.0),     # the boost with the 2 rev/s spin
+    "tactical_rtk_drive.yaml": (300.0, "enu", "att", 8.0),   # the vehicle drive at 200 Hz (fusion tests)
 }
 
 
@@ -52,4 +54,5 @@ def test_error_free_scenario_navigates_at_the_algorithm_level(name):
     assert 0.7 * ratio < r1 < 1.35 * ratio and 0.7 * ratio < r2 < 1.35 * ratio, (r1, r2, errs)
     # at 100 Hz, the level for each kind of motion
     e = errs[1]
-    assert e["att"] < {"vehicle_drive.yaml": 1e-9, "long_range_flight.yaml": 1e-4}.get(name, 1e-4)
+    assert e["att"] < {"vehicle_drive.yaml": 1e-9, "long_range_flight.yaml": 1e-4,
+                       "spin_boost.yaml": 2e-3}.get(name, 1e-4)      # 2 rev/s: 1.72e-3 deg (docs/krylov.md)

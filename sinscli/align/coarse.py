@@ -73,9 +73,13 @@ def motion_statistics(time, dtheta_b, dvel_b, t0, block: float = 1.0):
     At rest these are sensor noise over one block; a swaying or moving base
     shows its motion (a +-5 deg sway at 0.15 Hz gives ~0.08 rad/s).
     """
+    dw, df = block_deviations(time, dtheta_b, dvel_b, t0, block)
+    if dw.shape[0] < 2:
+        return 0.0, 0.0, block, dw.shape[0]
+    return float(dw.max()), float(df.max()), block, dw.shape[0]
+
+
+def block_deviations(time, dtheta_b, dvel_b, t0, block: float = 1.0):
+    """Per block of ``block`` seconds, ``|w_block - w_mean|`` (rad/s) and ``|f_block - f_mean|`` (m/s^2)."""
     w, f = block_means(time, dtheta_b, dvel_b, t0, block)
-    if w.shape[0] < 2:
-        return 0.0, 0.0, block, w.shape[0]
-    dw = float(np.linalg.norm(w - w.mean(axis=0), axis=1).max())
-    df = float(np.linalg.norm(f - f.mean(axis=0), axis=1).max())
-    return dw, df, block, w.shape[0]
+    return np.linalg.norm(w - w.mean(axis=0), axis=1), np.linalg.norm(f - f.mean(axis=0), axis=1)

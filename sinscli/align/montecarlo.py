@@ -34,7 +34,7 @@ from ..nav.earth import gravity
 from ..nav.rotation import dcm_to_euler_many
 from ..types import time_tolerance
 from . import observability
-from .options import build_options, merge_section
+from .options import SensorSpec, build_options, from_sensor, merge_section
 from .pipeline import align
 from .sway import ScenarioRuns, load_align_scenario, prepare_scenario
 
@@ -190,11 +190,10 @@ def plan_monte_carlo(path, runs: int | None = None, seed0: int | None = None) ->
     if merged["position"] is None:
         merged["position"] = [sc.start_deg["lat"], sc.start_deg["lon"], sc.h0]
     sb = sensor_budget(prepared.sensor)
-    if all(v is None for v in merged["sensor"].values()):
-        merged["sensor"] = {"gyro_bias": math.degrees(sb["gyro_bias"]) * 3600.0,
-                            "gyro_arw": math.degrees(sb["gyro_arw"]) * 60.0,
-                            "accel_bias": sb["accel_bias"] / 9.80665e-6, "accel_vrw": sb["accel_vrw"] / 9.80665e-6}
-    base_opts = build_options(merged, src, conv=sc.conv, lever_arm=sc.gnss["lever_arm"])
+    base_opts = build_options(merged, src, conv=sc.conv, lever_arm=sc.gnss["lever_arm"], base_dir=base)
+    if not base_opts.sensor.given:
+        # the alignment is told the sensor the runs are drawn from (align.sensor overrides)
+        base_opts.sensor = from_sensor(prepared.sensor, "scenario")
     rw = mc["roll_window"]
     variants = [(base_opts.method, None)]
     if rw is not None and base_opts.method != "static":
@@ -327,3 +326,72 @@ def run_monte_carlo(path, runs: int | None = None, seed0: int | None = None, pro
         if progress is not None:
             progress(1)
     return acc.result()
+
+
+# --------------------------------------------------------------------------- coverage of the 1-sigma
+
+def scaled_sensor(sensor: dict, factor: float) -> dict:
+    """A resolved sensor description (SI, :func:`sinscli.sensors.load_sensor`) with every error figure
+    multiplied by ``factor`` (its time constants and quantization kept): ``factor = 0.1`` is a
+    description ten times too optimistic."""
+    keep = ("bias_tau", "quantization")
+    return {w: {k: (v if k in keep else np.asarray(v) * factor) for k, v in sensor.get(w, {}).items()}
+            for w in ("gyro", "accel")}
+
+
+@dataclass
+class Coverage:
+    """The runs of one method with one sensor description: end errors against the reported 1-sigma."""
+    err: np.ndarray          # (n, 3) deg, roll, pitch, heading (estimate - truth) of the runs not refused
+    sigma: np.ndarray        # (n, 3) deg (heading nan for a user heading without a sigma)
+    floor: np.ndarray        # (n, 3) deg, the method's own noise-only floor
+    times: np.ndarray        # (n,) s, the state's time
+    seeds: list              # (n,) seeds of those runs
+    refused: list = field(default_factory=list)     # (seed, one-line reason)
+
+    def inside(self, k: float = 3.0) -> np.ndarray:
+        """Fraction of the runs whose error lies within ``k`` 1-sigma, per angle (1 where not reported)."""
+        if self.err.shape[0] == 0:
+            return np.full(3, np.nan)
+        ok = (np.abs(self.err) <= k * self.sigma) | ~np.isfinite(self.sigma)
+        return ok.mean(axis=0)
+
+
+def coverage_runs(scenario: dict, methods, seeds, cases=("right", "absent", "optimistic"), sway=None,
+                  with_gnss: bool = True, **align_kw) -> dict:
+    """Align each seeded run of ``scenario`` (simulator scenario mapping) with each method and sensor
+    description: ``right`` (the one the runs are drawn from), ``absent``, ``optimistic`` (every figure
+    ten times too small).  Returns ``{(method, case): Coverage}``; ``align_kw`` are
+    :class:`~sinscli.align.options.AlignOptions` fields (``position`` defaults to the start)."""
+    from .options import AlignOptions
+    prepared = prepare_scenario(copy.deepcopy(scenario), sway, "coverage", None)
+    sc = prepared.scenario
+    runs = ScenarioRuns(prepared)
+    specs = {"right": from_sensor(prepared.sensor, "right"), "absent": SensorSpec(),
+             "optimistic": from_sensor(scaled_sensor(prepared.sensor, 0.1), "optimistic")}
+    kw = {"position": (sc.lat0, sc.lon0, sc.h0), "conv": sc.conv,
+          "lever_arm": np.asarray(sc.gnss["lever_arm"], dtype=float)}
+    kw.update(align_kw)
+    acc = {(m, c): {"err": [], "sigma": [], "floor": [], "times": [], "seeds": [], "refused": []}
+           for m in methods for c in cases}
+    for seed in seeds:
+        r = runs.run(seed)
+        for m in methods:
+            for c in cases:
+                a = acc[(m, c)]
+                try:
+                    res = align(r.imu, AlignOptions(method=m, sensor=specs[c], **kw), r.gnss if with_gnss else None)
+                except SinsError as exc:
+                    a["refused"].append((seed, str(exc).splitlines()[0]))
+                    continue
+                k = int(np.argmin(np.abs(r.truth.time - res.state.time)))
+                a["err"].append(_euler_err(res.state.Cbn[None], r.truth.Cbn[k][None], sc.conv)[0])
+                a["sigma"].append(np.degrees(res.sigma))
+                a["floor"].append(np.degrees(res.sigma_floor))
+                a["times"].append(res.state.time)
+                a["seeds"].append(seed)
+    out = {}
+    for key, a in acc.items():
+        out[key] = Coverage(np.array(a["err"]).reshape(-1, 3), np.array(a["sigma"]).reshape(-1, 3),
+                            np.array(a["floor"]).reshape(-1, 3), np.array(a["times"]), a["seeds"], a["refused"])
+    return out

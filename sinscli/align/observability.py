@@ -13,10 +13,9 @@ thousands of deg/h) cannot see it: the heading would be noise.  Such a heading
 is never written: it is taken from the user, from the GNSS course when the
 vehicle moves, or the alignment fails with the reason.
 
-Where the sensor errors are not given, the data bound them from below: at
-rest the measured angular rate must have the earth rate's magnitude
-(``| |w| - W_ie |`` is at most the bias), and the scatter of 1 s block means
-gives the random walk.
+The sensor errors come from :mod:`.budget` (the description checked against
+the log, or the log alone).  On a moving base the heading comes from the fit
+(:mod:`.fit`) or from the GNSS course (:func:`course_heading`).
 """
 from __future__ import annotations
 
@@ -47,58 +46,6 @@ def tilt_sigma(T, accel_bias, accel_vrw, g):
     return math.sqrt((accel_bias / g) ** 2 + (accel_vrw / (g * math.sqrt(T))) ** 2)
 
 
-def gyro_bias_floor(w_mean_b):
-    """Lower bound of the gyro bias at rest: ``| |w| - W_ie |`` (rad/s)."""
-    return abs(float(np.linalg.norm(w_mean_b)) - OMEGA_IE)
-
-
-def accel_bias_floor(f_mean_b, g):
-    """Lower bound of the accelerometer bias at rest: ``| |f| - g |`` (m/s^2)."""
-    return abs(float(np.linalg.norm(f_mean_b)) - g)
-
-
-def random_walk_from_blocks(block_means, block):
-    """Random-walk coefficient (unit/sqrt(s)) from the scatter of block means over ``block`` s."""
-    if block_means.shape[0] < 3:
-        return 0.0
-    d = block_means - block_means.mean(axis=0)
-    return float(np.sqrt((d ** 2).mean())) * math.sqrt(block)
-
-
-@dataclass
-class Budget:
-    """The sensor errors used for the error budget (SI) and where each came from."""
-    gyro_bias: float
-    gyro_arw: float
-    accel_bias: float
-    accel_vrw: float
-    source: str          # "config", "data" or "config+data"
-
-
-def budget(spec, w_mean_b=None, f_mean_b=None, w_blocks=None, f_blocks=None, block=1.0, g=9.8) -> Budget:
-    """Sensor errors for the budget: the configured ones, raised to what the data show at rest."""
-    data = {"gyro_bias": 0.0, "gyro_arw": 0.0, "accel_bias": 0.0, "accel_vrw": 0.0}
-    if w_mean_b is not None:
-        data["gyro_bias"] = gyro_bias_floor(w_mean_b)
-    if f_mean_b is not None:
-        data["accel_bias"] = accel_bias_floor(f_mean_b, g)
-    if w_blocks is not None:
-        data["gyro_arw"] = random_walk_from_blocks(w_blocks, block)
-    if f_blocks is not None:
-        data["accel_vrw"] = random_walk_from_blocks(f_blocks, block)
-    out, used = {}, set()
-    for k, v in data.items():
-        c = getattr(spec, k)
-        if c is None:
-            out[k] = v
-            used.add("data")
-        else:
-            out[k] = max(c, v)
-            used.add("config" if c >= v else "data")
-    src = "+".join(sorted(used, key=lambda s: s != "config"))
-    return Budget(source=src, **out)
-
-
 @dataclass
 class HeadingCheck:
     observable: bool
@@ -106,50 +53,98 @@ class HeadingCheck:
     reason: str             # one line for the user
 
 
-def check_earth_rate(lat, T, b: Budget, g, max_sigma, accel_noise: bool = False) -> HeadingCheck:
-    """Earth-rate heading observability at rest for a budget ``b`` (``accel_noise``: inertial-frame method)."""
-    s = earth_rate_heading_sigma(lat, T, b.gyro_bias, b.gyro_arw, b.accel_bias, g,
-                                 b.accel_vrw if accel_noise else 0.0)
+def check_earth_rate(lat, T, sigma, gyro_bias, gyro_arw, source, max_sigma) -> HeadingCheck:
+    """Earth-rate heading observability: ``sigma`` (rad) the heading 1-sigma the method computed with
+    a gyro bias ``gyro_bias`` (rad/s) and random walk ``gyro_arw`` (rad/sqrt(s)) from ``source``."""
     wh_dph = math.degrees(OMEGA_IE * math.cos(lat)) * 3600.0
-    bias_dph = math.degrees(b.gyro_bias) * 3600.0
-    arw = math.degrees(b.gyro_arw) * 60.0
-    sd = math.degrees(s)
+    bias_dph = math.degrees(gyro_bias) * 3600.0
+    arw = math.degrees(gyro_arw) * 60.0
+    sd = math.degrees(sigma)
     sig = f"{sd:.3g} deg" if sd <= 180.0 else "over 180 deg (no heading information)"
-    what = (f"gyro bias {bias_dph:.3g} deg/h and random walk {arw:.3g} deg/sqrt(h) ({b.source}) against "
+    what = (f"gyro bias {bias_dph:.3g} deg/h and random walk {arw:.3g} deg/sqrt(h) ({source}) against "
             f"the horizontal earth rate {wh_dph:.3g} deg/h give a heading 1-sigma of {sig} in {T:.4g} s")
-    if s > max_sigma:
-        return HeadingCheck(False, s, f"heading is not observable from earth rate: {what} "
-                                      f"(> {math.degrees(max_sigma):.3g} deg, align.max_heading_sigma)")
-    return HeadingCheck(True, s, f"heading from earth rate: {what}")
+    if not sigma <= max_sigma:
+        return HeadingCheck(False, sigma, f"heading is not observable from earth rate: {what} "
+                                          f"(> {math.degrees(max_sigma):.3g} deg, align.max_heading_sigma)")
+    return HeadingCheck(True, sigma, f"heading from earth rate: {what}")
 
 
-def motion_heading_sigma(cov):
-    """Heading (rotation about up) 1-sigma (rad) from a navigation-axes attitude covariance."""
-    return math.sqrt(max(float(cov[2, 2]), 0.0))
+@dataclass
+class CourseFit:
+    """The heading from the GNSS course: ``delta(t) = delta_end + drift (t - t_last)`` is the correction
+    to add to the estimate's heading at time t (see :func:`course_heading`)."""
+    delta_end: float        # rad: at the last epoch
+    drift: float            # rad/s: the estimate's heading drift against the course (gyro bias)
+    cov: np.ndarray         # (2, 2) of (delta_end, drift), scaled by ``factor``
+    floor: float            # rad: sideslip and mounting, added to every sigma
+    used: int               # epochs used
+    dropped: int            # epochs rejected as glitches (or reversing)
+    factor: float           # residual chi-square / dof (>= 1: applied to the covariance)
+
+    def delta(self, dt):
+        """The correction at ``dt`` s after the last epoch."""
+        return self.delta_end + self.drift * np.asarray(dt, dtype=float)
+
+    def sigma(self, dt=0.0) -> float:
+        """1-sigma (rad) of the corrected heading ``dt`` s after the last epoch."""
+        a = np.array([1.0, float(dt)])
+        return math.sqrt(float(a @ self.cov @ a) + self.floor ** 2)
 
 
-def course_offset(vel_n, heading_est, min_speed, sigma_v, floor):
-    """Heading correction from the GNSS course: ``(delta rad, sigma rad, n epochs)`` or None.
+def course_heading(t, vel_n, heading_est, min_speed, sigma_v, floor, drift_sigma):
+    """Robust fit of the GNSS course against the estimate's heading: ``CourseFit`` or None.
 
-    ``vel_n`` (n, 3) ENU velocities at epochs where ``heading_est`` (n,) rad is
-    the heading of the current estimate.  A land vehicle drives along its
-    forward axis, so course = heading; ``delta`` is the speed-weighted circular
-    mean of ``course - heading_est`` over epochs faster than ``min_speed``
-    (epochs more than 30 deg from a first estimate, e.g. reversing, are
-    dropped), with 1-sigma ``sqrt(1/sum (speed/sigma_v)^2 + floor^2)``.
+    A land vehicle drives along its forward axis, so at each epoch faster than ``min_speed``
+    ``course - heading_est = a + b (t - t_end) + noise``, with the course noise ``sigma_v / speed``
+    (rad).  ``b`` is the drift of the estimate's heading (its gyro bias about up) with the prior
+    ``N(0, drift_sigma^2)``; ``a`` is the correction at the last epoch.  The fit is Huber-weighted
+    (iteratively reweighted least squares, k = 1.345 on the residuals over their robust scale); epochs
+    more than 30 deg off (reversing, a glitch) and then more than 5 robust sigma off are dropped.  The
+    variance of ``a`` is scaled by the residual chi-square per degree of freedom when that exceeds 1,
+    and the sideslip/mounting ``floor`` is added in quadrature (it does not average out).
     """
-    speed = np.hypot(vel_n[:, 0], vel_n[:, 1])
+    t = np.asarray(t, dtype=float)
+    v = np.asarray(vel_n, dtype=float)
+    speed = np.hypot(v[:, 0], v[:, 1])
     ok = speed >= min_speed
     if ok.sum() < 2:
         return None
-    course = np.arctan2(vel_n[ok, 0], vel_n[ok, 1])
-    d = course - heading_est[ok]
-    w = (speed[ok] / sigma_v) ** 2
-    mean = math.atan2(float((w * np.sin(d)).sum()), float((w * np.cos(d)).sum()))
-    resid = np.angle(np.exp(1j * (d - mean)))
-    keep = np.abs(resid) < math.radians(30.0)
-    if keep.sum() < 2:
-        return None
-    mean = math.atan2(float((w[keep] * np.sin(d[keep])).sum()), float((w[keep] * np.cos(d[keep])).sum()))
-    sigma = math.sqrt(1.0 / float(w[keep].sum()) + floor ** 2)
-    return mean, sigma, int(keep.sum())
+    tt = t[ok] - t[-1]
+    course = np.arctan2(v[ok, 0], v[ok, 1])
+    d = np.angle(np.exp(1j * (course - np.asarray(heading_est, dtype=float)[ok])))
+    s = np.broadcast_to(np.asarray(sigma_v, dtype=float), t.shape)[ok] / speed[ok]
+    w0 = 1.0 / s ** 2
+    mean = math.atan2(float((w0 * np.sin(d)).sum()), float((w0 * np.cos(d)).sum()))
+    d = mean + np.angle(np.exp(1j * (d - mean)))            # unwrapped about the mean
+    keep = np.abs(d - mean) < math.radians(30.0)
+    dropped = int((~keep).sum())
+    prior = 0.0 if not drift_sigma or not np.isfinite(drift_sigma) else 1.0 / drift_sigma ** 2
+    A = np.stack([np.ones_like(tt), tt], axis=-1)
+    hub = np.ones_like(tt)
+    for _ in range(3):
+        for _ in range(20):
+            if keep.sum() < 2:
+                return None
+            W = w0 * hub * keep
+            N = A.T @ (W[:, None] * A) + np.diag([0.0, prior])
+            x = np.linalg.solve(N, A.T @ (W * d))
+            u = (d - A @ x) / s
+            scale = max(1.4826 * float(np.median(np.abs(u[keep]))), 1.0)
+            new = np.minimum(1.0, 1.345 * scale / np.maximum(np.abs(u), 1e-300))
+            if np.allclose(new, hub, atol=1e-6):
+                break
+            hub = new
+        bad = keep & (np.abs(u) > 5.0 * scale)
+        if not bad.any():
+            break
+        keep &= ~bad
+        dropped += int(bad.sum())
+    W = w0 * keep
+    N = A.T @ (W[:, None] * A) + np.diag([0.0, prior])
+    x = np.linalg.solve(N, A.T @ (W * d))
+    cov = np.linalg.inv(N)
+    n = int(keep.sum())
+    chi2 = float((W * (d - A @ x) ** 2).sum())
+    dof = max(n - 2 + (1 if prior > 0 else 0), 1)
+    factor = max(1.0, chi2 / dof)
+    return CourseFit(float(x[0]), float(x[1]), cov * factor, float(floor), n, dropped, factor)

@@ -20,9 +20,11 @@ METHODS = ("static", "inertial", "gnss-inertial", "kf")
 EPOCHS = ("end", "start")
 VECTORS = ("auto", "cumulative", "increments")
 COARSE_METHODS = ("auto", "static", "inertial", "gnss-inertial")
-# Shortest interval each method accepts, s: the static mean needs a few seconds of averaging, the
-# inertial-frame fit some earth rotation between its epochs, the filter a coarse stage and updates.
+# Recommended shortest interval of each method, s (``align.min_duration.<method>``): the static mean
+# needs a few seconds of averaging, the inertial-frame fit some earth rotation between its epochs, the
+# filter a coarse stage and updates.  A shorter interval runs with a warning naming this length.
 MIN_DURATION = {"static": 10.0, "inertial": 30.0, "gnss-inertial": 20.0, "kf": 60.0}
+LEGACY_SENSOR_KEYS = ("gyro_bias", "gyro_arw", "accel_bias", "accel_vrw")
 
 DEG = math.pi / 180.0
 UG = 9.80665e-6
@@ -42,11 +44,20 @@ ALIGN_DEFAULTS = {
     "vectors": "auto",             # Wahba pairs: cumulative (eq 17-18 as they are) | increments (the integrals
                                    # over each observation interval) | auto (increments at rest, cumulative with GNSS)
     "estimate_v0": True,           # gnss-inertial: solve for v^n(0) with Cbn(0) instead of taking one noisy fix
-    "sensor": {                    # assumed sensor errors (1-sigma); null: estimated from the data
+    "sensor": {                    # the sensor description (1-sigma); null: estimated from the data.
+                                   # Also: a preset name (mems | tactical | navigation), the path of a
+                                   # sensor YAML (schema of sinscli/data/sensors/*.yaml), or such a
+                                   # mapping inline ({gyro: {...}, accel: {...}})
         "gyro_bias": None,         # deg/h
         "gyro_arw": None,          # deg/sqrt(h)
         "accel_bias": None,        # micro-g
         "accel_vrw": None,         # micro-g/sqrt(Hz)
+    },
+    "min_duration": dict(MIN_DURATION),   # s: recommended shortest interval per method (shorter: a warning)
+    "motion_check": {              # inertial without GNSS: the base translates (refused) when the velocity
+                                   # integral in the inertial frame, less what sensor errors explain, moves it
+        "displacement": 5.0,       # m horizontally (a swaying base stays within this), or 4 sigma of the
+                                   # noise-driven displacement when that is larger
     },
     "static_check": {              # the base counts as moving above these (1 s block means)
         "rate": 0.2,               # deg/s deviation of the block-mean angular rate
@@ -71,11 +82,56 @@ ALIGN_DEFAULTS = {
 
 @dataclass
 class SensorSpec:
-    """Assumed 1-sigma sensor errors, SI (None: unknown, estimated from the data)."""
-    gyro_bias: float | None = None     # rad/s
+    """The sensor description, 1-sigma per axis, SI (None: unknown, estimated from the data).
+
+    From the legacy ``align.sensor`` mapping only the first four are given; from a sensor YAML
+    (:func:`from_sensor`) every term, absent ones being 0.
+    """
+    gyro_bias: float | None = None     # rad/s: constant over the interval (fixed, turn-on, instability)
     gyro_arw: float | None = None      # rad/sqrt(s)
     accel_bias: float | None = None    # m/s^2
     accel_vrw: float | None = None     # m/s/sqrt(s)
+    gyro_sf: float | None = None       # scale factor (-)
+    accel_sf: float | None = None
+    gyro_mis: float | None = None      # misalignment (rad)
+    accel_mis: float | None = None
+    gyro_bias_rw: float | None = None  # rad/s/sqrt(s): bias instability as a random walk
+    accel_bias_rw: float | None = None
+    gyro_quant: float | None = None    # rad per count
+    accel_quant: float | None = None   # m/s per count
+    name: str | None = None
+
+    @property
+    def given(self) -> bool:
+        return any(getattr(self, k) is not None for k in LEGACY_SENSOR_KEYS)
+
+
+def _rss_max(d: dict, keys, n=3) -> float:
+    tot = np.zeros(n)
+    for k in keys:
+        if k in d:
+            tot = tot + np.asarray(d[k], dtype=float) ** 2
+    return float(np.sqrt(tot).max())
+
+
+def from_sensor(sensor: dict, name: str | None = None) -> SensorSpec:
+    """:class:`SensorSpec` from a resolved sensor description (:func:`sinscli.sensors.load_sensor`): per
+    term the largest axis of the root sum square of the fixed value, the turn-on spread and (for the
+    bias) the instability; the instability also as a random walk ``sqrt(2 sigma^2 / tau)``."""
+    out = {}
+    for which, noise in (("gyro", "arw"), ("accel", "vrw")):
+        d = sensor.get(which, {})
+        out[f"{which}_bias"] = _rss_max(d, ("bias", "bias_sigma", "bias_instability"))
+        out[f"{which}_arw" if which == "gyro" else "accel_vrw"] = _rss_max(d, (noise,))
+        out[f"{which}_sf"] = _rss_max(d, ("scale_factor", "scale_factor_sigma"))
+        out[f"{which}_mis"] = _rss_max(d, ("misalignment", "misalignment_sigma"), 6)
+        if "bias_instability" in d:
+            rw = np.sqrt(2.0 * np.asarray(d["bias_instability"]) ** 2 / np.asarray(d["bias_tau"]))
+            out[f"{which}_bias_rw"] = float(rw.max())
+        else:
+            out[f"{which}_bias_rw"] = 0.0
+        out[f"{which}_quant"] = _rss_max(d, ("quantization",))
+    return SensorSpec(name=name, **out)
 
 
 @dataclass
@@ -96,6 +152,8 @@ class AlignOptions:
     conv: int = 0
     lever_arm: np.ndarray = field(default_factory=lambda: np.zeros(3))
     sensor: SensorSpec = field(default_factory=SensorSpec)
+    min_duration: dict = field(default_factory=lambda: dict(MIN_DURATION))
+    motion_displacement: float = 5.0
     static_rate: float = 0.2 * DEG
     static_accel: float = 0.1
     static_block: float = 1.0
@@ -147,6 +205,9 @@ def merge_section(section, src: str) -> dict:
     for k, v in section.items():
         if k not in out:
             _fail(src, k, f"unknown key; expected one of {', '.join(sorted(out))}")
+        if k == "sensor" and (isinstance(v, str) or (isinstance(v, dict) and set(v) & {"gyro", "accel"})):
+            out[k] = v                 # a preset name, a sensor YAML path or an inline sensor mapping
+            continue
         if isinstance(out[k], dict):
             if v is None:
                 continue
@@ -183,12 +244,34 @@ def parse_position(v, src: str, key: str = "position"):
     return (math.radians(lat), math.radians(lon), h)
 
 
-def build_options(d: dict, src: str, conv: int = 0, lever_arm=None) -> AlignOptions:
-    """:class:`AlignOptions` from a merged ``align`` mapping (see :func:`merge_section`)."""
+def sensor_spec(v, src: str, base_dir=None) -> SensorSpec:
+    """The ``align.sensor`` value as a :class:`SensorSpec`: the legacy mapping (deg/h, deg/sqrt(h),
+    micro-g, micro-g/sqrt(Hz)), or a preset name, a sensor YAML path (relative to ``base_dir``) or an
+    inline mapping in the sensor YAML schema, all read by :func:`sinscli.sensors.load_sensor`."""
+    from pathlib import Path
+
+    from ..sensors import load_sensor
+    if isinstance(v, str) or (isinstance(v, dict) and set(v) & {"gyro", "accel"}):
+        base = Path(base_dir) if base_dir is not None else Path(".")
+        sensor = load_sensor(v, None, src, base, key="align.sensor")
+        return from_sensor(sensor, v if isinstance(v, str) else "inline")
+    if not isinstance(v, dict):
+        _fail(src, "sensor", f"expected a preset name, a sensor YAML path or a mapping, got {v!r}")
+
+    def scaled(key, unit):
+        x = _num(src, f"sensor.{key}", v.get(key), ge=0.0)
+        return None if x is None else x * unit
+    return SensorSpec(gyro_bias=scaled("gyro_bias", DEG / 3600.0), gyro_arw=scaled("gyro_arw", DEG / 60.0),
+                      accel_bias=scaled("accel_bias", UG), accel_vrw=scaled("accel_vrw", UG))
+
+
+def build_options(d: dict, src: str, conv: int = 0, lever_arm=None, base_dir=None) -> AlignOptions:
+    """:class:`AlignOptions` from a merged ``align`` mapping (see :func:`merge_section`); ``base_dir``:
+    where a relative sensor YAML path is looked up (the config file's folder)."""
     method = d["method"]
     if method not in METHODS:
         _fail(src, "method", f"expected one of {', '.join(METHODS)}, got {method!r}")
-    s, sc, co, kf = d["sensor"], d["static_check"], d["course"], d["kf"]
+    sc, co, kf = d["static_check"], d["course"], d["kf"]
     if kf["coarse"] not in COARSE_METHODS:
         _fail(src, "kf.coarse", f"expected one of {', '.join(COARSE_METHODS)}, got {kf['coarse']!r}")
     coning = d["coning"]
@@ -215,10 +298,11 @@ def build_options(d: dict, src: str, conv: int = 0, lever_arm=None) -> AlignOpti
         estimate_v0=_flag(src, "estimate_v0", d["estimate_v0"]),
         conv=conv,
         lever_arm=np.zeros(3) if lever_arm is None else np.asarray(lever_arm, dtype=float),
-        sensor=SensorSpec(gyro_bias=scaled("sensor.gyro_bias", s["gyro_bias"], DEG / 3600.0, ge=0.0),
-                          gyro_arw=scaled("sensor.gyro_arw", s["gyro_arw"], DEG / 60.0, ge=0.0),
-                          accel_bias=scaled("sensor.accel_bias", s["accel_bias"], UG, ge=0.0),
-                          accel_vrw=scaled("sensor.accel_vrw", s["accel_vrw"], UG, ge=0.0)),
+        sensor=sensor_spec(d["sensor"], src, base_dir),
+        min_duration={m: _num(src, f"min_duration.{m}", d["min_duration"].get(m, MIN_DURATION[m]), ge=0.0,
+                              allow_none=False) for m in METHODS},
+        motion_displacement=_num(src, "motion_check.displacement", d["motion_check"]["displacement"], gt=0.0,
+                                 allow_none=False),
         static_rate=scaled("static_check.rate", sc["rate"], DEG, gt=0.0, allow_none=False),
         static_accel=_num(src, "static_check.accel", sc["accel"], gt=0.0, allow_none=False),
         static_block=_num(src, "static_check.block", sc["block"], gt=0.0, allow_none=False),
@@ -238,6 +322,6 @@ def load_align_config(path) -> tuple[dict, dict]:
 
     The navigation part is loaded and validated by :func:`sinscli.config.load_config`.
     """
-    cfg = config_mod.load_config(path, extra_sections=("align",))
+    cfg = config_mod.load_config(path)
     align = cfg.pop("align")
     return cfg, merge_section(align, str(path) if path is not None else "config")

@@ -85,19 +85,3 @@ def q_method(alpha, beta, weights=None):
     if q_bn[0] < 0:
         q_bn = -q_bn
     return quat_to_dcm(q_bn / np.linalg.norm(q_bn))
-
-
-def covariance(C, alpha, sigma, weights=None):
-    """Small-angle covariance (3, 3) of the solution, rad^2, navigation axes.
-
-    For ``beta_j = C alpha_j + e_j`` with independent errors of 1-sigma
-    ``sigma_j`` per axis, the Fisher information of the attitude error is
-    ``sum_j [b_j x]^T [b_j x] / sigma_j^2`` with ``b_j = C alpha_j`` (Shuster's
-    QUEST covariance for unnormalized vectors).  ``sigma`` is a number or (n,).
-    """
-    b = np.einsum("ij,nj->ni", C, np.asarray(alpha, dtype=float))
-    s = np.broadcast_to(np.asarray(sigma, dtype=float), (b.shape[0],))
-    w = 1.0 / s ** 2 if weights is None else np.asarray(weights, dtype=float) / s ** 2
-    bb = np.einsum("n,n->", w, np.einsum("ni,ni->n", b, b))
-    info = bb * np.eye(3) - np.einsum("n,ni,nj->ij", w, b, b)
-    return np.linalg.pinv(info)

@@ -43,6 +43,9 @@ def _parse_heading(value):
 @click.option("--body", type=click.Choice(sorted(BODY_CONVENTIONS)), default=None, help="Body axes convention.")
 @click.option("--imu-topic", default=None, help="IMU topic in a ROS bag / MCAP log.")
 @click.option("--gnss-topic", default=None, help="NavSatFix topic in a ROS bag / MCAP log.")
+@click.option("--vel-topic", default=None,
+              help="GNSS velocity topic (TwistStamped or TwistWithCovarianceStamped, ENU) in a ROS bag / MCAP log. "
+                   "nav_msgs/Odometry is refused: its twist is a body velocity, not ENU.")
 @click.option("--series", type=click.Path(path_type=Path), default=None,
               help="CSV of the attitude estimate against alignment time.")
 @click.option("--plot", type=click.Path(path_type=Path), default=None, help="PNG of the attitude against time.")
@@ -58,8 +61,8 @@ def _parse_heading(value):
 @scheduler_options
 @quiet_option
 def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, heading, epoch, config_path, body,
-              imu_topic, gnss_topic, series, plot, mc_runs, scenario, seed, output, jobs, scheduler, resume, figures,
-              quiet):
+              imu_topic, gnss_topic, vel_topic, series, plot, mc_runs, scenario, seed, output, jobs, scheduler, resume,
+              figures, quiet):
     """Initial alignment: the attitude (and state) where navigation starts, with its 1-sigma.
 
     \b
@@ -89,7 +92,7 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
 
     cfg, al = load_align_config(config_path)
     cfg = merge(cfg, "imu", body=body)
-    cfg = merge(cfg, "ros", imu_topic=imu_topic, gnss_topic=gnss_topic)
+    cfg = merge(cfg, "ros", imu_topic=imu_topic, gnss_topic=gnss_topic, vel_topic=vel_topic)
     for key, value in (("method", method), ("start", start), ("duration", duration),
                        ("roll_window", roll_window), ("epoch", epoch)):
         if value is not None:
@@ -99,11 +102,16 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
     conv_name = cfg["imu"]["body"]
     conv = BODY_CONVENTIONS[conv_name]
     opts = build_options(al, str(config_path) if config_path else "command line", conv=conv,
-                         lever_arm=cfg["gnss"]["lever_arm"])
+                         lever_arm=cfg["gnss"]["lever_arm"],
+                         base_dir=config_path.parent if config_path is not None else None)
     if position is not None:
         opts.position = parse_position(position, "--position")
     imu_log = read_imu(imu, cfg)
     gnss = read_gnss(gnss_path, cfg) if gnss_path is not None else None
+    if gnss is not None:
+        from ..io.gnss_csv import check_gnss_against_imu
+        check_gnss_against_imu(gnss, imu_log.t0 if imu_log.t0 is not None else float(imu_log.time[0]),
+                               float(imu_log.time[-1]))
     res = align(imu_log, opts, gnss)          # well under a second for minutes of data: no progress bar
     for note in res.notes:
         click.echo(f"sins: note: {note}", err=True)

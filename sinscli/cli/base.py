@@ -14,7 +14,26 @@ log = logging.getLogger("sins")
 # command name -> module under sinscli.cli that defines it; imported on first use, so that
 # `sins navigate` does not pay for the simulator, reports or alignment at start-up.
 COMMANDS = {"navigate": "navigate", "align": "align", "simulate": "simulate", "compare": "compare",
-            "info": "info", "convert": "convert"}
+            "info": "info", "convert": "convert", "allan": "allan"}
+
+# The first paragraph of each command's help, for the listing of `sins --help`: with it the
+# listing imports no command module (numpy, numba, the simulator, the ROS readers), so it takes
+# ~0.1 s instead of ~0.6 s.  click shortens it exactly as it would the command's own help;
+# tests/test_cli_startup.py checks that the listing equals the one click makes from the
+# commands themselves.  A command missing here is imported for the listing.
+SHORT_HELP = {
+    "allan": "Allan deviation of a static IMU log: noise terms and a sensor.yaml in the presets' schema.",
+    "align": "Initial alignment: the attitude (and state) where navigation starts, with its 1-sigma.",
+    "compare": "Compare navigation results with a truth: error tables, time series, figures, index.html.",
+    "convert": "Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into FORMATS.md CSV files: "
+               "DIR/imu.csv (increments, axes as in the messages) and DIR/gnss.csv (when the log has a "
+               "NavSatFix topic).",
+    "info": "Show the topics, message types, counts, rates, time span and gaps of a ROS 1 bag, ROS 2 bag "
+            "(directory or .db3) or MCAP LOG, and for Imu topics the mean specific force and angular rate "
+            "at the start (a quick look at units and mounting).",
+    "navigate": "Navigate IMU increments from an initial state and write the trajectory.",
+    "simulate": "Simulate SCENARIO.yaml: IMU increments, GNSS fixes and the exact truth (see docs/simulate.md).",
+}
 
 
 class _Group(click.Group):
@@ -28,6 +47,21 @@ class _Group(click.Group):
             import importlib
             importlib.import_module(f"{__package__}.{COMMANDS[name]}")   # registers on ``main``
         return self.commands.get(name)
+
+    def format_commands(self, ctx, formatter):
+        """The command list of ``sins --help``, from :data:`SHORT_HELP` for commands not loaded yet."""
+        rows = []
+        for name in self.list_commands(ctx):
+            if name in self.commands or name not in SHORT_HELP:
+                cmd = self.get_command(ctx, name)
+                if cmd is not None and not cmd.hidden:
+                    rows.append((name, cmd))
+            else:                    # shortened by click as the command's own help would be
+                rows.append((name, click.Command(name, help=SHORT_HELP[name])))
+        if rows:
+            limit = formatter.width - 6 - max(len(name) for name, _ in rows)
+            with formatter.section("Commands"):
+                formatter.write_dl([(name, cmd.get_short_help_str(limit)) for name, cmd in rows])
 
     def invoke(self, ctx):
         try:
@@ -58,7 +92,8 @@ def main(ctx, debug, verbose):
     ctx.ensure_object(dict)
     ctx.obj["debug"] = debug
     level = logging.DEBUG if debug else logging.INFO if verbose else logging.WARNING
-    logging.basicConfig(level=level, format="sins: %(levelname)s: %(message)s", stream=sys.stderr)
+    # the root logger stays at WARNING: --debug is for sins, not for numba's compiler dumps
+    logging.basicConfig(level=logging.WARNING, format="sins: %(levelname)s: %(message)s", stream=sys.stderr)
     logging.getLogger("sins").setLevel(level)
 
 

@@ -53,11 +53,23 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
 @click.option("--title", default=None, help="Report title.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="Batch: worker processes of the local pool (default: all cores).")
+@click.option("--metrics", "metrics", default=None, metavar="ate,rpe",
+              help="Trajectory metrics (evo's definitions) added to the table: ate, rpe or both. "
+                   "Default: none, or ate,rpe when an input is a TUM file.")
+@click.option("--align-traj", type=click.Choice(["none", "se3", "sim3"]), default="none", show_default=True,
+              help="Umeyama alignment of each trajectory to the truth before the metrics.")
+@click.option("--rpe-delta", type=float, default=1.0, show_default=True,
+              help="RPE pair spacing, in --rpe-unit.")
+@click.option("--rpe-unit", type=click.Choice(["s", "m", "f"]), default="s", show_default=True,
+              help="RPE pair spacing unit: seconds, metres of travelled path, or epochs (frames).")
+@click.option("--rpe-pairs", type=click.Choice(["ref", "est"]), default="ref", show_default=True,
+              help="Take the RPE pairs from the truth path (the same pairs for every method) or from each "
+                   "trajectory (evo's default).")
 @scheduler_options
 @quiet_option
 @click.pass_context
 def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeseries_every, title, jobs,
-            scheduler, resume, figures, quiet):
+            metrics, align_traj, rpe_delta, rpe_unit, rpe_pairs, scheduler, resume, figures, quiet):
     """Compare navigation results with a truth: error tables, time series, figures, index.html.
 
     \b
@@ -73,7 +85,9 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
         if len(inputs) != 1 or inputs[0].suffix.lower() not in (".yaml", ".yml"):
             raise SinsError("give --truth TRUTH with one or more NAV files, or a single BATCH.yaml")
         for opt, val in (("--label", label), ("--epoch", epoch), ("--interpolate", interpolate),
-                         ("--title", title)):
+                         ("--title", title), ("--metrics", metrics), ("--align-traj", align_traj != "none"),
+                         ("--rpe-delta", rpe_delta != 1.0), ("--rpe-unit", rpe_unit != "s"),
+                         ("--rpe-pairs", rpe_pairs != "ref")):
             if val:
                 raise SinsError(f"{opt}: not used with a batch file; set it in {inputs[0]}")
         _batch(inputs[0], outdir, jobs, scheduler, resume, figures, quiet, ctx)
@@ -85,31 +99,73 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
     if any(p.suffix.lower() in (".yaml", ".yml") for p in inputs):
         raise SinsError(f"{next(p for p in inputs if p.suffix.lower() in ('.yaml', '.yml'))}: a batch file "
                         "is given alone, without --truth")
-    _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body], timeseries_every, title, quiet)
+    mopts = None
+    if metrics is not None or any(_is_tum(p) for p in (truth, *inputs)):
+        from ..report.compare_metrics import MetricOptions, parse_metrics
+        mopts = MetricOptions(parse_metrics(metrics or "ate,rpe"), align_traj, rpe_delta, rpe_unit, rpe_pairs)
+    elif (align_traj, rpe_delta, rpe_unit, rpe_pairs) != ("none", 1.0, "s", "ref"):
+        raise SinsError("--align-traj and --rpe-* set how the trajectory metrics are computed: "
+                        "give --metrics ate,rpe too")
+    _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body], timeseries_every, title, quiet,
+            mopts)
 
 
-def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet):
+def _is_tum(path: Path) -> bool:
+    """TUM trajectories (evo, SLAM/VIO systems): ``.tum`` and ``.txt`` files."""
+    return path.suffix.lower() in (".tum", ".txt")
+
+
+def _read(path: Path):
+    """A trajectory (CSV/Parquet) or the rows of a TUM file."""
+    if _is_tum(path):
+        from ..io.tum import read_tum
+        from ..report.compare_metrics import TumTrack
+        if not path.exists():
+            raise SinsError(f"{path}: file not found")
+        return TumTrack(*read_tum(path), source=str(path))
     from ..io.trajectory import read_trajectory
+    return read_trajectory(path)
+
+
+def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts):
     from ..report.errors import compare_trajectories
     from ..report.report import write_report
+    from ..types import Trajectory
 
     names = _labels(navs, label)
-    truth = read_trajectory(truth_path)
-    series = {}
+    truth = _read(truth_path)
+    trajs = [_read(p) for p in navs]
+    full = all(isinstance(x, Trajectory) for x in (truth, *trajs))    # the seed-000 table needs lat/lon, velocity
+    series, results, frame = {}, {}, ""
     with progress(len(navs) + 1, "compare", quiet) as bar:
-        for name, path in zip(names, navs):
-            nav = read_trajectory(path)
-            series[name] = compare_trajectories(truth, nav, conv=conv, interpolate=interpolate,
-                                                 truth_name=str(truth_path), nav_name=str(path))
+        if mopts is not None:
+            from ..report.compare_metrics import common_frame, compute_metrics
+            ref, poses, frame = common_frame(truth, trajs, conv)
+        for k, (name, path, nav) in enumerate(zip(names, navs, trajs)):
+            if full:
+                series[name] = compare_trajectories(truth, nav, conv=conv, interpolate=interpolate,
+                                                     truth_name=str(truth_path), nav_name=str(path))
+            if mopts is not None:
+                results[name] = compute_metrics(ref, poses[k], mopts, interpolate, str(truth_path), str(path))
             bar.update(1)
         notes = [f"Truth: {truth_path}."] + [f"{n}: {p}" for n, p in zip(names, navs)]
         if interpolate:
             notes.append("The truth was interpolated at the navigation epochs.")
+        if mopts is not None:
+            from ..report.compare_metrics import describe
+            notes.append(describe(mopts, frame))
+        if not full:
+            notes.append("TUM inputs hold no latitude, longitude or velocity: the seed-000 rows (DCM elements, "
+                         "ENU position and velocity errors) are omitted; the table holds the trajectory metrics.")
         table = write_report(outdir, series, title or f"sins compare: {Path(truth_path).name}", epoch, every,
-                             notes)
+                             notes, metrics=results or None, metric_options=mopts, frame=frame)
         bar.update(1)
-    click.echo(f"sins: compare: {len(navs)} method(s) at t = {float(table.epoch)!r} s -> {outdir}/index.html",
-               err=True)
+    at = "" if table.epoch is None else f" at t = {float(table.epoch)!r} s"
+    click.echo(f"sins: compare: {len(navs)} method(s){at} -> {outdir}/index.html", err=True)
+    if results:
+        from ..report.compare_metrics import summary_lines
+        for line in summary_lines(results, mopts):
+            click.echo(f"sins: compare: {line}", err=True)
 
 
 def _batch(batch_path, outdir, jobs, scheduler, resume, figures, quiet, ctx):

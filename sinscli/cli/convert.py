@@ -1,55 +1,69 @@
-"""``sins convert LOG -o DIR``: a ROS bag / MCAP log to ``imu.csv`` (increments) and ``gnss.csv``."""
+"""``sins convert LOG -o DIR``: a ROS bag / MCAP log to ``imu.csv`` (increments), ``gnss.csv`` and ``odom.csv``."""
 from __future__ import annotations
 
 import contextlib
 from pathlib import Path
 
 import click
+import numpy as np
 
 from ..errors import SinsError
+from ..io.body_vel_csv import write_body_velocity_csv
 from ..io.gnss_csv import write_gnss_csv
 from ..io.imu_csv import write_imu_csv
-from ..io import rosbag
+from ..io import ros
 from .base import log, main, progress, quiet_option
 
 
 @main.command("convert")
 @click.argument("log_path", metavar="LOG", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "outdir", required=True, type=click.Path(path_type=Path, file_okay=False),
-              help="Output directory (created): imu.csv and gnss.csv.")
+              help="Output directory (created): imu.csv, gnss.csv and odom.csv.")
 @click.option("--imu-topic", default=None, help="sensor_msgs/Imu topic (default: the only one).")
 @click.option("--gnss-topic", default=None, help="sensor_msgs/NavSatFix topic (default: the only one).")
 @click.option("--vel-topic", default=None,
-              help="GNSS velocity topic (TwistStamped, TwistWithCovarianceStamped or Odometry), ENU.")
-@click.option("--time", "time_source", type=click.Choice(list(rosbag.TIME_SOURCES)), default="header",
+              help="GNSS velocity topic (TwistStamped or TwistWithCovarianceStamped), ENU.")
+@click.option("--odom-topic", default=None,
+              help="Odometry (body velocity) topic: nav_msgs/Odometry (default: the only one) or a body-frame "
+                   "Twist topic, written to odom.csv in the axes of its frame.")
+@click.option("--time", "time_source", type=click.Choice(list(ros.TIME_SOURCES)), default="header",
               show_default=True, help="Sample times from the message header stamps or the log (receive) times.")
 @click.option("--start", type=float, default=None, help="Keep IMU samples from this time (s).")
 @click.option("--end", type=float, default=None, help="Keep IMU samples up to this time (s).")
 @quiet_option
-def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, time_source, start, end, quiet):
+def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, time_source, start, end, quiet):
     """Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into FORMATS.md CSV files:
-    DIR/imu.csv (increments, axes as in the messages) and DIR/gnss.csv (when the log has a NavSatFix
-    topic).  Everything is read and checked before anything is written.
+    DIR/imu.csv (increments, axes as in the messages), DIR/gnss.csv (when the log has a NavSatFix
+    topic) and DIR/odom.csv (body velocity, when it has one nav_msgs/Odometry topic or --odom-topic;
+    docs/io_formats.md).  Everything is read and checked before anything is written.
 
     \b
     Example:
       sins convert husky_imu_gps.bag -o husky/ --time header
     """
-    topics = rosbag.log_topics(log_path)
+    topics = ros.log_topics(log_path)
     types = set(topics.values())
-    want_imu = imu_topic is not None or rosbag.IMU_TYPE in types
-    want_gnss = gnss_topic is not None or vel_topic is not None or rosbag.NAVSAT_TYPE in types
+    want_imu = imu_topic is not None or ros.IMU_TYPE in types
+    want_gnss = gnss_topic is not None or vel_topic is not None or ros.NAVSAT_TYPE in types
+    want_odom = odom_topic is not None or list(topics.values()).count(ros.ODOMETRY_TYPE) == 1
     if not (want_imu or want_gnss):
         listing = ", ".join(f"{n} ({t})" for n, t in sorted(topics.items())) or "none"
         raise SinsError(f"{log_path}: no sensor_msgs/Imu or sensor_msgs/NavSatFix topic; topics: {listing}")
-    steps = int(want_imu) + int(want_gnss)
-    imu = gnss = None
+    steps = int(want_imu) + int(want_gnss) + int(want_odom)
+    imu = gnss = odom = None
     with progress(steps * 2, "convert", quiet) as bar:
         if want_imu:
-            imu = rosbag.read_imu(log_path, topic=imu_topic, time_source=time_source, start=start, end=end)
+            imu = ros.read_imu(log_path, topic=imu_topic, time_source=time_source, start=start, end=end)
             bar.update(1)
         if want_gnss:
-            gnss = rosbag.read_gnss(log_path, topic=gnss_topic, vel_topic=vel_topic, time_source=time_source)
+            gnss = ros.read_gnss(log_path, topic=gnss_topic, vel_topic=vel_topic, time_source=time_source)
+            bar.update(1)
+        if want_odom:
+            from ..io.ros.odometry import read_twist_topic
+            from ..types import BodyVelLog
+            where, t, v, cov, frame, imu_frame = read_twist_topic(log_path, odom_topic, time_source, imu_topic)
+            std = None if cov is None else np.sqrt(np.einsum("nii->ni", cov))
+            odom = BodyVelLog(time=t, vel_b=v, std=std, source=where)
             bar.update(1)
         written = []
         try:
@@ -60,6 +74,10 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, time_source,
             if gnss is not None:
                 write_gnss_csv(outdir / "gnss.csv", gnss)
                 written.append(outdir / "gnss.csv")
+                bar.update(1)
+            if odom is not None:
+                write_body_velocity_csv(outdir / "odom.csv", odom)
+                written.append(outdir / "odom.csv")
                 bar.update(1)
         except BaseException:
             for p in written:
@@ -73,3 +91,8 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, time_source,
                    f"starts at t0 = {imu.t0!r} s (use it as the initial state's time)", err=True)
     if gnss is not None:
         click.echo(f"wrote {outdir / 'gnss.csv'}: {len(gnss)} fixes from {gnss.source}", err=True)
+    if odom is not None:
+        axes = ("the IMU's sensor axes (read it with odometry.frame: sensor)" if imu_frame is not None and frame.lstrip("/") == imu_frame.lstrip("/") else
+                f"the axes of frame '{frame}' (a vehicle frame, x forward, y left, z up: odometry.frame: vehicle)")
+        click.echo(f"wrote {outdir / 'odom.csv'}: {len(odom.time)} body velocities from {odom.source}, in {axes}",
+                   err=True)

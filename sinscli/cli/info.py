@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ..io.rosbag import log_summary
+from ..io.ros import log_summary
 from .base import main
 
 
@@ -15,7 +15,7 @@ def _f(x, fmt):
 
 
 def format_summary(s: dict) -> str:
-    """Human-readable text of :func:`sinscli.io.rosbag.log_summary`."""
+    """Human-readable text of :func:`sinscli.io.ros.log_summary`."""
     lines = [f"{s['path']}: {s['format']}, {s['messages']} messages"
              + (f", {s['duration']:.3f} s from {s['start']:.6f} to {s['end']:.6f} (log time)"
                 if s["duration"] is not None else "")]

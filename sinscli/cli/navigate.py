@@ -7,22 +7,17 @@ from pathlib import Path
 
 import click
 
-from .. import config as config_mod
+from ..conventions import BODY_CONVENTIONS
 from ..errors import SinsError
-from ..io.imu_csv import check_static_start
-from ..io.init_state import read_init
-from ..io.readers import iter_imu
-from ..io.trajectory import TrajectoryWriter, write_trajectory
-from ..nav.earth import gravity
-from ..nav.inertial import COLUMNS as INERTIAL_COLUMNS, launch_frame
-from ..nav.pipeline import NavOptions, concat, navigate_blocks
-
-from ..nav.rotation import BODY_CONVENTIONS
 from .base import log, main, progress, quiet_option
+
+# the readers, the kernels (numpy, numba) and the writers are imported when the command runs, so
+# that `sins navigate --help` does not load them
 
 
 def _extra_columns(opts):
     """Extra trajectory columns the options add (``--angles``, ``--frame launch-inertial``)."""
+    from ..nav.inertial import COLUMNS as INERTIAL_COLUMNS
     cols = ("k_phi", "k_psi", "k_gamma", "k_xi", "k_set") if opts.angles else ()
     return cols + (INERTIAL_COLUMNS if opts.frame == "launch-inertial" else ())
 
@@ -41,8 +36,18 @@ def _count_rows(path: Path) -> int:
 
 @main.command("navigate")
 @click.argument("imu", type=click.Path(path_type=Path))
-@click.option("--init", "init_path", required=True, type=click.Path(path_type=Path),
+@click.option("--init", "init_path", default=None, type=click.Path(path_type=Path),
               help="Initial state: init YAML or trajectory CSV/Parquet (the row at the IMU start).")
+@click.option("--gnss", "gnss_path", default=None, type=click.Path(path_type=Path),
+              help="GNSS log (CSV or ROS bag/MCAP): fused navigation with the error-state Kalman filter.")
+@click.option("--align", "align_method", default=None,
+              type=click.Choice(["static", "inertial", "gnss-inertial", "kf"]),
+              help="With --gnss: initial state from `sins align --method METHOD` on the log's first window.")
+@click.option("--smooth", is_flag=True, help="With --gnss: Rauch-Tung-Striebel smoothed trajectory.")
+@click.option("--innovations", "innovations_path", default=None, type=click.Path(path_type=Path),
+              help="With --gnss: CSV of every measurement's innovation, sigma, NIS and acceptance.")
+@click.option("--sensor", default=None,
+              help="With --gnss: sensor description (preset mems|tactical|navigation or a sensor YAML).")
 @click.option("--attitude", type=click.Choice(["dcm", "quat", "krylov", "euler"]), default=None,
               help="Attitude algorithm (default from config: quat).")
 @click.option("--dcm-variant", type=click.Choice(["exact", "seed000"]), default=None,
@@ -73,10 +78,34 @@ def _count_rows(path: Path) -> int:
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("trajectory.csv"),
               show_default=True, help="Trajectory output: .csv, .parquet, .mcap, .tum, .geojson, .kml.")
 @quiet_option
-def navigate_cmd(imu, init_path, attitude, dcm_variant, coning, subsamples, every, config_path, body,
+def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_path, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
                  frame, imu_topic, output, quiet):
-    """Navigate IMU increments from an initial state and write the trajectory."""
+    """Navigate IMU increments from an initial state and write the trajectory.
+
+    \b
+    With --gnss, fused GNSS/INS navigation (closed-loop error-state Kalman filter), e.g.
+      sins navigate imu.csv --gnss gnss.csv --init init.yaml --smooth -o fused.csv
+      sins navigate log.bag --gnss log.bag --config configs/fusion/husky.yaml --align gnss-inertial -o f.mcap
+    """
+    if gnss_path is None:
+        for name, value in (("--align", align_method), ("--smooth", smooth or None),
+                            ("--innovations", innovations_path), ("--sensor", sensor)):
+            if value is not None:
+                raise SinsError(f"{name} needs --gnss (fused navigation)")
+        if init_path is None:
+            raise SinsError("give the initial state: --init FILE (or, with --gnss, --align METHOD)")
+    elif (init_path is None) == (align_method is None):
+        raise SinsError("with --gnss give exactly one of --init FILE and --align METHOD")
+    from .. import config as config_mod
+    from ..io.imu_csv import check_static_start
+    from ..io.init_state import read_init
+    from ..io.readers import iter_imu
+    from ..io.trajectory import TrajectoryWriter, write_trajectory
+    from ..nav.earth import gravity
+    from ..nav.inertial import launch_frame
+    from ..nav.pipeline import NavOptions, concat, navigate_blocks
+
     cfg = config_mod.load_config(config_path)
     cfg = config_mod.merge(cfg, "navigation", attitude=attitude, dcm_variant=dcm_variant, coning=coning,
                            subsamples=subsamples, every=every, allow_gaps=allow_gaps,
@@ -90,8 +119,13 @@ def navigate_cmd(imu, init_path, attitude, dcm_variant, coning, subsamples, ever
                       subsamples=nav["subsamples"], every=nav["every"], conv=conv, frame=nav["frame"],
                       angles=angles, euler_integrator=nav["euler_integrator"],
                       singularity_threshold=nav["singularity_threshold"], on_singularity=nav["on_singularity"],
-                      launch=nav["launch"])
+                      launch=nav["launch"], krylov_substep_tol=nav["krylov_substep_tol"])
     opts.check()
+    if gnss_path is not None:
+        from .fusion_run import run_fused
+        run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
+                  opts, output, quiet)
+        return
     blocks = iter_imu(imu, cfg, allow_gaps=nav["allow_gaps"])
     first = next(blocks, None)
     if first is None or len(first) == 0:

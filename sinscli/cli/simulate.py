@@ -5,8 +5,6 @@ from pathlib import Path
 
 import click
 
-from ..sim.run import prepare, write_sim
-from ..sim.run import simulate as run_simulation
 from .base import log, main, progress, quiet_option
 
 
@@ -28,6 +26,9 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet):
     Example:
       sins simulate configs/scenarios/vehicle_drive.yaml -o run1 --seed 7
     """
+    from ..sim.run import prepare, write_sim           # here, not at import: `sins simulate --help` is fast
+    from ..sim.run import simulate as run_simulation
+
     prepared = prepare(scenario, perfect, duration)   # every check happens before anything is written
     sc = prepared.scenario
     with progress(prepared.n_imu, "simulate", quiet) as bar:

@@ -76,6 +76,46 @@ def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]
     return _finite_columns(path, columns, table.column, 2)
 
 
+def read_mapped_columns(path, section: dict, names: list[str], required: list[str], groups: list[list[str]],
+                        unknown_hint: str, missing_hint: str) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """Read a CSV whose columns are ``names`` (or config-mapped to them): ``(our name -> array, mapping)``.
+
+    ``section`` is the config section with ``columns`` (our name -> file column) and ``ignore_columns``.
+    Refused naming the file: unknown columns (``unknown_hint`` says what is expected), missing required
+    ones (``missing_hint``), a group of three (e.g. std_x, std_y, std_z) given in part; then every value
+    as in :func:`read_numeric_columns`.
+    """
+    path = Path(path)
+    header = read_header(path)
+    mapping = dict(section.get("columns") or {})
+    inverse = {v: k for k, v in mapping.items()}
+    ignored = set(section.get("ignore_columns") or [])
+    known = [inverse.get(c, c) for c in header]
+    unknown = [c for c, k in zip(header, known) if k not in names and c not in ignored]
+    if unknown:
+        raise SinsError(f"{path}: unknown column(s) {', '.join(repr(c) for c in unknown)}; {unknown_hint}")
+    missing = [c for c in required if c not in known]
+    if missing:
+        raise SinsError(f"{path}: missing column(s) {', '.join(missing)}; {missing_hint}")
+    for group in groups:
+        present = [c for c in group if c in known]
+        if present and len(present) != len(group):
+            raise SinsError(f"{path}: has {', '.join(present)} but not all of {', '.join(group)}")
+    wanted = [c for c in names if c in known]
+    return read_numeric_columns(path, {c: mapping.get(c, c) for c in wanted}), mapping
+
+
+def check_positive(path, data: dict[str, np.ndarray], columns, mapping: dict[str, str]) -> None:
+    """SinsError at the first value of ``columns`` (present in ``data``) that is not > 0 (a 1-sigma)."""
+    for c in columns:
+        if c in data:
+            bad = ~(data[c] > 0)
+            if bad.any():
+                k = int(np.argmax(bad))
+                raise SinsError(f"{path}: line {k + 2}, column '{mapping.get(c, c)}': {float(data[c][k])!r} is not a "
+                                "positive 1-sigma")
+
+
 def _locate_bad_cell(path: Path, cols: list[str], exc: Exception) -> str:
     """Find the first cell that does not parse as a float (slow path, only on error)."""
     with open(path, newline="", encoding="utf-8", errors="replace") as fh:

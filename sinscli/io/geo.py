@@ -4,17 +4,28 @@ Coordinates are ``lon, lat, height`` in degrees and metres on WGS-84, written
 in shortest round-trip form.  The GeoJSON feature also carries the sample
 times (``properties.time``, seconds in the trajectory's epoch) so that the
 track reads back with its times.
+
+Per-point values of the trajectory's extra columns (the 1-sigma and bias
+columns of an aided trajectory, :mod:`sinscli.io.aided_columns`) go where each
+format allows: GeoJSON ``properties.<column>`` arrays parallel to the
+coordinates, with ``properties.units``; KML has no per-vertex attributes on a
+LineString, so the Placemark's ``ExtendedData`` holds ``time`` and each column
+as a space-separated list in vertex order (``Data name="pos_e_std"``, unit in
+``displayName``).  :func:`read_geojson_columns` and :func:`read_kml_columns`
+read them back.
 """
 from __future__ import annotations
 
 import json
 import xml.etree.ElementTree as ET
+from xml.sax.saxutils import escape, quoteattr
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SinsError
 from ..types import Trajectory
+from . import aided_columns as ac
 from .atomic import atomic_path
 
 KML_NS = "http://www.opengis.net/kml/2.2"
@@ -29,14 +40,27 @@ def _track(traj: Trajectory):
     return lon.tolist(), lat.tolist(), np.asarray(traj.height, dtype=np.float64).tolist()
 
 
+def _columns(traj: Trajectory) -> dict[str, np.ndarray]:
+    """``time`` and the extra columns, checked: finite, sigmas positive (rows counted from 0)."""
+    cols = {"time": np.asarray(traj.time, dtype=np.float64)}
+    cols.update({c: np.asarray(v, dtype=np.float64) for c, v in traj.extra.items()})
+    ac.check_columns(f"{traj.source}: cannot write a map track", cols, first_row=0, row_label="row")
+    return cols
+
+
 def write_geojson(path, traj: Trajectory, conv: int = 0) -> None:
     """A FeatureCollection with one LineString feature (``[lon, lat, height]``) and the times."""
     lon, lat, h = _track(traj)
+    cols = _columns(traj)
+    props = {"name": "sins trajectory", "source": str(traj.source)}
+    props.update({c: v.tolist() for c, v in cols.items()})
+    units = {c: ac.UNITS.get(c, "") for c in cols if c != "time"}
+    if units:
+        props["units"] = {"time": "s", **units}
     feature = {
         "type": "Feature",
         "geometry": {"type": "LineString", "coordinates": [list(p) for p in zip(lon, lat, h)]},
-        "properties": {"name": "sins trajectory", "source": str(traj.source),
-                       "time": np.asarray(traj.time, dtype=np.float64).tolist()},
+        "properties": props,
     }
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
@@ -61,10 +85,37 @@ def read_geojson(path):
     return t, coords[:, 1], coords[:, 0], h
 
 
+def read_geojson_columns(path) -> dict[str, np.ndarray]:
+    """Per-point columns of the first LineString feature: ``time`` and every property array of its length."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        feats = doc["features"] if doc.get("type") == "FeatureCollection" else [doc]
+        feat = next(f for f in feats if f["geometry"]["type"] == "LineString")
+        n = len(feat["geometry"]["coordinates"])
+        props = feat.get("properties") or {}
+        out = {k: np.array(v, dtype=np.float64) for k, v in props.items()
+               if isinstance(v, list) and len(v) == n and all(isinstance(x, (int, float)) for x in v)}
+    except (OSError, ValueError, KeyError, TypeError, StopIteration) as exc:
+        raise SinsError(f"{path}: not a GeoJSON file with a LineString feature ({type(exc).__name__})") from None
+    ac.check_columns(str(path), out, first_row=0, row_label="point")
+    return out
+
+
 def write_kml(path, traj: Trajectory, conv: int = 0) -> None:
-    """A KML document with one Placemark LineString (absolute altitude)."""
+    """A KML document with one Placemark LineString (absolute altitude), extra columns in ExtendedData."""
     lon, lat, h = _track(traj)
+    cols = _columns(traj)
     coords = " ".join(f"{a!r},{b!r},{c!r}" for a, b, c in zip(lon, lat, h))
+    extended = ""
+    if traj.extra:
+        items = []
+        for c, v in cols.items():
+            unit = "s" if c == "time" else ac.UNITS.get(c, "")
+            label = f"{c} ({unit})" if unit else c
+            items.append(f'<Data name={quoteattr(c)}><displayName>{escape(label)}</displayName><value>'
+                         + " ".join(repr(x) for x in v.tolist()) + "</value></Data>\n")
+        extended = "<ExtendedData>\n" + "".join(items) + "</ExtendedData>\n"
     name = str(traj.source).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
@@ -73,7 +124,7 @@ def write_kml(path, traj: Trajectory, conv: int = 0) -> None:
                     f'<description>{name}</description>\n'
                     '<Style id="track"><LineStyle><color>ff0000ff</color><width>3</width></LineStyle></Style>\n'
                     '<Placemark>\n<name>sins trajectory</name>\n<styleUrl>#track</styleUrl>\n'
-                    '<LineString>\n<altitudeMode>absolute</altitudeMode>\n<coordinates>')
+                    + extended + '<LineString>\n<altitudeMode>absolute</altitudeMode>\n<coordinates>')
             f.write(coords)
             f.write("</coordinates>\n</LineString>\n</Placemark>\n</Document>\n</kml>\n")
 
@@ -92,3 +143,19 @@ def read_kml(path):
         raise SinsError(f"{path}: LineString coordinates must be lon,lat(,height) triples")
     h = pts[:, 2] if pts.shape[1] > 2 else np.zeros(pts.shape[0])
     return pts[:, 1], pts[:, 0], h
+
+
+def read_kml_columns(path) -> dict[str, np.ndarray]:
+    """The per-vertex lists of the first Placemark's ExtendedData (``time`` and the extra columns)."""
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+        pm = root.find(f".//{{{KML_NS}}}Placemark")
+        out = {}
+        for d in pm.findall(f"{{{KML_NS}}}ExtendedData/{{{KML_NS}}}Data"):
+            text = d.find(f"{{{KML_NS}}}value").text or ""
+            out[d.get("name")] = np.array([float(x) for x in text.split()], dtype=np.float64)
+    except (OSError, ET.ParseError, AttributeError, ValueError) as exc:
+        raise SinsError(f"{path}: not a KML file with a Placemark ({type(exc).__name__})") from None
+    ac.check_columns(str(path), out, first_row=0, row_label="vertex")
+    return out

@@ -1,19 +1,19 @@
-"""Pick the reader for an IMU or GNSS log: CSV here, ROS bags and MCAP in :mod:`sinscli.io.rosbag`."""
+"""Pick the reader for an IMU, GNSS or body-velocity log: CSV here, ROS bags and MCAP in :mod:`sinscli.io.ros`."""
 from __future__ import annotations
 
 from pathlib import Path
 
 from ..errors import SinsError
-from ..types import ImuLog
+from ..types import BodyVelLog, GnssLog, ImuLog
 from .imu_csv import apply_mounting, concat_imu, iter_imu_csv
 
 
 def _is_log(path) -> bool:
     try:
-        from . import rosbag
+        from .ros import is_log
     except ImportError:
         return False
-    return rosbag.is_log(path)
+    return is_log(path)
 
 
 def iter_imu(path, cfg: dict, allow_gaps: bool = False):
@@ -23,10 +23,10 @@ def iter_imu(path, cfg: dict, allow_gaps: bool = False):
         raise SinsError(f"{path}: file not found")
     if _is_log(path):
         from ..config import mounting_matrix
-        from . import rosbag
+        from .ros import read_imu as read_ros_imu
         ros = cfg["ros"]
-        imu = rosbag.read_imu(path, topic=ros.get("imu_topic"), time_source=ros.get("time", "header"),
-                              allow_gaps=allow_gaps)
+        imu = read_ros_imu(path, topic=ros.get("imu_topic"), time_source=ros.get("time", "header"),
+                           allow_gaps=allow_gaps)
         yield apply_mounting(imu, mounting_matrix(cfg["imu"].get("mounting")))
         return
     yield from iter_imu_csv(path, cfg["imu"], allow_gaps)
@@ -37,15 +37,44 @@ def read_imu(path, cfg: dict, allow_gaps: bool = False) -> ImuLog:
     return concat_imu(iter_imu(path, cfg, allow_gaps))
 
 
-def read_gnss(path, cfg: dict):
-    """A GNSS log from a CSV file or a ROS/MCAP log."""
+def read_gnss(path, cfg: dict) -> GnssLog:
+    """A GNSS log from a CSV file or a ROS/MCAP log; ``gnss.time_offset`` (s) is added to its times."""
     path = Path(path)
     if not path.exists():
         raise SinsError(f"{path}: file not found")
     if _is_log(path):
-        from . import rosbag
+        from .ros import read_gnss as read_ros_gnss
         ros = cfg["ros"]
-        return rosbag.read_gnss(path, topic=ros.get("gnss_topic"), vel_topic=ros.get("vel_topic"),
-                                time_source=ros.get("time", "header"))
-    from .gnss_csv import read_gnss_csv
-    return read_gnss_csv(path, cfg["gnss"])
+        gnss = read_ros_gnss(path, topic=ros.get("gnss_topic"), vel_topic=ros.get("vel_topic"),
+                             time_source=ros.get("time", "header"))
+    else:
+        from .gnss_csv import read_gnss_csv
+        gnss = read_gnss_csv(path, cfg["gnss"])
+    offset = float(cfg["gnss"].get("time_offset", 0.0))
+    if offset:
+        gnss.time = gnss.time + offset
+    return gnss
+
+
+def read_body_velocity(path, cfg: dict) -> BodyVelLog:
+    """Body velocity (odometry) from a body-velocity CSV or a ROS/MCAP log's Odometry topic.
+
+    ``cfg`` is the whole validated config: ``odometry`` (CSV columns, frame), ``imu`` (body convention,
+    mounting) and ``ros`` (``odom_topic``, ``imu_topic``, ``time``) sections.  The result is in the body
+    axes of the convention in force (``imu.body``), after the mounting where the velocity is given in the
+    IMU's sensor axes (docs/io_formats.md).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise SinsError(f"{path}: file not found")
+    if _is_log(path):
+        from ..config import mounting_matrix
+        from ..nav.rotation import BODY_CONVENTIONS
+        from .ros.odometry import read_body_velocity as read_ros_body_velocity
+        ros = cfg["ros"]
+        return read_ros_body_velocity(path, topic=ros.get("odom_topic"), time_source=ros.get("time", "header"),
+                                      mounting=mounting_matrix(cfg["imu"].get("mounting")),
+                                      conv=BODY_CONVENTIONS[cfg["imu"]["body"]],
+                                      frame=cfg["odometry"].get("frame", "auto"), imu_topic=ros.get("imu_topic"))
+    from .body_vel_csv import read_body_velocity_csv
+    return read_body_velocity_csv(path, cfg)

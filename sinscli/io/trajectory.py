@@ -1,5 +1,10 @@
 """Trajectory files (FORMATS.md trajectory CSV): read, and write as CSV or Parquet (streamed).
 
+Extra columns (e.g. the 1-sigma and bias columns of an aided trajectory,
+:mod:`sinscli.io.aided_columns`) are written and read as they are; every
+value must be finite and every ``*_std`` column positive, on writing and on
+reading (FORMATS.md).
+
 Other formats register a writer in :data:`WRITERS` by suffix
 (``function(path, traj, conv)``, writing atomically).
 """
@@ -13,6 +18,7 @@ import numpy as np
 from ..errors import SinsError
 from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, quat_to_dcm_many
 from ..types import Trajectory
+from . import aided_columns
 from .atomic import atomic_path
 from .csvcore import CsvTableWriter, read_header, read_numeric_columns
 
@@ -60,9 +66,14 @@ class TrajectoryWriter:
         self._ctx = atomic_path(self.path)
         self._tmp = self._ctx.__enter__()
         self._writer = None
+        self._rows = 0
 
     def write(self, traj: Trajectory) -> None:
         cols = trajectory_columns(traj, self.conv)
+        # no writer emits NaN, infinity or a sigma <= 0 (rows counted from the initial row, 0)
+        aided_columns.check_columns(f"{self.path}: cannot write", {c: cols[c] for c in self.columns},
+                                    first_row=self._rows, row_label="row")
+        self._rows += len(traj)
         if self.suffix == ".csv":
             if self._writer is None:
                 self._writer = CsvTableWriter(self._tmp, self.columns)
@@ -147,6 +158,8 @@ def read_trajectory(path) -> Trajectory:
         q = np.column_stack([data["qw"], data["qx"], data["qy"], data["qz"]])
         cbn = quat_to_dcm_many(q / np.linalg.norm(q, axis=1, keepdims=True))
     extra = {c: data[c] for c in data if c not in BASE_COLUMNS and c not in DCM_COLUMNS}
+    parquet = path.suffix.lower() == ".parquet"
+    aided_columns.check_columns(str(path), extra, first_row=1 if parquet else 2, row_label="row" if parquet else "line")
     return Trajectory(data["time"], data["lat"] * d2r, data["lon"] * d2r, data["height"],
                       np.column_stack([data["vel_e"], data["vel_n"], data["vel_u"]]), cbn, extra,
                       source=str(path))

@@ -5,59 +5,29 @@ Position is in a local ENU frame whose origin is the trajectory's first point
 attitude of the FLU body axes (x forward, y left, z up, REP-103) in that ENU
 frame, scalar last as the format wants.  Floats are written in shortest
 round-trip form.
+
+The format is fixed at 8 columns (``evo`` and the TUM tools refuse more), so
+it cannot carry the 1-sigma and bias columns of an aided trajectory: they are
+left out (write ``.csv``, ``.parquet``, ``.mcap``, ``.geojson`` or ``.kml`` to
+keep them).
 """
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SinsError
-from ..nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef
-from ..nav.rotation import conv_to_flu, dcm_to_quat_many, quat_to_dcm_many
+from ..nav.earth import local_enu_to_lla
+from ..nav.rotation import cbn_from_flu, quat_to_dcm_many
 from ..types import Trajectory
 from .atomic import atomic_path
+from .local_frame import trajectory_enu_quat
 
+TUM_COLUMNS = ("time", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
 _ORIGIN_RE = re.compile(r"origin_lat_deg=(\S+)\s+origin_lon_deg=(\S+)\s+origin_height_m=(\S+)")
-
-
-def lla_to_local_enu(lat, lon, h, lat0: float, lon0: float, h0: float) -> np.ndarray:
-    """ENU coordinates (N, 3) in metres of geodetic points (radians, metres) about an origin point."""
-    d = lla_to_ecef(np.asarray(lat), np.asarray(lon), np.asarray(h)) - lla_to_ecef(lat0, lon0, h0)
-    return d @ enu_rotation(lat0, lon0).T
-
-
-def local_enu_to_lla(enu, lat0: float, lon0: float, h0: float):
-    """Inverse of :func:`lla_to_local_enu`: ``(lat, lon, h)`` in radians and metres."""
-    xyz = lla_to_ecef(lat0, lon0, h0) + np.asarray(enu) @ enu_rotation(lat0, lon0)
-    return ecef_to_lla(xyz)
-
-
-def body_flu_in_enu(cbn: np.ndarray, conv: int) -> np.ndarray:
-    """``C_FLU^n = Cbn C_{conv}^{FLU T}`` (N, 3, 3): the attitude of the FLU body axes."""
-    return np.einsum("nij,kj->nik", np.asarray(cbn, dtype=np.float64), conv_to_flu(conv))
-
-
-def cbn_from_flu(c_flu_n: np.ndarray, conv: int) -> np.ndarray:
-    """Inverse of :func:`body_flu_in_enu`: ``Cbn = C_FLU^n C_{conv}^{FLU}``."""
-    return np.einsum("nij,jk->nik", np.asarray(c_flu_n, dtype=np.float64), conv_to_flu(conv))
-
-
-def trajectory_enu_quat(traj: Trajectory, conv: int):
-    """``(origin (lat, lon, h), enu (N, 3), q_xyzw (N, 4))`` of a trajectory for local-frame formats."""
-    if len(traj) == 0:
-        raise SinsError(f"{traj.source}: trajectory is empty; nothing to write")
-    fields = np.column_stack([traj.time, traj.lat, traj.lon, traj.height,
-                              np.asarray(traj.Cbn, dtype=np.float64).reshape(-1, 9)])
-    if not np.isfinite(fields).all():
-        k = int(np.flatnonzero(~np.isfinite(fields).all(axis=1))[0])
-        raise SinsError(f"{traj.source}: row {k} (time {float(traj.time[k])!r}) has a non-finite time, position "
-                        "or attitude; cannot write a local-frame trajectory")
-    origin = (float(traj.lat[0]), float(traj.lon[0]), float(traj.height[0]))
-    enu = lla_to_local_enu(traj.lat, traj.lon, traj.height, *origin)
-    q = dcm_to_quat_many(np.ascontiguousarray(body_flu_in_enu(traj.Cbn, conv)))
-    return origin, enu, q[:, [1, 2, 3, 0]]
 
 
 def _fmt(a: np.ndarray) -> list[str]:
@@ -67,6 +37,9 @@ def _fmt(a: np.ndarray) -> list[str]:
 def write_tum(path, traj: Trajectory, conv: int = 0) -> None:
     """Write ``time tx ty tz qx qy qz qw`` lines (ENU about the first point, FLU body), atomically."""
     origin, enu, q = trajectory_enu_quat(traj, conv)
+    if traj.extra:
+        logging.getLogger("sins").warning("%s: the TUM format has 8 fixed columns; the column(s) %s are left out "
+                                          "(write .csv, .parquet or .mcap to keep them)", path, ", ".join(traj.extra))
     cols = [_fmt(traj.time)] + [_fmt(enu[:, i]) for i in range(3)] + [_fmt(q[:, i]) for i in range(4)]
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="ascii", newline="\n") as f:
@@ -82,6 +55,7 @@ def read_tum(path):
     path = Path(path)
     origin = None
     rows = []
+    lines = []
     try:
         text = path.read_text(encoding="ascii")
     except (OSError, UnicodeDecodeError) as exc:
@@ -102,7 +76,23 @@ def read_tum(path):
             rows.append([float(x) for x in parts])
         except ValueError:
             raise SinsError(f"{path}: line {lineno}: not a number in {s[:60]!r}") from None
+        lines.append(lineno)
     a = np.array(rows, dtype=np.float64).reshape(-1, 8)
+    if a.shape[0] == 0:
+        raise SinsError(f"{path}: no poses (expected lines of time tx ty tz qx qy qz qw)")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        k, c = (int(v[0]) for v in np.nonzero(bad))
+        raise SinsError(f"{path}: line {lines[k]}, column '{TUM_COLUMNS[c]}': value is not a finite number")
+    qn = np.linalg.norm(a[:, 4:8], axis=1)
+    if np.any(np.abs(qn - 1.0) > 1e-3):
+        k = int(np.argmax(np.abs(qn - 1.0) > 1e-3))
+        raise SinsError(f"{path}: line {lines[k]}, column 'qw': the quaternion has norm {qn[k]:.6g}; "
+                        "expected a unit quaternion")
+    if a.shape[0] > 1 and np.any(np.diff(a[:, 0]) <= 0):
+        k = int(np.argmax(np.diff(a[:, 0]) <= 0)) + 1
+        raise SinsError(f"{path}: line {lines[k]}, column 'time': time {a[k, 0]!r} does not increase "
+                        f"(previous {a[k - 1, 0]!r})")
     return a[:, 0], a[:, 1:4], a[:, 4:8], origin
 
 
@@ -112,10 +102,20 @@ def read_tum_trajectory(path, conv: int = 0) -> Trajectory:
     Velocity is not in the format: it is left as zeros.
     """
     t, enu, q_xyzw, origin = read_tum(path)
+    return tum_to_trajectory(t, enu, q_xyzw, origin, conv, str(path))
+
+
+def tum_rotations(q_xyzw: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) of TUM quaternions ``qx qy qz qw`` (normalized)."""
+    q = np.ascontiguousarray(np.asarray(q_xyzw, dtype=np.float64)[:, [3, 0, 1, 2]])
+    return quat_to_dcm_many(q / np.linalg.norm(q, axis=1, keepdims=True))
+
+
+def tum_to_trajectory(t, enu, q_xyzw, origin, conv: int, source: str) -> Trajectory:
+    """The :class:`Trajectory` of TUM rows placed on the earth by their origin (velocity left as zeros)."""
     if origin is None:
-        raise SinsError(f"{path}: no '# origin_lat_deg=... origin_lon_deg=... origin_height_m=...' line; "
+        raise SinsError(f"{source}: no '# origin_lat_deg=... origin_lon_deg=... origin_height_m=...' line; "
                         "cannot place the local ENU frame on the earth")
     lat, lon, h = local_enu_to_lla(enu, *origin)
-    c_flu = quat_to_dcm_many(np.ascontiguousarray(q_xyzw[:, [3, 0, 1, 2]]))
     return Trajectory(time=t, lat=lat, lon=lon, height=h, vel_n=np.zeros((t.shape[0], 3)),
-                      Cbn=cbn_from_flu(c_flu, conv), source=str(path))
+                      Cbn=cbn_from_flu(tum_rotations(q_xyzw), conv), source=source)

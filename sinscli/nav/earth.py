@@ -109,6 +109,18 @@ def enu_rotation(lat, lon):
     return np.stack([e, n, u], axis=-2)
 
 
+def lla_to_local_enu(lat, lon, h, lat0: float, lon0: float, h0: float) -> np.ndarray:
+    """ENU coordinates (N, 3) in metres of geodetic points (radians, metres) about an origin point."""
+    d = lla_to_ecef(np.asarray(lat), np.asarray(lon), np.asarray(h)) - lla_to_ecef(lat0, lon0, h0)
+    return d @ enu_rotation(lat0, lon0).T
+
+
+def local_enu_to_lla(enu, lat0: float, lon0: float, h0: float):
+    """Inverse of :func:`lla_to_local_enu`: ``(lat, lon, h)`` in radians and metres."""
+    xyz = lla_to_ecef(lat0, lon0, h0) + np.asarray(enu) @ enu_rotation(lat0, lon0)
+    return ecef_to_lla(xyz)
+
+
 # --- WGS-84 gravitation with J2 and the launch-centred inertial frame ----------------------------
 #
 # The launch-inertial frame ``i`` (docs/inertial.md): origin at the launch point at the launch

@@ -41,6 +41,26 @@ EULER3_FORWARD_EULER, EULER3_RK4 = 0, 1
 _S3, _S5, _S7, _S9 = -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362880.0
 _C4, _C6, _C8, _C10 = 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40320.0, -1.0 / 3628800.0
 _CPSI_FLOOR = 1e-15                 # |cos psi| floor of the 3-angle rates (no division by zero)
+# RK4 sub-steps (docs/krylov.md "Sub-steps under fast rotation"): one RK4 step of the angle
+# equations that turns the body by theta rad errs by at most RK4_KAPPA theta^5 rad (worst case
+# over attitudes within the 45 deg margin, measured); a sub-step may turn by at most
+# (tol / RK4_KAPPA)^(1/4), so that the truncation stays under tol theta per interval.
+RK4_KAPPA = 0.04
+SUBSTEP_TOL = 1.0e-9                # default of navigation.krylov_substep_tol
+MAX_SUBSTEPS = 64
+
+
+def substep_angle(tol=SUBSTEP_TOL):
+    """Largest rotation (rad) of one RK4 sub-step for the relative truncation ``tol`` per interval.
+
+    RK4's error on an interval that turns by theta in m sub-steps is about
+    ``m RK4_KAPPA (theta/m)^5 = RK4_KAPPA (theta/m)^4 theta``; keeping it under
+    ``tol theta`` gives ``theta/m <= (tol / RK4_KAPPA)^(1/4)``.
+    """
+    return (tol / RK4_KAPPA) ** 0.25
+
+
+SUBSTEP_ANGLE = substep_angle()
 
 
 @njit(cache=True, error_model="numpy")
@@ -231,106 +251,192 @@ def _f4(kset, ca, sa, cg, sg, cx, sx, wx, wy, wz, zx, zy, zz, nav):
     return da, u, wy - cg * da
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def substep_count(w0, w1, max_angle):
+    """Number of RK4 sub-steps ``m = ceil(|w| T / max_angle)`` of one attitude interval (1..MAX_SUBSTEPS).
+
+    ``w0``, ``w1``: the rate model's rate times T at the start and the end of
+    the interval (sec. 4.4, rad); being linear in time, its largest magnitude
+    over the interval is at one of the ends.  ``max_angle``: the largest
+    rotation (rad) of one sub-step (:func:`substep_angle`).  Below it (every
+    vehicle and aircraft manoeuvre at 100 Hz) the answer is 1 and costs two
+    dot products.  A NaN rate gives 1.
+    """
+    t2 = max(w0[0] * w0[0] + w0[1] * w0[1] + w0[2] * w0[2], w1[0] * w1[0] + w1[1] * w1[1] + w1[2] * w1[2])
+    if not t2 > max_angle * max_angle:
+        return 1
+    return min(MAX_SUBSTEPS, int(math.ceil(math.sqrt(t2) / max_angle)))
+
+
 @njit(cache=True, error_model="numpy")
-def krylov_step_dcm_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n):
-    """One four-angle attitude update t_k -> t_k + dt (sec. 4.6, 4.11), with ``Cbn(t_k + dt)``.
+def substep_counts(dtheta_b, max_angle):
+    """RK4 sub-steps (int64[N]) that the intervals of ``dtheta_b`` (N, 3) rad take (:func:`substep_count`).
+
+    Interval k uses the rate model of ``dtheta_b[k-1], dtheta_b[k]`` (the first
+    one ``dtheta_b[0]`` twice), as :func:`krylov_propagate` and the navigation
+    loop do.  For reports, tests and benchmarks.
+    """
+    n = dtheta_b.shape[0]
+    out = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        j = k - 1 if k > 0 else 0
+        w0, _, w1 = rate_model((dtheta_b[j, 0], dtheta_b[j, 1], dtheta_b[j, 2]),
+                               (dtheta_b[k, 0], dtheta_b[k, 1], dtheta_b[k, 2]))
+        out[k] = substep_count(w0, w1, max_angle)
+    return out
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _rk4(kset, ca, sa, cg, sg, cx, sx, w0, wh, w1, zx, zy, zz, nav):
+    """Classical RK4 (sec. 4.5) of the active angles over one (sub-)step: ``(da, dgamma, dxi)``.
+
+    ``w0, wh, w1``: the body increments of the step's rate model at its start,
+    middle and end (3-tuples, rad); the trig arguments are those of the
+    angles at the start of the step; stage states by angle addition
+    (:func:`_cs_shift`).  Other arguments as :func:`_f4`.
+    """
+    k1a, k1g, k1x = _f4(kset, ca, sa, cg, sg, cx, sx, w0[0], w0[1], w0[2], zx, zy, zz, nav)
+    c2a, s2a = _cs_shift(ca, sa, 0.5 * k1a) if nav else (1.0, 0.0)
+    c2g, s2g = _cs_shift(cg, sg, 0.5 * k1g)
+    c2x, s2x = _cs_shift(cx, sx, 0.5 * k1x)
+    k2a, k2g, k2x = _f4(kset, c2a, s2a, c2g, s2g, c2x, s2x, wh[0], wh[1], wh[2], zx, zy, zz, nav)
+    c3a, s3a = _cs_shift(ca, sa, 0.5 * k2a) if nav else (1.0, 0.0)
+    c3g, s3g = _cs_shift(cg, sg, 0.5 * k2g)
+    c3x, s3x = _cs_shift(cx, sx, 0.5 * k2x)
+    k3a, k3g, k3x = _f4(kset, c3a, s3a, c3g, s3g, c3x, s3x, wh[0], wh[1], wh[2], zx, zy, zz, nav)
+    c4a, s4a = _cs_shift(ca, sa, k3a) if nav else (1.0, 0.0)
+    c4g, s4g = _cs_shift(cg, sg, k3g)
+    c4x, s4x = _cs_shift(cx, sx, k3x)
+    k4a, k4g, k4x = _f4(kset, c4a, s4a, c4g, s4g, c4x, s4x, w1[0], w1[1], w1[2], zx, zy, zz, nav)
+    return ((k1a + 2.0 * (k2a + k3a) + k4a) / 6.0, (k1g + 2.0 * (k2g + k3g) + k4g) / 6.0,
+            (k1x + 2.0 * (k2x + k3x) + k4x) / 6.0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _lerp_inc(w0, d, s, f):
+    """``f (w0 + s d)``: the rate model's increment at the fraction ``s`` of the interval, times ``f``."""
+    return (f * (w0[0] + s * d[0]), f * (w0[1] + s * d[1]), f * (w0[2] + s * d[2]))
+
+
+@njit(cache=True, error_model="numpy")
+def krylov_update_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n, max_angle):
+    """One four-angle attitude interval t_k -> t_k + dt in ``m`` RK4 sub-steps, with ``Cbn(t_k + dt)``.
 
     ang: 4-tuple (phi, psi, gamma, xi) rad at t_k; kset: SET_A / SET_B;
     phiB: frozen yaw of set B (rad); dtheta_prev_b, dtheta_b: body angle
     increments (rad, FLU) of the previous and current interval (on the first
     step pass dtheta_b twice, sec. 4.4); dt: interval (s); w_in_n: navigation
-    frame rate (rad/s, ENU, constant over the interval, taken at mid-interval).
-    Vectors are 3-tuples or arrays.
+    frame rate (rad/s, ENU, constant over the interval, taken at mid-interval);
+    max_angle: the largest rotation (rad) of one RK4 sub-step
+    (:func:`substep_angle`; ``math.inf``: never sub-step).  Vectors are
+    3-tuples or arrays.
 
-    Order as in the patent: (1) state-transfer test and mapping (M1 for
-    A->B, sec. 3.3 extraction for B->A); (2) RK4 (sec. 4.5) on the active
-    angles with the two-sample linear rate model (sec. 4.4) and the nav-frame
-    term inside F at every stage (sec. 4.3); (3) ``Cbn`` of the new angles
-    (sec. 1.3), equal to :func:`krylov_dcm_t` of them to rounding.  Returns
-    ``(ang_new 4-tuple, kset, phiB, transferred, Cbn matrix tuple)``;
-    ``transferred`` tells whether a transfer happened at the start of this
-    step (at t_k).  The sines and cosines of the RK4 stage states and of the
-    result come from those of x_k by angle addition (:func:`_cs_shift`).
+    Each sub-step follows the patent's order (sec. 4.6, 4.11): (1) the
+    state-transfer test and mapping (M1 for A->B, sec. 3.3 extraction for
+    B->A); (2) RK4 (sec. 4.5) on the active angles, its stage rates taken
+    from the interval's two-sample linear rate model (sec. 4.4) over the
+    sub-step's share of the interval, with the nav-frame term inside F at
+    every stage (sec. 4.3).  Then (3) ``Cbn`` of the new angles (sec. 1.3),
+    equal to :func:`krylov_dcm_t` of them to rounding.  ``m =``
+    :func:`substep_count`; with ``m = 1`` this is exactly the single RK4 step
+    of sec. 4.11.  Sub-steps cut the RK4 truncation of the angle equations,
+    which grows as (|w| T)^5 per step, by m^4 (docs/krylov.md).
+
+    Returns ``(ang_new 4-tuple, kset, phiB, transferred, Cbn matrix tuple,
+    m)``; ``transferred`` tells whether a transfer happened in this interval.
+    The sines and cosines of the RK4 stage states and of the result come from
+    those of the step's start by angle addition (:func:`_cs_shift`).
     """
-    phi, psi, g, x = ang[0], ang[1], ang[2], ang[3]
+    a = ang[0] if kset == SET_A else ang[1]
+    g, x = ang[2], ang[3]
     cg, sg = math.cos(g), math.sin(g)
+    w0, wh, w1 = rate_model(dtheta_prev_b, dtheta_b)
+    m = substep_count(w0, w1, max_angle)
+    if m > 1:
+        inv_m = 1.0 / m
+        dw = (w1[0] - w0[0], w1[1] - w0[1], w1[2] - w0[2])
+    ex, ey, ez = w_in_n[0] * dt, w_in_n[1] * dt, w_in_n[2] * dt        # zeta, ENU
+    nav = ex != 0.0 or ey != 0.0 or ez != 0.0
     transferred = False
-    if kset == SET_A:
-        if cg < COS_GAMMA_S:
-            phiB, psi, g, x = transfer_a_to_b(phi, g, x)
-            phi = phiB
-            kset = SET_B
+    fresh = True                     # trig of a and xi (and zeta in set axes) to be taken
+    ca = sa = cx = sx = zx = zy = zz = 0.0
+    cb, sb = 1.0, 0.0
+    for j in range(m):
+        if kset == SET_A:
+            if cg < COS_GAMMA_S:
+                phiB, a, g, x = transfer_a_to_b(a, g, x)
+                kset = SET_B
+                transferred = True
+                fresh = True
+                cg, sg = 0.0, 1.0                    # gamma = 90 deg exactly
+        elif sg < COS_GAMMA_S:
+            a, g, x = transfer_b_to_a(a, g, x, phiB)
+            phiB = 0.0
+            kset = SET_A
             transferred = True
-            cg, sg = 0.0, 1.0                    # gamma = 90 deg exactly
-    elif sg < COS_GAMMA_S:
-        phi, g, x = transfer_b_to_a(psi, g, x, phiB)
-        psi = 0.0
-        phiB = 0.0
-        kset = SET_A
-        transferred = True
-        cg, sg = math.cos(g), math.sin(g)
-
-    zx, zy, zz = w_in_n[0] * dt, w_in_n[1] * dt, w_in_n[2] * dt
-    nav = zx != 0.0 or zy != 0.0 or zz != 0.0
-    if kset == SET_B:
-        cb, sb = math.cos(phiB), math.sin(phiB)
-        zx, zy = cb * zx + sb * zy, -sb * zx + cb * zy      # Rz(-phiB) zeta
-    (a0x, a0y, a0z), (h0, h1, h2), (a1x, a1y, a1z) = rate_model(dtheta_prev_b, dtheta_b)
-
-    a = phi if kset == SET_A else psi
-    ca, sa = math.cos(a), math.sin(a)
-    cx, sx = math.cos(x), math.sin(x)
-    # RK4 (sec. 4.5); stage states by angle addition from the trig of x_k
-    k1a, k1g, k1x = _f4(kset, ca, sa, cg, sg, cx, sx, a0x, a0y, a0z, zx, zy, zz, nav)
-    c2a, s2a = _cs_shift(ca, sa, 0.5 * k1a) if nav else (1.0, 0.0)
-    c2g, s2g = _cs_shift(cg, sg, 0.5 * k1g)
-    c2x, s2x = _cs_shift(cx, sx, 0.5 * k1x)
-    k2a, k2g, k2x = _f4(kset, c2a, s2a, c2g, s2g, c2x, s2x, h0, h1, h2, zx, zy, zz, nav)
-    c3a, s3a = _cs_shift(ca, sa, 0.5 * k2a) if nav else (1.0, 0.0)
-    c3g, s3g = _cs_shift(cg, sg, 0.5 * k2g)
-    c3x, s3x = _cs_shift(cx, sx, 0.5 * k2x)
-    k3a, k3g, k3x = _f4(kset, c3a, s3a, c3g, s3g, c3x, s3x, h0, h1, h2, zx, zy, zz, nav)
-    c4a, s4a = _cs_shift(ca, sa, k3a) if nav else (1.0, 0.0)
-    c4g, s4g = _cs_shift(cg, sg, k3g)
-    c4x, s4x = _cs_shift(cx, sx, k3x)
-    k4a, k4g, k4x = _f4(kset, c4a, s4a, c4g, s4g, c4x, s4x, a1x, a1y, a1z, zx, zy, zz, nav)
-    da = (k1a + 2.0 * (k2a + k3a) + k4a) / 6.0
-    dg = (k1g + 2.0 * (k2g + k3g) + k4g) / 6.0
-    dx = (k1x + 2.0 * (k2x + k3x) + k4x) / 6.0
-    ca, sa = _cs_shift(ca, sa, da)
-    cg, sg = _cs_shift(cg, sg, dg)
-    cx, sx = _cs_shift(cx, sx, dx)
-    a = wrap_pi(a + da)
-    g = g + dg
-    x = wrap_pi(x + dx)
+            fresh = True
+            cg, sg = math.cos(g), math.sin(g)
+        if fresh:
+            fresh = False
+            ca, sa = math.cos(a), math.sin(a)
+            cx, sx = math.cos(x), math.sin(x)
+            zx, zy, zz = ex, ey, ez
+            if kset == SET_B:
+                cb, sb = math.cos(phiB), math.sin(phiB)
+                zx, zy = cb * ex + sb * ey, -sb * ex + cb * ey      # Rz(-phiB) zeta
+            if m > 1:
+                zx, zy, zz = zx * inv_m, zy * inv_m, zz * inv_m
+        if m == 1:
+            da, dg, dx = _rk4(kset, ca, sa, cg, sg, cx, sx, w0, wh, w1, zx, zy, zz, nav)
+        else:                        # sub-step j: the rate model over [j/m, (j+1)/m] of the interval
+            da, dg, dx = _rk4(kset, ca, sa, cg, sg, cx, sx, _lerp_inc(w0, dw, j * inv_m, inv_m),
+                              _lerp_inc(w0, dw, (j + 0.5) * inv_m, inv_m),
+                              _lerp_inc(w0, dw, (j + 1.0) * inv_m, inv_m), zx, zy, zz, nav)
+        ca, sa = _cs_shift(ca, sa, da)
+        cg, sg = _cs_shift(cg, sg, dg)
+        cx, sx = _cs_shift(cx, sx, dx)
+        a = wrap_pi(a + da)
+        g = g + dg
+        x = wrap_pi(x + dx)
 
     if kset == SET_A:
         return ((a, 0.0, g, x), kset, phiB, transferred,
-                _dcm_from_trig(ca, sa, 1.0, 0.0, cg, sg, cx, sx))
+                _dcm_from_trig(ca, sa, 1.0, 0.0, cg, sg, cx, sx), m)
     return ((phiB, a, g, x), kset, phiB, transferred,
-            _dcm_from_trig(cb, sb, ca, sa, cg, sg, cx, sx))
+            _dcm_from_trig(cb, sb, ca, sa, cg, sg, cx, sx), m)
 
 
 @njit(cache=True, error_model="numpy")
-def krylov_step_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n):
+def krylov_step_dcm_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n, max_angle=SUBSTEP_ANGLE):
+    """:func:`krylov_update_t` without the sub-step count: ``(ang_new, kset, phiB, transferred, Cbn)``.
+
+    ``max_angle`` defaults to the sub-step rotation of the default
+    ``navigation.krylov_substep_tol`` (:data:`SUBSTEP_ANGLE`).
+    """
+    a, kset, phiB, tr, c, _ = krylov_update_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n, max_angle)
+    return a, kset, phiB, tr, c
+
+
+@njit(cache=True, error_model="numpy")
+def krylov_step_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n, max_angle=SUBSTEP_ANGLE):
     """:func:`krylov_step_dcm_t` without the DCM: ``(ang_new 4-tuple, kset, phiB, transferred)``."""
-    a, kset, phiB, tr, _ = krylov_step_dcm_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n)
+    a, kset, phiB, tr, _, _ = krylov_update_t(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n, max_angle)
     return a, kset, phiB, tr
 
 
 @njit(cache=True, error_model="numpy")
-def krylov_step(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n):
+def krylov_step(ang, kset, phiB, dtheta_prev_b, dtheta_b, dt, w_in_n, max_angle=SUBSTEP_ANGLE):
     """Array form of :func:`krylov_step_t` (sec. 4.6): ``ang`` float64[4], vectors float64[3].
 
     Returns ``(ang_new float64[4], kset, phiB, transferred)``.
     """
     a, kset, phiB, tr = krylov_step_t((ang[0], ang[1], ang[2], ang[3]), kset, phiB,
-                                      dtheta_prev_b, dtheta_b, dt, w_in_n)
+                                      dtheta_prev_b, dtheta_b, dt, w_in_n, max_angle)
     return np.array(a), kset, phiB, tr
 
 
 @njit(cache=True, error_model="numpy")
-def krylov_propagate(Cbn0, dtheta_b, dt, w_in_n):
+def krylov_propagate(Cbn0, dtheta_b, dt, w_in_n, max_angle=SUBSTEP_ANGLE):
     """Attitude-only run of :func:`krylov_step_dcm_t` over ``dtheta_b`` (N, 3) rad.
 
     Starts from ``Cbn0`` (sec. 4.8), first step with Δθ_{-1} := Δθ_0, a
@@ -352,7 +458,7 @@ def krylov_propagate(Cbn0, dtheta_b, dt, w_in_n):
     prev = (dtheta_b[0, 0], dtheta_b[0, 1], dtheta_b[0, 2])
     for k in range(n):
         cur = (dtheta_b[k, 0], dtheta_b[k, 1], dtheta_b[k, 2])
-        ang, kset, phib, tr, c = krylov_step_dcm_t(ang, kset, phib, prev, cur, dt, w)
+        ang, kset, phib, tr, c, _ = krylov_update_t(ang, kset, phib, prev, cur, dt, w, max_angle)
         if tr:
             transfers += 1
         cbn[k + 1] = m_to_array(c)

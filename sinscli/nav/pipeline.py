@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import SinsError
 from ..types import ImuLog, NavState, Trajectory, time_tolerance
 from . import strapdown as sd
+from .krylov import SUBSTEP_TOL
 
 log = logging.getLogger("sins")
 
@@ -38,6 +39,7 @@ class NavOptions:
     singularity_threshold: float = 0.01
     on_singularity: str = "continue"
     launch: dict | None = None
+    krylov_substep_tol: float = SUBSTEP_TOL    # krylov: relative RK4 truncation allowed per interval
 
     def method_code(self) -> int:
         if self.attitude == "dcm":
@@ -61,6 +63,9 @@ class NavOptions:
                             f"not {self.attitude}")
         if self.frame not in ("enu", "launch-inertial"):
             raise SinsError(f"frame: expected enu or launch-inertial, got {self.frame!r}")
+        tol = self.krylov_substep_tol
+        if not (isinstance(tol, (int, float)) and not isinstance(tol, bool) and 0.0 < tol < 1.0):
+            raise SinsError(f"krylov_substep_tol: expected a number in (0, 1), got {tol!r}")
         if self.frame == "launch-inertial" and self.attitude not in ("dcm", "quat"):
             raise SinsError(f"--frame launch-inertial: the attitude is dcm or quat, not {self.attitude}")
 
@@ -80,7 +85,8 @@ class Navigator:
         self.opts = opts
         self.method = opts.method_code()
         self.state = sd.new_state(init.time, init.lat, init.lon, init.height,
-                                  np.asarray(init.vel_n, dtype=float), c, self.method, opts.conv)
+                                  np.asarray(init.vel_n, dtype=float), c, self.method, opts.conv,
+                                  opts.krylov_substep_tol)
         from .rotation import conv_to_flu
         self._cflu = conv_to_flu(opts.conv)
         self._integrator = 0 if opts.euler_integrator == "euler" else 1
@@ -173,8 +179,13 @@ class Navigator:
                           self._angle_columns(out_ang[:n]))
 
     def _report_angle_events(self, events, n_ev) -> None:
-        """Log Krylov set transfers (debug) and the 3-angle singularity (warning, or stop)."""
+        """Log Krylov set transfers and RK4 sub-steps (debug), and the 3-angle singularity (warning, or stop)."""
         st = self.state
+        if self.method == sd.ATT_KRYLOV and st[sd.S_KSUB_N] > 0:
+            log.debug("krylov: RK4 sub-steps per attitude interval in this block: max %d, mean %.4f over %d "
+                      "intervals (sub-step rotation <= %.4g rad)", st[sd.S_KSUB_MAX],
+                      st[sd.S_KSUB_SUM] / st[sd.S_KSUB_N], st[sd.S_KSUB_N], st[sd.S_KSUB_ANGLE])
+            st[sd.S_KSUB_MAX] = st[sd.S_KSUB_SUM] = st[sd.S_KSUB_N] = 0.0
         if self.method == sd.ATT_KRYLOV and n_ev:
             for e in events[:min(n_ev, len(events))]:
                 log.debug("krylov transfer at t=%.6f: set %s (%.6f, %.6f, %.6f, %.6f) deg -> set %s "

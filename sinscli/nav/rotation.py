@@ -14,8 +14,7 @@ precision for every angle.
 import numpy as np
 from numba import njit
 
-FLU, RFU, FRD = 0, 1, 2
-BODY_CONVENTIONS = {"flu": FLU, "rfu": RFU, "frd": FRD}
+from ..conventions import BODY_CONVENTIONS, FLU, FRD, RFU  # noqa: F401  (re-exported)
 
 # C_{conv}^{flu}: turns a vector given in the named body axes into FLU axes.
 _CONV_TO_FLU = np.array([
@@ -453,3 +452,35 @@ def attitude_error_many(cbn_true, cbn_est):
     for k in range(n):
         out[k] = dcm_to_rotvec(mm3(cbn_true[k], cbn_est[k].T.copy()))
     return out
+
+
+# ---------------------------------------------------------------------------
+# Body-convention changes of DCM stacks: plain numpy (einsum), not kernels.
+# ---------------------------------------------------------------------------
+
+def body_flu_in_enu(cbn: np.ndarray, conv: int) -> np.ndarray:
+    """``C_FLU^n = Cbn C_{conv}^{FLU T}`` (N, 3, 3): the attitude of the FLU body axes."""
+    return np.einsum("nij,kj->nik", np.asarray(cbn, dtype=np.float64), conv_to_flu(conv))
+
+
+def cbn_from_flu(c_flu_n: np.ndarray, conv: int) -> np.ndarray:
+    """Inverse of :func:`body_flu_in_enu`: ``Cbn = C_FLU^n C_{conv}^{FLU}``."""
+    return np.einsum("nij,jk->nik", np.asarray(c_flu_n, dtype=np.float64), conv_to_flu(conv))
+
+
+def level_heading_frame(heading: np.ndarray) -> np.ndarray:
+    """``M`` (N, 3, 3) with ``(roll, pitch, heading components) = M phi_n`` for ENU small angles ``phi_n``.
+
+    The level heading frame of a physical heading ``H`` (rad): roll about the
+    horizontal forward axis ``(sin H, cos H, 0)``, pitch about the horizontal
+    right axis ``(cos H, -sin H, 0)``, heading about the down axis (clockwise
+    positive).  ``M`` is symmetric and orthogonal, so ``phi_n = M (r, p, h)``
+    as well, and a covariance maps as ``M P M``.
+    """
+    h = np.asarray(heading, dtype=np.float64)
+    sh, ch = np.sin(h), np.cos(h)
+    m = np.zeros(h.shape + (3, 3))
+    m[..., 0, 0], m[..., 0, 1] = sh, ch
+    m[..., 1, 0], m[..., 1, 1] = ch, -sh
+    m[..., 2, 2] = -1.0
+    return m

@@ -22,7 +22,8 @@ import numpy as np
 from numba import njit
 
 from .coning import CONING_COEFFS, body_increments, fast_step, load_memory, push_sample, save_memory
-from .krylov import (euler3_dcm_t, euler3_init, euler3_step_t, krylov_init, krylov_step_dcm_t)
+from .krylov import (SUBSTEP_TOL, euler3_dcm_t, euler3_init, euler3_step_t, krylov_init, krylov_update_t,
+                     substep_angle)
 from .mechanization import (displacement, first_guess_displacement, frame_rotation, midpoint,
                             position_update, velocity_update)
 from .rotation import (m_mul, m_trans, m_vec, quat_mul_t, quat_to_dcm_t,
@@ -63,16 +64,21 @@ S_HAVE_PREV = 97
 S_VMM3 = 98            # 3: velocity at t_{m-3}
 S_TMM3 = 101
 S_STOPPED = 104        # 1 when the 3-angle method stopped at its singularity
-STATE_SIZE = 106
+S_KSUB_ANGLE = 106     # krylov: largest rotation (rad) of one RK4 sub-step (krylov.substep_angle)
+S_KSUB_MAX = 107       # krylov: most sub-steps in one interval, since the counters were reset
+S_KSUB_SUM = 108       # krylov: sub-steps summed over the intervals counted in S_KSUB_N
+S_KSUB_N = 109         # krylov: intervals counted
+STATE_SIZE = 110
 
 N_EVENT = 10           # transfer events: time, old 4 angles, new 4 angles, new set
 
 
-def new_state(time, lat, lon, h, vel_n, cbn, method=ATT_QUAT, conv=0):
+def new_state(time, lat, lon, h, vel_n, cbn, method=ATT_QUAT, conv=0, krylov_substep_tol=SUBSTEP_TOL):
     """A fresh state vector at the initial time (radians, metres, ENU).
 
     For the angle methods the angles are initialized from ``Cbn`` in FLU axes
-    (KRYLOV.md 4.8; the 3-angle extraction of 2.4).
+    (KRYLOV.md 4.8; the 3-angle extraction of 2.4); ``krylov_substep_tol`` is the
+    relative RK4 truncation allowed per interval (``navigation.krylov_substep_tol``).
     """
     st = np.zeros(STATE_SIZE)
     st[S_T], st[S_LAT], st[S_LON], st[S_H] = time, lat, lon, h
@@ -82,6 +88,7 @@ def new_state(time, lat, lon, h, vel_n, cbn, method=ATT_QUAT, conv=0):
     st[S_Q:S_Q + 4] = dcm_to_quat(np.ascontiguousarray(cbn, dtype=np.float64))
     st[S_TSTART] = time
     st[S_COSMIN] = 1.0
+    st[S_KSUB_ANGLE] = substep_angle(krylov_substep_tol)
     if method in (ATT_KRYLOV, ATT_EULER):
         from .rotation import conv_to_flu
         c_flu = np.asarray(cbn, dtype=np.float64) @ conv_to_flu(conv).T
@@ -279,13 +286,20 @@ def _angle_update(st, method, alpha, alpha_prev, zeta, cflu, integrator, t_start
     previous interval (the two-sample rate model does the coning part, so the
     coning-compensated ``phi`` is not used); ``zeta`` enters as the navigation-
     frame rate over a unit interval.  Writes Cbn (body convention) to the state;
-    records a transfer in ``events`` and returns the new event count.
+    records a transfer in ``events`` and returns the new event count.  The
+    four-angle update takes as many RK4 sub-steps as ``st[S_KSUB_ANGLE]`` asks
+    for (:func:`sinscli.nav.krylov.substep_count`) and counts them in
+    ``S_KSUB_MAX/SUM/N`` (the caller reads and resets them per block).
     """
     a_f = m_vec(cflu, alpha)
     p_f = m_vec(cflu, alpha_prev)
     if method == ATT_KRYLOV:
         ang = (st[S_ANG], st[S_ANG + 1], st[S_ANG + 2], st[S_ANG + 3])
-        new, kset, phib, moved, c_flu = krylov_step_dcm_t(ang, int(st[S_KSET]), st[S_PHIB], p_f, a_f, 1.0, zeta)
+        new, kset, phib, moved, c_flu, nrk = krylov_update_t(ang, int(st[S_KSET]), st[S_PHIB], p_f, a_f, 1.0,
+                                                             zeta, st[S_KSUB_ANGLE])
+        st[S_KSUB_MAX] = max(st[S_KSUB_MAX], nrk)
+        st[S_KSUB_SUM] += nrk
+        st[S_KSUB_N] += 1.0
         if moved:
             if n_ev < events.shape[0]:
                 events[n_ev, 0] = t_start
@@ -308,6 +322,57 @@ def _angle_update(st, method, alpha, alpha_prev, zeta, cflu, integrator, t_start
         c_flu = euler3_dcm_t(new3)
     # C_conv^n = C_flu^n C_conv^flu
     _set_cbn(st, m_mul(c_flu, cflu))
+    return n_ev
+
+
+@njit(cache=True, inline="always")
+def interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_ev):
+    """One attitude interval closes at ``t_end``: the moderate-rate update of the state ``st``.
+
+    Body increments (:func:`close_interval`), displacement and velocity with the midpoint
+    navigation-frame rotation (:mod:`sinscli.nav.mechanization`), attitude (or the angle methods),
+    position, then the compensated accumulation of every integrated state and the interval's
+    bookkeeping (``S_T = S_TSTART = t_end``).  The one mechanization step shared by :func:`run` and
+    the fusion kernel (:mod:`sinscli.fusion.kernel`); returns the event count ``n_ev``.
+    """
+    T = t_end - st[S_TSTART]
+    phi, dv_b, alpha_prev = close_interval(st, sums, order)
+    cbn = _cbn(st)
+    dv_n0 = m_vec(cbn, dv_b)
+    vel = _vec(st, S_VEL)
+    lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
+    v_mm2 = _vec(st, S_VMM2)
+    v_mm3 = _vec(st, S_VMM3)
+    nhist = int(st[S_HAVE_MM2])
+    h1 = st[S_TSTART] - st[S_TMM2]
+    h2 = st[S_TMM2] - st[S_TMM3]
+    dR = first_guess_displacement(vel, dv_n0, lat, h, T)
+    for _ in range(2):
+        lat_mid, h_mid = midpoint(lat, h, dR)
+        zeta = frame_rotation(lat_mid, h_mid, dR, T)
+        dvel = velocity_update(vel, dv_n0, zeta, lat_mid, h_mid, dR, T)
+        v_new = v_add(vel, dvel)
+        dR = displacement(v_mm3, v_mm2, vel, v_new, h2, h1, T, nhist)
+    lat_mid, h_mid = midpoint(lat, h, dR)
+    zeta = frame_rotation(lat_mid, h_mid, dR, T)
+    if method == ATT_KRYLOV or method == ATT_EULER:
+        n_ev = _angle_update(st, method, sums[0], alpha_prev, zeta, cflu, integrator, st[S_TSTART], events, n_ev)
+    else:
+        _attitude_update(st, method, phi, zeta)
+    dlat, dlon, dh = position_update(lat, h, dR)
+    # ---- store (compensated accumulation of every integrated state) ----
+    _set_vec(st, S_VMM3, v_mm2)
+    st[S_TMM3] = st[S_TMM2]
+    _set_vec(st, S_VMM2, vel)
+    st[S_TMM2] = st[S_TSTART]
+    st[S_HAVE_MM2] = min(nhist + 1, 2)
+    for i in range(3):
+        _acc(st, S_VEL + i, S_VLO + i, dvel[i])
+    _acc(st, S_LAT, S_PLO, dlat)
+    _acc(st, S_LON, S_PLO + 1, dlon)
+    _acc(st, S_H, S_PLO + 2, dh)
+    st[S_T] = t_end
+    st[S_TSTART] = t_end
     return n_ev
 
 
@@ -337,46 +402,9 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
             continue
         # ---- attitude interval closes: moderate-rate update ----
         t_end = time[k]
-        T = t_end - st[S_TSTART]
-        phi, dv_b, alpha_prev = close_interval(st, sums, order)
-        cbn = _cbn(st)
-        dv_n0 = m_vec(cbn, dv_b)
-        vel = _vec(st, S_VEL)
-        lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
-        v_mm2 = _vec(st, S_VMM2)
-        v_mm3 = _vec(st, S_VMM3)
-        nhist = int(st[S_HAVE_MM2])
-        h1 = st[S_TSTART] - st[S_TMM2]
-        h2 = st[S_TMM2] - st[S_TMM3]
-        dR = first_guess_displacement(vel, dv_n0, lat, h, T)
-        for _ in range(2):
-            lat_mid, h_mid = midpoint(lat, h, dR)
-            zeta = frame_rotation(lat_mid, h_mid, dR, T)
-            dvel = velocity_update(vel, dv_n0, zeta, lat_mid, h_mid, dR, T)
-            v_new = v_add(vel, dvel)
-            dR = displacement(v_mm3, v_mm2, vel, v_new, h2, h1, T, nhist)
-        lat_mid, h_mid = midpoint(lat, h, dR)
-        zeta = frame_rotation(lat_mid, h_mid, dR, T)
-        if method == ATT_KRYLOV or method == ATT_EULER:
-            n_ev = _angle_update(st, method, sums[0], alpha_prev, zeta, cflu, integrator, st[S_TSTART], events, n_ev)
-        else:
-            _attitude_update(st, method, phi, zeta)
-        dlat, dlon, dh = position_update(lat, h, dR)
-        # ---- store (compensated accumulation of every integrated state) ----
-        _set_vec(st, S_VMM3, v_mm2)
-        st[S_TMM3] = st[S_TMM2]
-        _set_vec(st, S_VMM2, vel)
-        st[S_TMM2] = st[S_TSTART]
-        st[S_HAVE_MM2] = min(nhist + 1, 2)
-        for i in range(3):
-            _acc(st, S_VEL + i, S_VLO + i, dvel[i])
-        _acc(st, S_LAT, S_PLO, dlat)
-        _acc(st, S_LON, S_PLO + 1, dlon)
-        _acc(st, S_H, S_PLO + 2, dh)
+        n_ev = interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_ev)
         lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
         v_new = _vec(st, S_VEL)
-        st[S_T] = t_end
-        st[S_TSTART] = t_end
         z = (0.0, 0.0, 0.0)
         sums = (z, z, z, z)
         nsub_now = 0

@@ -13,8 +13,10 @@ flight, 20 MB of :class:`ErrorSeries`).  The report needs far less:
   one dataset); otherwise it asks for an explicit ``epoch:``.
 - :class:`SeriesDigest`: for the per-run report only, the figures' min/max
   envelopes (:func:`sinscli.report.figures.series_lines`, at most 8000 points
-  per line) and the rows of ``timeseries.csv``
-  (:func:`sinscli.report.tables.timeseries_columns`).
+  per line), the rows of ``timeseries.csv``
+  (:func:`sinscli.report.tables.timeseries_columns`) and, for a run with the
+  navigator's 1-sigma columns, its consistency column
+  (:func:`sinscli.report.errors.consistency_column`).
 
 The single-file ``sins compare`` draws its report from the same digests, so
 both paths give identical files.
@@ -26,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SinsError
-from .errors import ErrorSeries, ErrorTable, common_epoch, error_column
+from .errors import ErrorSeries, ErrorTable, common_epoch, consistency_column, error_column
 from .figures import series_lines
 from .tables import timeseries_columns
 
@@ -35,13 +37,17 @@ TAIL_EPOCHS = 64
 
 @dataclass
 class SeriesDigest:
-    """One run's figure lines (quantity -> (t, y)) and its ``timeseries.csv`` columns."""
+    """One run's figure lines (quantity -> (t, y)), its ``timeseries.csv`` columns and, when it carries
+    the navigator's 1-sigma, its column of the consistency table (else None)."""
     lines: dict
     timeseries: tuple
+    consistency: np.ndarray | None = None
 
     def arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         """Flat named arrays (for a job file)."""
         out = {f"{prefix}ts.time": self.timeseries[0]}
+        if self.consistency is not None:
+            out[f"{prefix}consistency"] = self.consistency
         out.update({f"{prefix}ts.{k}": v for k, v in self.timeseries[1].items()})
         for k, (t, y) in self.lines.items():
             out[f"{prefix}line.{k}.t"] = t
@@ -54,16 +60,18 @@ class SeriesDigest:
                    if k.startswith(f"{prefix}ts.") and k != f"{prefix}ts.time"}
         names = [k[len(prefix) + 5:-2] for k in arrays if k.startswith(f"{prefix}line.") and k.endswith(".t")]
         lines = {n: (arrays[f"{prefix}line.{n}.t"], arrays[f"{prefix}line.{n}.y"]) for n in names}
-        from .figures import LINE_QUANTITIES
-        from .tables import TIMESERIES_QUANTITIES
-        ts_order = [q[0] for q in TIMESERIES_QUANTITIES]
-        return cls(lines={n: lines[n] for n in LINE_QUANTITIES if n in lines},
-                   timeseries=(arrays[f"{prefix}ts.time"], {k: ts_cols[k] for k in ts_order if k in ts_cols}))
+        from .figures import LINE_NAMES
+        from .tables import TIMESERIES_QUANTITIES, TIMESERIES_SIGMAS
+        ts_order = [q[0] for q in TIMESERIES_QUANTITIES + TIMESERIES_SIGMAS]
+        return cls(lines={n: lines[n] for n in LINE_NAMES if n in lines},
+                   timeseries=(arrays[f"{prefix}ts.time"], {k: ts_cols[k] for k in ts_order if k in ts_cols}),
+                   consistency=arrays.get(f"{prefix}consistency"))
 
 
 def digest(s: ErrorSeries, timeseries_every: int = 1) -> SeriesDigest:
-    """The figure envelopes and ``timeseries.csv`` rows of one run."""
-    return SeriesDigest(lines=series_lines(s), timeseries=timeseries_columns(s, timeseries_every))
+    """The figure envelopes, ``timeseries.csv`` rows and consistency column of one run."""
+    return SeriesDigest(lines=series_lines(s), timeseries=timeseries_columns(s, timeseries_every),
+                        consistency=consistency_column(s) if s.has_sigma else None)
 
 
 @dataclass

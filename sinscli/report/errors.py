@@ -29,8 +29,11 @@ import numpy as np
 from numba import njit
 
 from ..errors import SinsError
+from ..io import aided_columns
+from ..io.timebase import describe as describe_time_base
 from ..nav.earth import radii_py
-from ..nav.rotation import attitude_error_many, dcm_to_euler_many, dcm_to_rotvec, mm3, rotvec_to_dcm
+from ..nav.rotation import (attitude_error_many, dcm_to_euler_many, dcm_to_rotvec, level_heading_frame, mm3,
+                            rotvec_to_dcm)
 from ..types import Trajectory
 
 REL_TIME_TOL = 1e-9     # epochs match when |t_truth - t_nav| <= 1e-9 max(1 s, |t|) ...
@@ -46,6 +49,10 @@ ROW_UNITS = dict({k: "1" for k in DCM_ROWS},
                  pos_E="m", pos_N="m", pos_U="m", vel_E="m/s", vel_N="m/s", vel_U="m/s",
                  max_pos_E="m", max_pos_N="m", max_pos_U="m",
                  max_vel_E="m/s", max_vel_N="m/s", max_vel_U="m/s", max_att_deg="deg")
+#: Rows of the trajectory metrics (``sins compare --metrics``; :mod:`.compare_metrics`).
+METRIC_STATISTICS = ("rmse", "mean", "median", "std", "min", "max")
+ROW_UNITS.update({f"{g}_{s}": u for g, u in (("ate", "m"), ("rpe_trans", "m"), ("rpe_rot", "deg"))
+                  for s in METRIC_STATISTICS}, align_scale="1")
 
 
 @dataclass
@@ -58,9 +65,17 @@ class ErrorSeries:
     att_n_rad: np.ndarray     # (N, 3) small-angle vector phi_n in ENU axes, rad
     att_rph_rad: np.ndarray   # (N, 3) phi in the truth level heading frame: roll, pitch, heading, rad
     angle_rad: np.ndarray     # (N,) attitude error angle |phi_n|, rad
+    # the navigator's own 1-sigma claim at the same epochs (aided trajectories only; None otherwise)
+    pos_std_m: np.ndarray | None = None     # (N, 3) E, N, U, m
+    vel_std_mps: np.ndarray | None = None   # (N, 3) E, N, U, m/s
+    att_std_rad: np.ndarray | None = None   # (N, 3) roll, pitch, heading, rad
 
     def __len__(self) -> int:
         return int(self.time.shape[0])
+
+    @property
+    def has_sigma(self) -> bool:
+        return any(x is not None for x in (self.pos_std_m, self.vel_std_mps, self.att_std_rad))
 
 
 # --------------------------------------------------------------------------- time matching
@@ -75,14 +90,6 @@ def time_tolerance(t_truth: np.ndarray, t_nav: np.ndarray) -> float:
     return tol
 
 
-def _time_base(t0: float, t1: float) -> str:
-    if abs(t0) >= 1e8:
-        return "absolute seconds (UNIX or GPS time)"
-    if abs(t0) <= 1.0 + (t1 - t0):
-        return "seconds from the start"
-    return "seconds of a GPS week or another origin"
-
-
 def explain_no_common_epochs(t_truth, t_nav, truth_name: str, nav_name: str, tol: float) -> str:
     """The one-line message for a navigation file with no epoch in common with the truth."""
     a, b = float(t_truth[0]), float(t_truth[-1])
@@ -94,7 +101,7 @@ def explain_no_common_epochs(t_truth, t_nav, truth_name: str, nav_name: str, tol
         from_zero = (abs(a) <= 1.0 + (b - a), abs(c) <= 1.0 + (d - c))   # a file that counts from its start
         if (abs(a) >= 1e8) != (abs(c) >= 1e8) or (from_zero[0] != from_zero[1] and gap > 10.0 * longest):
             return (f"{nav_name}: no common epochs with the truth: different time bases "
-                    f"(truth in {_time_base(a, b)}, navigation in {_time_base(c, d)}; {spans}); "
+                    f"(truth in {describe_time_base(a, b)}, navigation in {describe_time_base(c, d)}; {spans}); "
                     "write both files with the same time origin")
         return f"{nav_name}: no common epochs with the truth: the time spans do not overlap ({spans})"
     return (f"{nav_name}: no common epochs with the truth within {tol:.3g} s although the spans overlap "
@@ -130,22 +137,30 @@ def interp_dcm_many(c0, c1, s):
     return out
 
 
+def interpolation_weights(t_src: np.ndarray, t: np.ndarray, truth_name: str = "truth",
+                          nav_name: str = "navigation"):
+    """``(inside, tq, j, j1, s)``: the indices of ``t`` inside the span of ``t_src``, those times, and the
+    bracketing samples ``j, j1`` of ``t_src`` with the fraction ``s`` in [0, 1] between them."""
+    tol = time_tolerance(t_src, t)
+    inside = np.nonzero((t >= t_src[0] - tol) & (t <= t_src[-1] + tol))[0]
+    if inside.shape[0] == 0:
+        raise SinsError(explain_no_common_epochs(t_src, t, truth_name, nav_name, tol))
+    tq = np.clip(t[inside], t_src[0], t_src[-1])
+    n = t_src.shape[0]
+    j = np.clip(np.searchsorted(t_src, tq, side="right") - 1, 0, max(n - 2, 0))
+    j1 = np.minimum(j + 1, n - 1)
+    dt = t_src[j1] - t_src[j]
+    s = np.where(dt > 0, (tq - t_src[j]) / np.where(dt > 0, dt, 1.0), 0.0)
+    return inside, tq, j, j1, s
+
+
 def interpolate_truth(truth: Trajectory, t: np.ndarray, truth_name: str = "truth",
                       nav_name: str = "navigation") -> tuple[Trajectory, np.ndarray]:
     """The truth at times ``t`` inside its span: linear in position and velocity, geodesic in attitude.
 
     Returns the interpolated trajectory and the indices of ``t`` it covers.
     """
-    tol = time_tolerance(truth.time, t)
-    inside = np.nonzero((t >= truth.time[0] - tol) & (t <= truth.time[-1] + tol))[0]
-    if inside.shape[0] == 0:
-        raise SinsError(explain_no_common_epochs(truth.time, t, truth_name, nav_name, tol))
-    tq = np.clip(t[inside], truth.time[0], truth.time[-1])
-    n = truth.time.shape[0]
-    j = np.clip(np.searchsorted(truth.time, tq, side="right") - 1, 0, max(n - 2, 0))
-    j1 = np.minimum(j + 1, n - 1)
-    dt = truth.time[j1] - truth.time[j]
-    s = np.where(dt > 0, (tq - truth.time[j]) / np.where(dt > 0, dt, 1.0), 0.0)
+    inside, tq, j, j1, s = interpolation_weights(truth.time, t, truth_name, nav_name)
 
     def lin(x):
         sw = s.reshape((-1,) + (1,) * (x.ndim - 1))
@@ -160,7 +175,8 @@ def interpolate_truth(truth: Trajectory, t: np.ndarray, truth_name: str = "truth
 
 def _subset(traj: Trajectory, idx: np.ndarray) -> Trajectory:
     return Trajectory(time=traj.time[idx], lat=traj.lat[idx], lon=traj.lon[idx], height=traj.height[idx],
-                      vel_n=traj.vel_n[idx], Cbn=traj.Cbn[idx], source=traj.source)
+                      vel_n=traj.vel_n[idx], Cbn=traj.Cbn[idx],
+                      extra={k: np.asarray(v)[idx] for k, v in traj.extra.items()}, source=traj.source)
 
 
 # --------------------------------------------------------------------------- error quantities
@@ -180,14 +196,14 @@ def level_components(cbn_true: np.ndarray, att_n: np.ndarray, conv: int = 0) -> 
     forward), pitch = phi . (cos H, -sin H, 0) (horizontal right), heading = -phi_U.
     """
     heading = dcm_to_euler_many(np.ascontiguousarray(cbn_true), conv)[:, 2]
-    sh, ch = np.sin(heading), np.cos(heading)
-    return np.stack([att_n[:, 0] * sh + att_n[:, 1] * ch, att_n[:, 0] * ch - att_n[:, 1] * sh, -att_n[:, 2]],
-                    axis=-1)
+    return np.einsum("nij,nj->ni", level_heading_frame(heading), att_n)
 
 
 def error_series(truth: Trajectory, nav: Trajectory, conv: int = 0) -> ErrorSeries:
-    """Errors of ``nav`` against ``truth`` given at the same epochs (already matched)."""
+    """Errors of ``nav`` against ``truth`` given at the same epochs (already matched), with the navigator's
+    1-sigma columns (FORMATS.md aided trajectory) when ``nav`` has them."""
     att_n = attitude_error_many(np.ascontiguousarray(truth.Cbn), np.ascontiguousarray(nav.Cbn))
+    att_std = aided_columns.group(nav.extra, aided_columns.ATT_STD)
     return ErrorSeries(
         time=nav.time.copy(),
         dC=truth.Cbn - nav.Cbn,
@@ -196,6 +212,9 @@ def error_series(truth: Trajectory, nav: Trajectory, conv: int = 0) -> ErrorSeri
         att_n_rad=att_n,
         att_rph_rad=level_components(truth.Cbn, att_n, conv),
         angle_rad=np.sqrt(np.sum(att_n * att_n, axis=1)),
+        pos_std_m=aided_columns.group(nav.extra, aided_columns.POS_STD),
+        vel_std_mps=aided_columns.group(nav.extra, aided_columns.VEL_STD),
+        att_std_rad=None if att_std is None else np.radians(att_std),
     )
 
 
@@ -216,8 +235,11 @@ def compare_trajectories(truth: Trajectory, nav: Trajectory, conv: int = 0, inte
 
 @dataclass
 class ErrorTable:
-    """Seed-000 error table: ``values[r, m]`` is row ``ROWS[r]`` of method ``methods[m]``."""
-    epoch: float
+    """Seed-000 error table: ``values[r, m]`` is row ``rows[r]`` of method ``methods[m]``.
+
+    ``epoch`` is None for a table of trajectory metrics alone (TUM inputs).
+    """
+    epoch: float | None
     methods: list[str]
     values: np.ndarray        # (len(ROWS), len(methods))
     rows: tuple = tuple(ROWS)
@@ -261,3 +283,67 @@ def build_table(series: dict[str, ErrorSeries], epoch: float | None = None) -> E
     t = common_epoch(series, epoch)
     values = np.stack([error_column(s, t) for s in series.values()], axis=1)
     return ErrorTable(epoch=t, methods=list(series), values=values)
+
+
+# --------------------------------------------------------------------------- the navigator's sigma claim
+
+#: (group, error attribute, sigma attribute, axis labels): what a 1-sigma column claims about which error.
+SIGMA_GROUPS = (("pos", "pos_enu_m", "pos_std_m", ("E", "N", "U")),
+                ("vel", "vel_enu_mps", "vel_std_mps", ("E", "N", "U")),
+                ("att", "att_rph_rad", "att_std_rad", ("roll", "pitch", "heading")))
+CONSISTENCY_ROWS = ([f"in3sigma_{g}_{a}" for g, _e, _s, axes in SIGMA_GROUPS for a in axes]
+                    + [f"nees_{g}" for g, _e, _s, _a in SIGMA_GROUPS])
+CONSISTENCY_UNITS = dict({k: "fraction" for k in CONSISTENCY_ROWS if k.startswith("in3")},
+                         **{f"nees_{g}": "1" for g, _e, _s, _a in SIGMA_GROUPS})
+
+
+@dataclass
+class ConsistencyTable:
+    """Whether each navigator's 1-sigma tells the truth: ``values[r, m]`` is row ``CONSISTENCY_ROWS[r]``.
+
+    ``in3sigma_*``: fraction of epochs whose error lies inside +-3 sigma (0.9973 for a Gaussian error and an
+    honest sigma); ``nees_*``: the average over epochs of ``sum_i (e_i / s_i)^2`` over the three axes (3 for
+    an honest claim; the files carry no cross-covariance, so it is the diagonal NEES).  NaN where a method
+    has no such sigma column.
+    """
+    methods: list[str]
+    values: np.ndarray        # (len(CONSISTENCY_ROWS), len(methods))
+    rows: tuple = tuple(CONSISTENCY_ROWS)
+
+
+def normalized_errors(s: ErrorSeries, group: str) -> np.ndarray | None:
+    """``(N, 3)`` error / claimed sigma of a group (pos, vel, att), or None without that sigma."""
+    for g, err_attr, std_attr, _axes in SIGMA_GROUPS:
+        if g == group:
+            std = getattr(s, std_attr)
+            return None if std is None else getattr(s, err_attr) / std
+    raise KeyError(group)
+
+
+def consistency_column(s: ErrorSeries) -> np.ndarray:
+    """One column of :class:`ConsistencyTable` (NaN for the groups without a sigma)."""
+    inside, nees = [], []
+    for g, _e, _s, _axes in SIGMA_GROUPS:
+        z = normalized_errors(s, g)
+        if z is None or len(s) == 0:
+            inside += [np.nan] * 3
+            nees.append(np.nan)
+        else:
+            inside += list(np.mean(np.abs(z) <= 3.0, axis=0))
+            nees.append(float(np.mean(np.sum(z * z, axis=1))))
+    return np.array(inside + nees)
+
+
+def build_consistency(series: dict[str, ErrorSeries]) -> ConsistencyTable | None:
+    """The consistency table of the runs that carry sigma columns (None when none does)."""
+    return consistency_table({name: consistency_column(s) if s.has_sigma else None for name, s in series.items()})
+
+
+def consistency_table(columns: dict[str, np.ndarray | None]) -> ConsistencyTable | None:
+    """The consistency table from each method's :func:`consistency_column` (None for a run without sigma
+    columns: its cells are empty); None when no run has any (a batch's workers send the columns)."""
+    if all(c is None for c in columns.values()):
+        return None
+    empty = np.full(len(CONSISTENCY_ROWS), np.nan)
+    return ConsistencyTable(methods=list(columns),
+                            values=np.stack([empty if c is None else c for c in columns.values()], axis=1))

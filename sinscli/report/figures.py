@@ -1,5 +1,10 @@
 """PNG figures of the errors against time (seed 000 Figs. 1-3, plus position and velocity).
 
+For a run that carries the navigator's own 1-sigma (an aided trajectory), its
+claim is drawn around zero: a shaded +-3 sigma band and dotted +-1 sigma lines.
+The figures only draw: every number comes from :class:`ErrorSeries`, through
+:func:`series_lines` (computed on a batch's worker).
+
 Matplotlib's object API with the Agg canvas (no pyplot, no global state, safe
 in worker processes and without a display).  Long runs are drawn as a min/max
 envelope per pixel column, so every peak stays visible.
@@ -49,16 +54,30 @@ LINE_QUANTITIES = {
     "pos_e": ("pos_enu_m", 0), "pos_n": ("pos_enu_m", 1), "pos_u": ("pos_enu_m", 2),
     "vel_e": ("vel_enu_mps", 0), "vel_n": ("vel_enu_mps", 1), "vel_u": ("vel_enu_mps", 2),
 }
+#: The navigator's own 1-sigma of a plotted quantity (aided runs only): line name -> (attribute, column).
+#: Its line is ``<name>_std``.
+SIGMA_QUANTITIES = {
+    "att_roll": ("att_std_rad", 0), "att_pitch": ("att_std_rad", 1), "att_heading": ("att_std_rad", 2),
+    "pos_e": ("pos_std_m", 0), "pos_n": ("pos_std_m", 1), "pos_u": ("pos_std_m", 2),
+    "vel_e": ("vel_std_mps", 0), "vel_n": ("vel_std_mps", 1), "vel_u": ("vel_std_mps", 2),
+}
+#: Every line a run may have, in their order.
+LINE_NAMES = list(LINE_QUANTITIES) + [f"{n}_std" for n in SIGMA_QUANTITIES]
 
 
 def series_lines(s: ErrorSeries, max_points: int = MAX_POINTS) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """What the figures draw of one run: the :func:`envelope` ``(t, y)`` of each of
-    :data:`LINE_QUANTITIES` (SI units, attitude in rad).  A batch computes it on the worker, so only
-    these few thousand points per line travel back."""
+    :data:`LINE_QUANTITIES` (SI units, attitude in rad), and of each claimed 1-sigma of
+    :data:`SIGMA_QUANTITIES` that the run carries (``<name>_std``).  A batch computes it on the worker,
+    so only these few thousand points per line travel back."""
     out = {}
     for name, (attr, col) in LINE_QUANTITIES.items():
         arr = getattr(s, attr)
         out[name] = envelope(s.time, arr if col is None else arr[:, col], max_points)
+    for name, (attr, col) in SIGMA_QUANTITIES.items():
+        arr = getattr(s, attr)
+        if arr is not None and len(s):
+            out[f"{name}_std"] = envelope(s.time, arr[:, col], max_points)
     return out
 
 
@@ -93,10 +112,23 @@ def _legend(ax, n: int) -> None:
 
 
 def _line_plot(ax, lines: dict[str, dict], quantity: str, scale: float = 1.0) -> None:
-    """One line per method; line styles cycle too, so that coinciding methods stay visible."""
+    """One line per method; line styles cycle too, so that coinciding methods stay visible.
+
+    A method whose lines hold the claimed 1-sigma of the quantity (``<quantity>_std``) gets it drawn as a
+    shaded +-3 sigma band and thin +-1 sigma lines around zero, in the method's colour.
+    """
     for k, (name, ln) in enumerate(lines.items()):
         t, y = ln[quantity]
-        ax.plot(t, y * scale if scale != 1.0 else y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
+        (line,) = ax.plot(t, y * scale if scale != 1.0 else y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name,
+                          zorder=3)
+        sd = ln.get(f"{quantity}_std")
+        if sd is not None:
+            ts, ys = sd[0], (sd[1] * scale if scale != 1.0 else sd[1])
+            color = line.get_color()
+            ax.fill_between(ts, -3.0 * ys, 3.0 * ys, color=color, alpha=0.12, lw=0, label=f"{name} +-3 sigma",
+                            zorder=1)
+            ax.plot(ts, ys, color=color, lw=0.6, ls=":", alpha=0.8, label=f"{name} +-1 sigma", zorder=2)
+            ax.plot(ts, -ys, color=color, lw=0.6, ls=":", alpha=0.8, zorder=2)
     ax.grid(True, alpha=0.3)
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
 
@@ -154,3 +186,63 @@ def plot_position_velocity(outdir, lines: dict[str, dict], title: str = "") -> l
 def plot_all(outdir, lines: dict[str, dict], title: str = "") -> list[str]:
     """Every figure of a report from ``lines`` (method -> :func:`series_lines`); returns the file names."""
     return plot_attitude(outdir, lines, title) + plot_position_velocity(outdir, lines, title)
+
+
+def plot_metrics(outdir, results: dict, title: str = "", frame: str = "") -> list[str]:
+    """``ate.png`` (ATE against time), ``rpe.png`` (RPE per pair) and ``trajectory_xy.png`` (plan view of
+    the truth and every aligned trajectory) from :class:`~.metrics.TrajectoryMetrics` per method."""
+    names = []
+    ate = {m: r for m, r in results.items() if r.ate_m is not None}
+    if ate:
+        fig = Figure(figsize=(8, 4))
+        ax = fig.add_subplot()
+        for k, (name, r) in enumerate(ate.items()):
+            t, y = envelope(r.time, r.ate_m)
+            ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
+        ax.grid(True, alpha=0.3)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("ATE (m)")
+        _title(ax, title, "Absolute trajectory error |p_nav - p_truth|"
+               + ("" if next(iter(ate.values())).alignment.mode == "none"
+                  else f" after {next(iter(ate.values())).alignment.mode} alignment"))
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        _save(fig, outdir / "ate.png")
+        names.append("ate.png")
+    rpe = {m: r for m, r in results.items() if r.rpe_i is not None}
+    if rpe:
+        fig = Figure(figsize=(8, 6))
+        axes = fig.subplots(2, 1, sharex=True)
+        for k, (name, r) in enumerate(rpe.items()):
+            te = r.time[r.rpe_j]
+            for ax, vals in zip(axes, (r.rpe_trans_m, r.rpe_rot_deg)):
+                t, y = envelope(te, vals)
+                ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name)
+        axes[0].set_ylabel("translation (m)")
+        axes[1].set_ylabel("rotation (deg)")
+        for ax in axes:
+            ax.grid(True, alpha=0.3)
+        axes[-1].set_xlabel("time at the pair's end (s)")
+        _title(axes[0], title, "Relative pose error per pair")
+        axes[0].legend(fontsize=8)
+        fig.tight_layout()
+        _save(fig, outdir / "rpe.png")
+        names.append("rpe.png")
+    first = next(iter(results.values()))
+    fig = Figure(figsize=(7, 7))
+    ax = fig.add_subplot()
+    step = max(1, len(first.time) // (4 * MAX_POINTS))         # a plan view needs no more points than that
+    ax.plot(first.ref_pos[::step, 0], first.ref_pos[::step, 1], "k-", lw=2.0, alpha=0.5, label="truth")
+    for k, (name, r) in enumerate(results.items()):
+        step = max(1, len(r.time) // (4 * MAX_POINTS))
+        ax.plot(r.est_pos[::step, 0], r.est_pos[::step, 1], lw=1.0, ls=_STYLES[k % len(_STYLES)],
+                label=name + ("" if r.alignment.mode == "none" else f" ({r.alignment.mode}-aligned)"))
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.set_xlabel("x / east (m)")
+    ax.set_ylabel("y / north (m)")
+    _title(ax, title, "Plan view" + (f": {frame}" if frame and len(frame) < 60 else ""))
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, outdir / "trajectory_xy.png")
+    return names + ["trajectory_xy.png"]

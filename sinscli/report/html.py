@@ -8,8 +8,10 @@ from __future__ import annotations
 import html
 
 from ..io.atomic import atomic_path
-from .errors import ROW_UNITS, ErrorTable
-from .tables import ROW_LABELS
+import numpy as np
+
+from .errors import CONSISTENCY_UNITS, ROW_UNITS, ConsistencyTable, ErrorTable
+from .tables import CONSISTENCY_LABELS, ROW_LABELS
 
 _STYLE = """
 body { font-family: sans-serif; margin: 1.5em; max-width: 70em; }
@@ -44,12 +46,27 @@ def error_table_html(table: ErrorTable) -> str:
     return "\n".join(out)
 
 
+def consistency_table_html(cons: ConsistencyTable) -> str:
+    """The navigators' sigma consistency (fraction inside 3 sigma, average NEES) as a heading and a table."""
+    out = ["<h2>Consistency of the navigators' own 1-sigma</h2>",
+           "<p class=\"note\">Fraction of epochs whose error lies inside +-3 sigma (0.9973 for an honest Gaussian "
+           "claim) and the average NEES over the three axes (3 for an honest claim).</p>",
+           "<table>", "<tr><th>Quantity</th><th>Unit</th>" + "".join(f"<th>{_e(m)}</th>" for m in cons.methods) + "</tr>"]
+    for r, key in enumerate(cons.rows):
+        cells = "".join("<td class=\"num\">-</td>" if np.isnan(v) else f"<td class=\"num\">{v:.4f}</td>"
+                        for v in cons.values[r])
+        out.append(f"<tr><td>{_e(CONSISTENCY_LABELS[key])}</td><td>{_e(CONSISTENCY_UNITS[key])}</td>{cells}</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
 def report_page(title: str, table: ErrorTable, figures: list[str], files: list[str],
                 notes: list[str] = (), extra_html: str = "") -> str:
     """The HTML text of one report: notes, the table, links to the files, the figures."""
     body = [f"<h1>{_e(title)}</h1>"]
     body += [f"<p class=\"note\">{_e(n)}</p>" for n in notes]
-    body.append(f"<h2>Errors (truth minus navigation) at t = {float(table.epoch)!r} s</h2>")
+    body.append("<h2>Trajectory metrics</h2>" if table.epoch is None else
+                f"<h2>Errors (truth minus navigation) at t = {float(table.epoch)!r} s</h2>")
     body.append(error_table_html(table))
     body.append(extra_html)
     body.append("<p>Files: " + ", ".join(f"<a href=\"{_e(f)}\">{_e(f)}</a>" for f in files) + "</p>")
@@ -64,6 +81,11 @@ def write_report_html(path, title: str, table: ErrorTable, figures: list[str], f
     text = report_page(title, table, figures, files, notes, extra_html)
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
+
+
+def summary_html(lines: list[str]) -> str:
+    """Summary sentences as a list."""
+    return "<h2>Summary</h2>\n<ul>\n" + "".join(f"<li>{_e(s)}</li>\n" for s in lines) + "</ul>"
 
 
 def simple_table_html(header: list[str], rows: list[list], failed: list[bool] | None = None) -> str:

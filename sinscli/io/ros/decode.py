@@ -1,4 +1,6 @@
-"""Bulk numpy decoding of ``sensor_msgs/Imu`` from raw CDR (ROS 2) and ROS 1 bytes.
+"""ROS messages -> numpy: bulk ``sensor_msgs/Imu`` decoding, deserialized messages, time stamps.
+
+Bulk numpy decoding of ``sensor_msgs/Imu`` from raw CDR (ROS 2) and ROS 1 bytes.
 
 A generic deserializer builds one Python object per message (tens of
 thousands of messages per second).  When the messages of a topic share one
@@ -19,7 +21,9 @@ orientation xyzw, its covariance (9), angular_velocity xyz, its covariance
   terminating NUL), then the 37 float64 aligned to 8 bytes relative to the end
   of the encapsulation header.
 
-This module only slices bytes into arrays: no file access.
+The time rules shared by the readers (header or log time, strictly
+increasing stamps) are here too.  This module only slices bytes and message
+objects into arrays: no file access.
 """
 from __future__ import annotations
 
@@ -27,6 +31,16 @@ from dataclasses import dataclass
 from typing import Callable, Sequence
 
 import numpy as np
+
+from ...errors import SinsError
+
+IMU_TYPE = "sensor_msgs/msg/Imu"
+NAVSAT_TYPE = "sensor_msgs/msg/NavSatFix"
+ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
+TWIST_TYPES = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/msg/TwistWithCovarianceStamped")
+VEL_TYPES = TWIST_TYPES                          # GNSS velocity, ENU (a GNSS receiver's twist)
+BODY_VEL_TYPES = (ODOMETRY_TYPE,) + TWIST_TYPES  # body velocity (odometry): twist in the child / header frame
+TIME_SOURCES = ("header", "log")
 
 N_VALUES = 37                       # float64 fields after the header
 ORIENTATION = slice(0, 4)           # x, y, z, w
@@ -57,6 +71,40 @@ class ImuBlock:
 def stamp_seconds(sec, nsec) -> np.ndarray:
     """Seconds as float64 from integer seconds and nanoseconds (one formula for every path)."""
     return np.asarray(sec, dtype=np.int64).astype(np.float64) + np.asarray(nsec, dtype=np.int64) * 1e-9
+
+
+def message_stamp(msg) -> tuple[int, int]:
+    """``(sec, nsec)`` of a deserialized message's header stamp (rosbags, mcap-ros2 or genpy ``Time``)."""
+    s = msg.header.stamp
+    if hasattr(s, "nanosec"):
+        return int(s.sec), int(s.nanosec)
+    return int(s.secs), int(s.nsecs)                # genpy Time (mcap-ros1-support)
+
+
+def message_times(where: str, log_ns, msgs, time_source: str) -> np.ndarray:
+    """Seconds of deserialized messages from their header stamps or their log times (int64 ns)."""
+    if time_source == "header":
+        st = np.array([message_stamp(m) for m in msgs], dtype=np.int64).reshape(-1, 2)
+        if np.any((st[:, 1] < 0) | (st[:, 1] >= 1_000_000_000)):
+            raise SinsError(f"{where}: a header stamp has nanoseconds >= 1e9")
+        return stamp_seconds(st[:, 0], st[:, 1])
+    return stamp_seconds(log_ns // 1_000_000_000, log_ns % 1_000_000_000)
+
+
+def check_time_source(time_source: str):
+    if time_source not in TIME_SOURCES:
+        raise SinsError(f"time source {time_source!r} unknown (expected header or log)")
+
+
+def check_increasing(t: np.ndarray, where: str, what: str = "time"):
+    """SinsError at the first sample whose time does not increase."""
+    if t.shape[0] > 1:
+        bad = np.flatnonzero(~(np.diff(t) > 0))
+        if bad.size:
+            k = int(bad[0]) + 1
+            word = "repeats" if t[k] == t[k - 1] else "goes backwards"
+            raise SinsError(f"{where}: {what} {word} at message {k} ({t[k]:.9f} s after {t[k - 1]:.9f} s); "
+                            "times must be strictly increasing")
 
 
 def imu_layout(encoding: str, frame_len: int) -> tuple[int, int]:
@@ -133,11 +181,7 @@ def decode_imu_block(block: np.ndarray, encoding: str) -> ImuBlock | None:
 
 def imu_from_message(msg) -> tuple[int, int, np.ndarray]:
     """``(sec, nsec, values[37])`` from a deserialized Imu object (rosbags, mcap-ros2 or mcap-ros1/genpy)."""
-    stamp = msg.header.stamp
-    if hasattr(stamp, "nanosec"):
-        sec, nsec = int(stamp.sec), int(stamp.nanosec)
-    else:                                          # genpy Time (mcap-ros1-support)
-        sec, nsec = int(stamp.secs), int(stamp.nsecs)
+    sec, nsec = message_stamp(msg)
     o, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
     vals = np.empty(N_VALUES)
     vals[0:4] = (o.x, o.y, o.z, o.w)

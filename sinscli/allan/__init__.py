@@ -1,0 +1,1 @@
+"""IMU noise characterization: overlapping Allan deviation, noise-term fit, sensor description (sins allan)."""

@@ -1,0 +1,603 @@
+"""The fused GNSS/INS loop: one numba kernel over plain arrays (no I/O).
+
+:func:`fuse` runs the strapdown mechanization of :mod:`sinscli.nav.strapdown` (its fast-rate
+``load_fast/fast_sample/save_fast`` and the per-interval :func:`~sinscli.nav.strapdown.interval_update`,
+no second mechanization) on increments compensated by the filter's bias and scale-factor estimates
+(``(dtheta - b_g dt) / (1 + s_g)``, likewise ``dvel``), propagates the error covariance
+(:mod:`sinscli.fusion.model`) and applies the measurements (:mod:`sinscli.fusion.updates`) at their own
+times: a measurement inside an IMU interval splits that interval's increments at its time (as KF-GINS
+does), closes the attitude interval there and propagates P to it.  Every estimate is fed back into
+the mechanization's state (position, velocity, ``Cbn`` and ``q`` together, compensated-summation
+residues cleared) and the error state is zero again (closed loop).
+
+Measurement rows (``meas``, float64, sorted by time then kind) are ``[time, kind, z0, z1, z2, s0, s1,
+s2, aux0, aux1]`` with ``kind`` one of the ``MT_*`` codes and ``s`` 1-sigmas (see
+:mod:`sinscli.fusion.pipeline` for what each kind carries).
+
+Consistency guard (documented in docs/fusion.md): an exponentially weighted mean of the accepted GNSS
+position innovations' NIS per degree of freedom above ``adapt_threshold`` means the covariance is too
+small for what the data show (e.g. a sensor description too optimistic): P is multiplied by that mean
+(at most 10) and the process noise scale ``q_scale`` with it.  A run of ``rejection_run`` consecutive
+rejected GNSS fixes adds each axis' squared innovation to the position variance and accepts the fix
+(a diverged filter, or a GNSS jump that stays), reported as an event.
+"""
+import numpy as np
+from numba import njit
+
+from ..nav import strapdown as sd
+from ..nav.earth import OMEGA_IE, gravity, radii
+from ..nav.rotation import (dcm_to_euler, dcm_to_quat, euler_to_dcm, mtv3, orthonormalize_t, quat_mul_t,
+                            quat_normalize_t, quat_to_dcm_t, rotvec_to_dcm_t, rotvec_to_quat_t)
+from .linalg import matmul, matvec
+from .model import BA, BG, PHI, R, SA, SG, V, build_F, process_noise, propagate
+from .updates import kalman_update, skew_into
+
+# measurement kinds (also the innovation record's type code)
+MT_GNSS_POS, MT_GNSS_VEL, MT_ZUPT, MT_ZARU, MT_NHC, MT_ODOM, MT_COURSE = 0, 1, 2, 3, 4, 5, 6
+MEAS_NAMES = ("gnss_pos", "gnss_vel", "zupt", "zaru", "nhc", "odom", "course")
+MW = 10
+
+# config vector
+(C_NX, C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT, C_GATE1, C_GATE2, C_GATE3) = range(10)
+C_ARW2 = 10          # 3
+C_VRW2 = 13          # 3
+C_QBG = 16           # 3
+C_QBA = 19           # 3
+C_ITG = 22           # 3
+C_ITA = 25           # 3
+C_SFG = 28           # sigma^2 tau_c of gyro scale factor + misalignment
+C_SFA = 29
+C_LEVER = 30         # 3
+C_REJ_RUN = 33
+C_ADAPT_THR = 34     # 0: off
+C_ADAPT_N = 35
+C_SMOOTH_DT = 36     # > 0: store smoother epochs at least this often
+C_ZUPT_MAXV = 37
+C_NHC_AX0 = 38
+C_NHC_AX1 = 39
+C_HEAD_MINSPEED = 40
+C_QMAX = 41
+C_ODOM_LEVER = 42    # reserved
+CV_SIZE = 45
+
+# filter scalars
+F_BG, F_BA, F_SG, F_SA = 0, 3, 6, 9
+F_QSCALE = 12
+F_ACC_T = 13
+F_ACC_DV = 14        # 3
+F_ACC_DTH = 17       # 3
+F_W = 20             # 3: last compensated body rate
+F_HEAD_KNOWN = 23
+F_NREJ = 24
+F_TREJ0 = 25
+F_NIS_EWMA = 26
+F_NIS_N = 27
+F_T_EPOCH = 28
+F_ERR = 29
+F_ERR_T = 30
+F_RESET = 31
+F_TPREV = 32
+F_NSAMP_OUT = 33
+F_HAVE_W = 34
+F_XACC = 40          # nx: correction fed back since the last stored epoch
+FS_SIZE = 64
+
+ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
+EV_REJECTION_RUN, EV_HEADING_INIT, EV_ADAPT = 1.0, 2.0, 3.0
+
+
+@njit(cache=True)
+def _cbn_arr(st):
+    c = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            c[i, j] = st[sd.S_CBN + 3 * i + j]
+    return c
+
+
+@njit(cache=True)
+def _set_attitude(st, method, c):
+    """Write an attitude (tuple matrix) into Cbn and q together; clears their summation residues."""
+    for i in range(3):
+        for j in range(3):
+            st[sd.S_CBN + 3 * i + j] = c[i][j]
+    ca = _cbn_arr(st)
+    q = dcm_to_quat(ca)
+    for i in range(4):
+        st[sd.S_Q + i] = q[i]
+        st[sd.S_QLO + i] = 0.0
+    for i in range(9):
+        st[sd.S_CLO + i] = 0.0
+
+
+@njit(cache=True)
+def feedback(st, fs, x, nx, method):
+    """Closed loop: remove the estimated errors ``x`` from the mechanization state and the sensor
+    estimates; the error state is zero afterwards."""
+    lat, h = st[sd.S_LAT], st[sd.S_H]
+    rm, rn = radii(np.sin(lat))
+    st[sd.S_LAT] = lat - x[R + 1] / (rm + h)
+    st[sd.S_LON] = st[sd.S_LON] - x[R] / ((rn + h) * np.cos(lat))
+    st[sd.S_H] = h - x[R + 2]
+    for i in range(3):
+        st[sd.S_PLO + i] = 0.0
+        st[sd.S_VEL + i] -= x[V + i]
+        st[sd.S_VMM2 + i] -= x[V + i]       # the velocity history of the position rule moves with it
+        st[sd.S_VMM3 + i] -= x[V + i]
+        st[sd.S_VLO + i] = 0.0
+    phi = (x[PHI], x[PHI + 1], x[PHI + 2])
+    if method == sd.ATT_QUAT:
+        q = (st[sd.S_Q], st[sd.S_Q + 1], st[sd.S_Q + 2], st[sd.S_Q + 3])
+        q = quat_normalize_t(quat_mul_t(rotvec_to_quat_t(phi), q))
+        _set_attitude(st, method, quat_to_dcm_t(q))
+        for i in range(4):
+            st[sd.S_Q + i] = q[i]
+    else:
+        c = _cbn_arr(st)
+        ct = ((c[0, 0], c[0, 1], c[0, 2]), (c[1, 0], c[1, 1], c[1, 2]), (c[2, 0], c[2, 1], c[2, 2]))
+        r = rotvec_to_dcm_t(phi)
+        m = ((r[0][0] * ct[0][0] + r[0][1] * ct[1][0] + r[0][2] * ct[2][0],
+              r[0][0] * ct[0][1] + r[0][1] * ct[1][1] + r[0][2] * ct[2][1],
+              r[0][0] * ct[0][2] + r[0][1] * ct[1][2] + r[0][2] * ct[2][2]),
+             (r[1][0] * ct[0][0] + r[1][1] * ct[1][0] + r[1][2] * ct[2][0],
+              r[1][0] * ct[0][1] + r[1][1] * ct[1][1] + r[1][2] * ct[2][1],
+              r[1][0] * ct[0][2] + r[1][1] * ct[1][2] + r[1][2] * ct[2][2]),
+             (r[2][0] * ct[0][0] + r[2][1] * ct[1][0] + r[2][2] * ct[2][0],
+              r[2][0] * ct[0][1] + r[2][1] * ct[1][1] + r[2][2] * ct[2][1],
+              r[2][0] * ct[0][2] + r[2][1] * ct[1][2] + r[2][2] * ct[2][2]))
+        _set_attitude(st, method, orthonormalize_t(m))
+    for i in range(3):
+        fs[F_BG + i] += x[BG + i]
+        fs[F_BA + i] += x[BA + i]
+    if nx > 15:
+        for i in range(3):
+            fs[F_SG + i] += x[SG + i]
+            fs[F_SA + i] += x[SA + i]
+    for i in range(nx):
+        fs[F_XACC + i] += x[i]
+
+
+@njit(cache=True)
+def _chol_ok(P, nx):
+    """True when P is (numerically) positive definite: a Cholesky factorization succeeds."""
+    L = np.zeros((nx, nx))
+    for j in range(nx):
+        s = P[j, j]
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        if not s > 0.0:
+            return False
+        d = np.sqrt(s)
+        L[j, j] = d
+        for i in range(j + 1, nx):
+            t = P[i, j]
+            for k in range(j):
+                t -= L[i, k] * L[j, k]
+            L[i, j] = t / d
+    return True
+
+
+@njit(cache=True)
+def _health(P, nx, fs, t, full):
+    for i in range(nx):
+        for j in range(nx):
+            if not np.isfinite(P[i, j]):
+                fs[F_ERR] = ERR_NONFINITE
+                fs[F_ERR_T] = t
+                return False
+        if not P[i, i] > 0.0:
+            fs[F_ERR] = ERR_NOT_PD
+            fs[F_ERR_T] = t
+            return False
+    if full and not _chol_ok(P, nx):
+        fs[F_ERR] = ERR_NOT_PD
+        fs[F_ERR_T] = t
+        return False
+    return True
+
+
+@njit(cache=True)
+def _do_propagate(st, fs, cv, P, F, ptr, col, qd, M, FT, store):
+    """Propagate P over the accumulated time with F at the current state and the mean f, w."""
+    T = fs[F_ACC_T]
+    if T <= 0.0:
+        return
+    nx = int(cv[C_NX])
+    cbn = _cbn_arr(st)
+    f_n = np.empty(3)
+    w_b = np.empty(3)
+    for i in range(3):
+        f_n[i] = fs[F_ACC_DV + i] / T
+        w_b[i] = fs[F_ACC_DTH + i] / T
+        fs[F_W + i] = w_b[i]
+    fs[F_HAVE_W] = 1.0
+    f_b = mtv3(cbn, f_n)
+    vel = np.array([st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2]])
+    lat, h = st[sd.S_LAT], st[sd.S_H]
+    build_F(F, nx, cbn, vel, lat, h, f_n, w_b, f_b, cv[C_ITG:C_ITG + 3], cv[C_ITA:C_ITA + 3])
+    g = gravity(np.sin(lat), h)
+    w2 = w_b[0] * w_b[0] + w_b[1] * w_b[1] + w_b[2] * w_b[2]
+    fd2 = f_n[0] * f_n[0] + f_n[1] * f_n[1] + (f_n[2] - g) * (f_n[2] - g)
+    process_noise(qd, nx, cbn, T, fs[F_QSCALE], cv[C_ARW2:C_ARW2 + 3], cv[C_VRW2:C_VRW2 + 3],
+                  cv[C_QBG:C_QBG + 3], cv[C_QBA:C_QBA + 3], cv[C_SFG] * w2, cv[C_SFA] * fd2)
+    propagate(P, F, ptr, col, nx, T, qd, M)
+    if store:
+        for i in range(nx):
+            for p in range(ptr[i], ptr[i + 1]):
+                c = col[p]
+                FT[i, c] += F[i, c] * T
+    fs[F_ACC_T] = 0.0
+    for i in range(3):
+        fs[F_ACC_DV + i] = 0.0
+        fs[F_ACC_DTH + i] = 0.0
+
+
+@njit(cache=True)
+def _close(st, fs, sums, order, method, t_end, cflu, events, n_ev):
+    """Close the attitude interval at ``t_end`` with the shared mechanization step; accumulate f, w."""
+    T = t_end - st[sd.S_TSTART]
+    n_ev = sd.interval_update(st, sums, order, method, t_end, cflu, 0, events, n_ev)
+    c = _cbn_arr(st)
+    ups = sums[1]
+    alpha = sums[0]
+    for i in range(3):
+        fs[F_ACC_DV + i] += c[i, 0] * ups[0] + c[i, 1] * ups[1] + c[i, 2] * ups[2]
+        fs[F_ACC_DTH + i] += alpha[i]
+    fs[F_ACC_T] += T
+    return n_ev
+
+
+@njit(cache=True)
+def _record(inn, n_inn, t, kind, axis, z, sd_, nis, acc):
+    if n_inn < inn.shape[0]:
+        inn[n_inn, 0] = t
+        inn[n_inn, 1] = kind
+        inn[n_inn, 2] = axis
+        inn[n_inn, 3] = z
+        inn[n_inn, 4] = np.sqrt(sd_) if sd_ > 0.0 else 0.0
+        inn[n_inn, 5] = nis
+        inn[n_inn, 6] = 1.0 if acc else 0.0
+    return n_inn + 1
+
+
+@njit(cache=True)
+def _event(evs, n_evs, t, kind, a, b):
+    if n_evs < evs.shape[0]:
+        evs[n_evs, 0] = t
+        evs[n_evs, 1] = kind
+        evs[n_evs, 2] = a
+        evs[n_evs, 3] = b
+    return n_evs + 1
+
+
+@njit(cache=True)
+def _apply(row, st, fs, cv, P, inn, n_inn, evs, n_evs):
+    """Apply one measurement row at the current time (the state is at its time).  Returns counters."""
+    nx = int(cv[C_NX])
+    method = int(cv[C_METHOD])
+    kind = int(row[1])
+    t = row[0]
+    H = np.zeros((3, nx))
+    z = np.zeros(3)
+    r = np.zeros(3)
+    x = np.zeros(nx)
+    m = 3
+    axis0 = 0            # axis codes: 0 e, 1 n, 2 u, 3 x, 4 y, 5 z
+    cbn = _cbn_arr(st)
+    lat, lon, h = st[sd.S_LAT], st[sd.S_LON], st[sd.S_H]
+    vel = np.array([st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2]])
+    head_known = fs[F_HEAD_KNOWN] > 0.0
+    axes = np.array([0, 1, 2])
+    if kind == MT_COURSE:
+        if head_known or row[3] * row[3] + row[4] * row[4] < cv[C_HEAD_MINSPEED] ** 2:
+            return n_inn, n_evs
+        conv = int(cv[C_CONV])
+        rpy = dcm_to_euler(np.ascontiguousarray(cbn), conv)
+        c_new = euler_to_dcm(rpy[0], rpy[1], row[2], conv)
+        _set_attitude(st, method, ((c_new[0, 0], c_new[0, 1], c_new[0, 2]), (c_new[1, 0], c_new[1, 1], c_new[1, 2]),
+                                   (c_new[2, 0], c_new[2, 1], c_new[2, 2])))
+        st[sd.S_VEL] = row[3]
+        st[sd.S_VEL + 1] = row[4]
+        for i in range(3):
+            st[sd.S_VLO + i] = 0.0
+        for j in (PHI + 2, V, V + 1):
+            for i in range(nx):
+                P[i, j] = 0.0
+                P[j, i] = 0.0
+        P[PHI + 2, PHI + 2] = row[5] * row[5]
+        P[V, V] = row[6] * row[6]
+        P[V + 1, V + 1] = row[6] * row[6]
+        fs[F_HEAD_KNOWN] = 1.0
+        fs[F_RESET] = 1.0
+        n_evs = _event(evs, n_evs, t, EV_HEADING_INIT, (rpy[2] - row[2]), row[5])
+        return n_inn, n_evs
+    if kind == MT_GNSS_POS:
+        rm, rn = radii(np.sin(lat))
+        l_n = matvec(cbn, cv[C_LEVER:C_LEVER + 3])
+        z[0] = (lon - row[3]) * (rn + h) * np.cos(lat) + l_n[0]
+        z[1] = (lat - row[2]) * (rm + h) + l_n[1]
+        z[2] = h - row[4] + l_n[2]
+        for i in range(3):
+            H[i, R + i] = 1.0
+        skew_into(H, 0, PHI, l_n, 1.0)
+    elif kind == MT_GNSS_VEL:
+        if not head_known or fs[F_HAVE_W] == 0.0:
+            return n_inn, n_evs
+        lever = cv[C_LEVER:C_LEVER + 3]
+        w = fs[F_W:F_W + 3].copy()
+        wxl = np.array([w[1] * lever[2] - w[2] * lever[1], w[2] * lever[0] - w[0] * lever[2],
+                        w[0] * lever[1] - w[1] * lever[0]])
+        cw = matvec(cbn, wxl)
+        l_n = matvec(cbn, lever)
+        rm, rn = radii(np.sin(lat))
+        w_in = np.array([-vel[1] / (rm + h), OMEGA_IE * np.cos(lat) + vel[0] / (rn + h),
+                         OMEGA_IE * np.sin(lat) + vel[0] * np.tan(lat) / (rn + h)])
+        wl = np.array([w_in[1] * l_n[2] - w_in[2] * l_n[1], w_in[2] * l_n[0] - w_in[0] * l_n[2],
+                       w_in[0] * l_n[1] - w_in[1] * l_n[0]])
+        for i in range(3):
+            z[i] = vel[i] + cw[i] - wl[i] - row[2 + i]
+            H[i, V + i] = 1.0
+        skew_into(H, 0, PHI, cw, 1.0)
+        # -Cbn [l x] on b_g
+        for i in range(3):
+            lx = np.array([[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]])
+            for j in range(3):
+                s = 0.0
+                for k in range(3):
+                    s += cbn[i, k] * lx[k, j]
+                H[i, BG + j] = -s
+    elif kind == MT_ZUPT:
+        speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
+        if speed2 > cv[C_ZUPT_MAXV] ** 2:
+            return n_inn, n_evs
+        for i in range(3):
+            z[i] = vel[i]
+            H[i, V + i] = 1.0
+    elif kind == MT_ZARU:
+        speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
+        if speed2 > cv[C_ZUPT_MAXV] ** 2:
+            return n_inn, n_evs
+        w_ie = np.array([0.0, OMEGA_IE * np.cos(lat), OMEGA_IE * np.sin(lat)])
+        w_exp = mtv3(cbn, w_ie)
+        axis0 = 3
+        for i in range(3):
+            wc = (row[2 + i] - fs[F_BG + i]) / (1.0 + fs[F_SG + i])
+            z[i] = wc - w_exp[i]
+            H[i, BG + i] = 1.0
+            if nx > 15:
+                H[i, SG + i] = row[2 + i]
+    elif kind == MT_NHC or kind == MT_ODOM:
+        if not head_known:
+            return n_inn, n_evs
+        v_b = mtv3(cbn, vel)
+        vx = np.array([[0.0, -vel[2], vel[1]], [vel[2], 0.0, -vel[0]], [-vel[1], vel[0], 0.0]])
+        cvx = matmul(cbn.T.copy(), vx)
+        axis0 = 3
+        if kind == MT_NHC:
+            m = 2
+            axes[0] = int(cv[C_NHC_AX0])
+            axes[1] = int(cv[C_NHC_AX1])
+        for a in range(m):
+            i = axes[a]
+            z[a] = v_b[i] - (row[2 + i] if kind == MT_ODOM else 0.0)
+            for j in range(3):
+                H[a, V + j] = cbn[j, i]
+                H[a, PHI + j] = -cvx[i, j]
+    else:
+        return n_inn, n_evs
+    for a in range(m):
+        s = row[5 + axes[a]] if kind == MT_NHC else row[5 + a]
+        r[a] = s * s
+    if not head_known:
+        for i in range(nx):
+            P[i, PHI + 2] = 0.0
+            P[PHI + 2, i] = 0.0
+    gate = cv[C_GATE1 + m - 1]
+    nis, acc, sdg = kalman_update(P, nx, H, z, r, m, gate, x, False)
+    if kind == MT_GNSS_POS:
+        if acc:
+            fs[F_NREJ] = 0.0
+            if cv[C_ADAPT_THR] > 0.0:
+                a = 1.0 / cv[C_ADAPT_N]
+                fs[F_NIS_EWMA] = (1.0 - a) * fs[F_NIS_EWMA] + a * nis / m
+                fs[F_NIS_N] += 1.0
+        else:
+            if fs[F_NREJ] == 0.0:
+                fs[F_TREJ0] = t
+            fs[F_NREJ] += 1.0
+            if fs[F_NREJ] >= cv[C_REJ_RUN]:
+                n_evs = _event(evs, n_evs, t, EV_REJECTION_RUN, fs[F_TREJ0], fs[F_NREJ])
+                for i in range(3):
+                    P[R + i, R + i] += z[i] * z[i]
+                nis, acc, sdg = kalman_update(P, nx, H, z, r, m, gate, x, True)
+                fs[F_NREJ] = 0.0
+                fs[F_RESET] = 1.0
+    for a in range(m):
+        n_inn = _record(inn, n_inn, t, kind, axis0 + axes[a], z[a], sdg[a], nis, acc)
+    if acc:
+        if not head_known:
+            x[PHI + 2] = 0.0
+        feedback(st, fs, x, nx, method)
+    if (kind == MT_GNSS_POS and cv[C_ADAPT_THR] > 0.0 and fs[F_NIS_N] >= cv[C_ADAPT_N]
+            and fs[F_NIS_EWMA] > cv[C_ADAPT_THR]):
+        f = min(fs[F_NIS_EWMA], 10.0)
+        if fs[F_QSCALE] * f > cv[C_QMAX]:
+            f = max(cv[C_QMAX] / fs[F_QSCALE], 1.0)
+        if f > 1.0:
+            fs[F_QSCALE] *= f
+            for i in range(nx):
+                for j in range(nx):
+                    P[i, j] *= f
+            n_evs = _event(evs, n_evs, t, EV_ADAPT, f, fs[F_QSCALE])
+            fs[F_RESET] = 1.0
+        fs[F_NIS_EWMA] = 1.0
+        fs[F_NIS_N] = 0.0
+    return n_inn, n_evs
+
+
+@njit(cache=True)
+def _store_epoch(t, P, Pm, nx, fs, FT, ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset, n_ep):
+    if n_ep < ep_t.shape[0]:
+        ep_t[n_ep] = t
+        for i in range(nx):
+            ep_x[n_ep, i] = fs[F_XACC + i]
+            fs[F_XACC + i] = 0.0
+            for j in range(nx):
+                ep_pm[n_ep, i, j] = Pm[i, j]
+                ep_pp[n_ep, i, j] = P[i, j]
+                ep_ft[n_ep, i, j] = FT[i, j]
+                FT[i, j] = 0.0
+        ep_reset[n_ep] = fs[F_RESET]
+    fs[F_RESET] = 0.0
+    fs[F_T_EPOCH] = t
+    return n_ep + 1
+
+
+@njit(cache=True)
+def _measure_group(tm, meas, im, nm, st, fs, cv, P, F, ptr, col, qd, M, FT, Pm, inn, n_inn, evs, n_evs,
+                   ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset, n_ep, tol):
+    """Propagate P to ``tm`` and apply every row at that time; store the smoother epoch."""
+    store = cv[C_SMOOTH_DT] > 0.0
+    _do_propagate(st, fs, cv, P, F, ptr, col, qd, M, FT, store)
+    nx = int(cv[C_NX])
+    if store:
+        for i in range(nx):
+            for j in range(nx):
+                Pm[i, j] = P[i, j]
+    while im < nm and meas[im, 0] <= tm + tol:
+        n_inn, n_evs = _apply(meas[im], st, fs, cv, P, inn, n_inn, evs, n_evs)
+        im += 1
+        if not _health(P, nx, fs, tm, True):
+            return im, n_inn, n_evs, n_ep
+    if store:
+        n_ep = _store_epoch(tm, P, Pm, nx, fs, FT, ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset, n_ep)
+    return im, n_inn, n_evs, n_ep
+
+
+@njit(cache=True)
+def fuse(time, dtheta_b, dvel_b, st, fs, cv, P, meas, ptr, col, FT, cflu_arr,
+         out_t, out_pos, out_vel, out_cbn, out_cov, out_bias, inn, evs,
+         ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset):
+    """Fused navigation of the samples ``time[k]`` with the measurement rows ``meas`` (module docstring).
+
+    ``st`` is the strapdown state (:func:`sinscli.nav.strapdown.new_state`), ``fs`` the filter scalars,
+    ``cv`` the configuration vector, ``P`` the covariance (nx, nx), ``FT`` the integral of F since the
+    last smoother epoch (nx, nx; carried between blocks).  Writes output rows every ``nsub * every``
+    samples (position, velocity, Cbn, the covariance diagonal of dr and dv and the phi block, and the
+    sensor estimates), innovation records, events and smoother epochs.  Returns ``(rows, measurement
+    rows consumed, innovation records, events, epochs)``; stops early with ``fs[F_ERR]`` set when the
+    covariance turns non-finite or loses positive definiteness.
+    """
+    nx = int(cv[C_NX])
+    method = int(cv[C_METHOD])
+    order = int(cv[C_ORDER])
+    nsub = int(cv[C_NSUB])
+    per_out = nsub * int(cv[C_EVERY])
+    smooth_dt = cv[C_SMOOTH_DT]
+    store = smooth_dt > 0.0
+    cflu = ((cflu_arr[0, 0], cflu_arr[0, 1], cflu_arr[0, 2]), (cflu_arr[1, 0], cflu_arr[1, 1], cflu_arr[1, 2]),
+            (cflu_arr[2, 0], cflu_arr[2, 1], cflu_arr[2, 2]))
+    F = np.zeros((nx, nx))
+    M = np.zeros((nx, nx))
+    qd = np.zeros((nx, nx))
+    Pm = np.zeros((nx, nx))
+    events = np.empty((1, sd.N_EVENT))
+    buf_th = np.empty((1, 3))
+    buf_dv = np.empty((1, 3))
+    n_ev = 0
+    n_out = 0
+    n_inn = 0
+    n_evs = 0
+    n_ep = 0
+    im = 0
+    nm = meas.shape[0]
+    prev_dth, prev_dv, n_prev, sums, nsub_now = sd.load_fast(st)
+    for k in range(time.shape[0]):
+        tk = time[k]
+        t0s = fs[F_TPREV]
+        dt = tk - t0s
+        tol = 1e-6 * dt
+        for i in range(3):
+            buf_th[0, i] = (dtheta_b[k, i] - fs[F_BG + i] * dt) / (1.0 + fs[F_SG + i])
+            buf_dv[0, i] = (dvel_b[k, i] - fs[F_BA + i] * dt) / (1.0 + fs[F_SA + i])
+        th_full = (buf_th[0, 0], buf_th[0, 1], buf_th[0, 2])
+        dv_full = (buf_dv[0, 0], buf_dv[0, 1], buf_dv[0, 2])
+        frac = 0.0
+        # measurements strictly inside the interval: split the increments at their time
+        while im < nm and meas[im, 0] < tk - tol:
+            tm = meas[im, 0]
+            if tm <= t0s + tol:          # before the navigation start: not used
+                im += 1
+                continue
+            a = (tm - t0s) / dt
+            for i in range(3):
+                buf_th[0, i] = th_full[i] * (a - frac)
+                buf_dv[0, i] = dv_full[i] * (a - frac)
+            sums, n_prev = sd.fast_sample(buf_th, buf_dv, 0, sums, prev_dth, prev_dv, n_prev, order)
+            n_ev = _close(st, fs, sums, order, method, tm, cflu, events, n_ev)
+            z3 = (0.0, 0.0, 0.0)
+            sums = (z3, z3, z3, z3)
+            nsub_now = 0
+            frac = a
+            im, n_inn, n_evs, n_ep = _measure_group(tm, meas, im, nm, st, fs, cv, P, F, ptr, col, qd, M, FT, Pm,
+                                                    inn, n_inn, evs, n_evs, ep_t, ep_pm, ep_pp, ep_ft, ep_x,
+                                                    ep_reset, n_ep, tol)
+            if fs[F_ERR] != 0.0:
+                sd.save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now)
+                return n_out, im, n_inn, n_evs, n_ep
+        for i in range(3):
+            buf_th[0, i] = th_full[i] * (1.0 - frac)
+            buf_dv[0, i] = dv_full[i] * (1.0 - frac)
+        sums, n_prev = sd.fast_sample(buf_th, buf_dv, 0, sums, prev_dth, prev_dv, n_prev, order)
+        nsub_now += 1
+        fs[F_TPREV] = tk
+        fs[F_NSAMP_OUT] += 1.0
+        due = im < nm and meas[im, 0] <= tk + tol
+        if nsub_now < nsub and not due:
+            continue
+        n_ev = _close(st, fs, sums, order, method, tk, cflu, events, n_ev)
+        z3 = (0.0, 0.0, 0.0)
+        sums = (z3, z3, z3, z3)
+        nsub_now = 0
+        if due:
+            im, n_inn, n_evs, n_ep = _measure_group(tk, meas, im, nm, st, fs, cv, P, F, ptr, col, qd, M, FT, Pm,
+                                                    inn, n_inn, evs, n_evs, ep_t, ep_pm, ep_pp, ep_ft, ep_x,
+                                                    ep_reset, n_ep, tol)
+            if fs[F_ERR] != 0.0:
+                break
+        elif fs[F_ACC_T] >= cv[C_PROP_DT] * (1.0 - 1e-9):
+            _do_propagate(st, fs, cv, P, F, ptr, col, qd, M, FT, store)
+            if not _health(P, nx, fs, tk, False):
+                break
+            if store and tk - fs[F_T_EPOCH] >= smooth_dt * (1.0 - 1e-9):
+                for i in range(nx):
+                    for j in range(nx):
+                        Pm[i, j] = P[i, j]
+                n_ep = _store_epoch(tk, P, Pm, nx, fs, FT, ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset, n_ep)
+        if fs[F_NSAMP_OUT] >= per_out and n_out < out_t.shape[0]:
+            fs[F_NSAMP_OUT] = 0.0
+            out_t[n_out] = tk
+            out_pos[n_out, 0] = st[sd.S_LAT]
+            out_pos[n_out, 1] = st[sd.S_LON]
+            out_pos[n_out, 2] = st[sd.S_H]
+            for i in range(3):
+                out_vel[n_out, i] = st[sd.S_VEL + i]
+                for j in range(3):
+                    out_cbn[n_out, i, j] = st[sd.S_CBN + 3 * i + j]
+                out_cov[n_out, i] = P[R + i, R + i]
+                out_cov[n_out, 3 + i] = P[V + i, V + i]
+                out_cov[n_out, 6 + i] = P[PHI + i, PHI + i]
+            out_cov[n_out, 9] = P[PHI, PHI + 1]
+            out_cov[n_out, 10] = P[PHI, PHI + 2]
+            out_cov[n_out, 11] = P[PHI + 1, PHI + 2]
+            for i in range(12):
+                out_bias[n_out, i] = fs[i]
+            for i in range(3):
+                out_bias[n_out, 12 + i] = P[BG + i, BG + i]
+                out_bias[n_out, 15 + i] = P[BA + i, BA + i]
+                if nx > 15:
+                    out_bias[n_out, 18 + i] = P[SG + i, SG + i]
+                    out_bias[n_out, 21 + i] = P[SA + i, SA + i]
+            n_out += 1
+    sd.save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now)
+    return n_out, im, n_inn, n_evs, n_ep

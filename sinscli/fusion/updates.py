@@ -1,0 +1,100 @@
+"""Measurement updates of the error-state filter: the models (H, innovation) and one safe update.
+
+Innovations are "computed minus measured", so that ``z = H x + noise`` with ``x`` the error state of
+:mod:`sinscli.fusion.model` (computed minus true).  Models (Groves 14.3, KF-GINS):
+
+* GNSS position of the antenna at the lever arm ``l^b``: ``z = r_c + Cbn l - r_gnss`` (ENU metres,
+  the latitude/longitude difference scaled by the radii), ``H = [I, 0, [(Cbn l) x], 0 ...]``;
+* GNSS velocity of the antenna: ``v_ant = v + Cbn (w_ib^b x l) - w_in^n x (Cbn l)``,
+  ``H = [0, I, [(Cbn (w x l)) x], -Cbn [l x], 0 ...]``;
+* ZUPT: ``z = v_c``, ``H = [0, I, 0 ...]``; ZARU: ``z = w_c - Cbn^T w_ie^n``, ``H = [.., I (b_g), ..]``;
+* body velocity (odometry, NHC on the lateral and vertical axes): ``v^b = Cbn^T v``,
+  ``z = v^b_c - v^b_meas``, ``H = [0, Cbn^T, -Cbn^T [v x], 0 ...]`` (rows of the constrained axes).
+
+:func:`kalman_update` gates on the normalized innovation squared of the whole vector, then updates in
+Joseph form ``P = (I - K H) P (I - K H)^T + K R K^T`` (kept symmetric).
+"""
+import numpy as np
+from numba import njit
+
+from .linalg import inv_small, matmul
+
+
+@njit(cache=True)
+def kalman_update(P, nx, H, z, r, m, gate, x, force):
+    """One measurement of ``m`` (<= 3) components with diagonal noise ``r`` (variances).
+
+    Returns ``(nis, accepted, S_diag)``: the normalized innovation squared ``z^T S^-1 z``; when it is
+    under ``gate`` (or ``force``) the error estimate ``x = K z`` is written and P updated in Joseph
+    form; ``S_diag`` (m,) are the innovation variances.
+    """
+    PHt = np.zeros((nx, 3))
+    for i in range(nx):
+        for a in range(m):
+            s = 0.0
+            for j in range(nx):
+                s += P[i, j] * H[a, j]
+            PHt[i, a] = s
+    S = np.zeros((3, 3))
+    for a in range(m):
+        for b in range(m):
+            s = 0.0
+            for j in range(nx):
+                s += H[a, j] * PHt[j, b]
+            S[a, b] = s
+        S[a, a] += r[a]
+    Si = inv_small(S, m)
+    sd = np.empty(3)
+    for a in range(m):
+        sd[a] = S[a, a]
+    nis = 0.0
+    for a in range(m):
+        for b in range(m):
+            nis += z[a] * Si[a, b] * z[b]
+    if not (nis < gate or force) or not np.isfinite(nis):
+        return nis, False, sd
+    K = matmul(PHt[:, :m].copy(), Si)           # (nx, m)
+    for i in range(nx):
+        s = 0.0
+        for a in range(m):
+            s += K[i, a] * z[a]
+        x[i] = s
+    # Joseph form: A = (I - K H) P = P - K PHt^T; P' = A - (A H^T) K^T + K R K^T
+    A = P.copy()
+    for i in range(nx):
+        for j in range(nx):
+            s = 0.0
+            for a in range(m):
+                s += K[i, a] * PHt[j, a]
+            A[i, j] -= s
+    AHt = np.zeros((nx, 3))
+    for i in range(nx):
+        for a in range(m):
+            s = 0.0
+            for j in range(nx):
+                s += A[i, j] * H[a, j]
+            AHt[i, a] = s
+    for i in range(nx):
+        for j in range(i, nx):
+            s = A[i, j]
+            for a in range(m):
+                s += -AHt[i, a] * K[j, a] + K[i, a] * r[a] * K[j, a]
+            if j != i:
+                s2 = A[j, i]
+                for a in range(m):
+                    s2 += -AHt[j, a] * K[i, a] + K[j, a] * r[a] * K[i, a]
+                s = 0.5 * (s + s2)
+            P[i, j] = s
+            P[j, i] = s
+    return nis, True, sd
+
+
+@njit(cache=True)
+def skew_into(H, row0, col0, v, sign):
+    """Write ``sign [v x]`` into ``H[row0:row0+3, col0:col0+3]``."""
+    H[row0 + 0, col0 + 1] = -sign * v[2]
+    H[row0 + 0, col0 + 2] = sign * v[1]
+    H[row0 + 1, col0 + 0] = sign * v[2]
+    H[row0 + 1, col0 + 2] = -sign * v[0]
+    H[row0 + 2, col0 + 0] = -sign * v[1]
+    H[row0 + 2, col0 + 1] = sign * v[0]
