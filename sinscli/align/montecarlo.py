@@ -9,7 +9,8 @@ time, both of the estimate of the start attitude ``Cbn(0)`` (what the
 attitude-determination method solves for, and where the roll window acts)
 and of the current attitude ``Cbn(t)`` (what navigation starts from).
 Statistics at the end are compared with the static-base limits of
-:mod:`.observability`.
+:mod:`.observability`, and the error of the state each run writes with the
+1-sigma it reports (:meth:`McResult.sigma_rows`, :class:`Coverage`).
 
 For studies spread over workers (``sins align --monte-carlo N --scheduler``,
 :mod:`sinscli.report.mc_study`) the work is split: :func:`plan_monte_carlo`
@@ -51,6 +52,11 @@ class RunErrors:
     end_current: np.ndarray            # (3,) at the end of the interval
     end_start: np.ndarray | None       # (3,)
     start_at_window: np.ndarray | None  # (3,) start-attitude error at the end of the roll window
+    # the state the alignment writes: its error and the 1-sigma it reports (None in job files from before)
+    state: np.ndarray | None = None        # (3,) error of the written state (its epoch: end or start)
+    sigma: np.ndarray | None = None        # (3,) reported 1-sigma (heading nan when not reported)
+    sigma_floor: np.ndarray | None = None  # (3,) the method's noise-only floor
+    state_time: np.ndarray | None = None   # () s, the state's time (log time)
 
 
 @dataclass
@@ -68,6 +74,7 @@ class VariantErrors:
     end_start: np.ndarray | None = None
     start_at_window: np.ndarray | None = None
     band: dict = field(default_factory=dict)
+    coverage: Coverage | None = None   # every run's written state against its reported 1-sigma
 
 
 @dataclass
@@ -109,6 +116,27 @@ class McResult:
         j = int(np.searchsorted(v.time, t_from - 1e-9))
         return _rms_change(arr[:, -1, angle], arr[:, j, angle])
 
+    def sigma_rows(self):
+        """One row per variant and angle: is the 1-sigma the alignment reports for its written state
+        borne out by the runs?  rms of the reported sigma and of the error, the fractions of runs inside
+        1 and 3 reported sigma (0.683 and 0.9973 for an honest Gaussian claim), and the rms noise-only
+        floor.  Angles without a reported sigma (a user heading) are left out."""
+        rows = []
+        for v in self.variants.values():
+            c = v.coverage
+            if c is None or c.err.shape[0] == 0:
+                continue
+            in1, in3 = c.inside(1.0), c.inside(3.0)
+            for i, ang in enumerate(("roll", "pitch", "heading")):
+                if not np.isfinite(c.sigma[:, i]).all():
+                    continue
+                rows.append({"variant": v.name, "angle": ang, "runs": int(c.err.shape[0]),
+                             "sigma_rms_deg": float(np.sqrt((c.sigma[:, i] ** 2).mean())),
+                             "error_rms_deg": float(np.sqrt((c.err[:, i] ** 2).mean())),
+                             "inside_1sigma": float(in1[i]), "inside_3sigma": float(in3[i]),
+                             "floor_rms_deg": float(np.sqrt((c.floor[:, i] ** 2).mean()))})
+        return rows
+
 
 def _rms_change(end: np.ndarray, at: np.ndarray) -> float:
     return float(np.sqrt(((end - at) ** 2).mean()))
@@ -120,6 +148,12 @@ def _euler_err(est, truth, conv):
     e[..., 2] = (e[..., 2] + 180.0) % 360.0 - 180.0
     e[..., 0] = (e[..., 0] + 180.0) % 360.0 - 180.0
     return e
+
+
+def _state_error(res, truth, conv) -> np.ndarray:
+    """(3,) deg: roll, pitch, heading error (estimate - truth) of the state an alignment writes."""
+    k = int(np.argmin(np.abs(truth.time - res.state.time)))
+    return _euler_err(res.state.Cbn[None], truth.Cbn[k][None], conv)[0]
 
 
 def sensor_budget(sensor: dict):
@@ -244,9 +278,12 @@ def run_seed(plan: McPlan, runs_src: ScenarioRuns, seed: int, max_epochs: int | 
             if plan.roll_window is not None:
                 at_window = start[int(np.searchsorted(t, plan.roll_window - 1e-9))].copy()
         keep = _decimate(t.shape[0], max_epochs)
+        floor = np.full(3, np.nan) if res.sigma_floor is None else np.degrees(res.sigma_floor)
         out[name] = RunErrors(time=t[keep], current=cur[keep], start=None if start is None else start[keep],
                               end_current=cur[-1].copy(), end_start=None if start is None else start[-1].copy(),
-                              start_at_window=at_window)
+                              start_at_window=at_window, state=_state_error(res, r.truth, plan.conv),
+                              sigma=np.degrees(res.sigma), sigma_floor=floor,
+                              state_time=np.array(float(res.state.time)))
     return out
 
 
@@ -277,7 +314,8 @@ class McAccumulator:
         self.plan, self.keep = plan, keep
         self.seeds: list = []
         self.acc = {name: {"t": None, "cur": [], "start": [], "end_cur": [], "end_start": [], "at_w": [],
-                           "band": {"current": _Welford(), "start": _Welford()}}
+                           "band": {"current": _Welford(), "start": _Welford()},
+                           "cov": {"err": [], "sigma": [], "floor": [], "times": [], "seeds": []}}
                     for name, _ in plan.variants}
 
     def add(self, seed: int, errs: dict) -> None:
@@ -297,6 +335,10 @@ class McAccumulator:
                 a["end_start"].append(e.end_start)
             if e.start_at_window is not None:
                 a["at_w"].append(e.start_at_window)
+            if e.sigma is not None:
+                for k, v in (("err", e.state), ("sigma", e.sigma), ("floor", e.sigma_floor),
+                             ("times", float(e.state_time)), ("seeds", seed)):
+                    a["cov"][k].append(v)
 
     def result(self) -> McResult:
         plan = self.plan
@@ -305,10 +347,13 @@ class McAccumulator:
             a = self.acc[name]
             all_kept = len(a["cur"]) == len(self.seeds)
             band = {} if all_kept else {w: b.result() for w, b in a["band"].items() if b.n}
+            c = a["cov"]
             out[name] = VariantErrors(
                 name, a["t"], np.array(a["cur"]), np.array(a["start"]) if a["start"] else None,
                 end_current=np.array(a["end_cur"]), end_start=np.array(a["end_start"]) if a["end_start"] else None,
-                start_at_window=np.array(a["at_w"]) if a["at_w"] else None, band=band)
+                start_at_window=np.array(a["at_w"]) if a["at_w"] else None, band=band,
+                coverage=Coverage(*(np.array(c[k]).reshape(-1, 3) for k in ("err", "sigma", "floor")),
+                                  np.array(c["times"]), c["seeds"]) if c["seeds"] else None)
         g = float(gravity(math.sin(plan.lat), plan.h0))
         T = float(next(iter(out.values())).time[-1])
         theory = ({name: theory_limits(plan.lat, T, plan.budget, g, name.split("+")[0]) for name in out}
@@ -384,8 +429,7 @@ def coverage_runs(scenario: dict, methods, seeds, cases=("right", "absent", "opt
                 except SinsError as exc:
                     a["refused"].append((seed, str(exc).splitlines()[0]))
                     continue
-                k = int(np.argmin(np.abs(r.truth.time - res.state.time)))
-                a["err"].append(_euler_err(res.state.Cbn[None], r.truth.Cbn[k][None], sc.conv)[0])
+                a["err"].append(_state_error(res, r.truth, sc.conv))
                 a["sigma"].append(np.degrees(res.sigma))
                 a["floor"].append(np.degrees(res.sigma_floor))
                 a["times"].append(res.state.time)

@@ -10,7 +10,9 @@ runs only the missing seeds.  The client then reads the runs in seed order
 into :class:`~sinscli.align.montecarlo.McAccumulator`, so the report is the
 same whichever back end ran them, and writes:
 
-``summary.csv``, ``summary.md``   end errors per variant: mean, std, rms, static-base theory
+``summary.csv``, ``summary.md``   end errors per variant: mean, std, rms, static-base theory; and
+                                  the reported 1-sigma against the errors of the written states
+``sigma.csv``                     that check: rms sigma and error, runs inside 1 and 3 sigma
 ``runs.csv``                      every run's end errors (current attitude)
 ``results.parquet``               every run x variant (partitioned by variant as ``method``)
 ``stats.csv``, ``stats.md``       mean, std, rms, percentiles, extremes of the end errors per variant
@@ -47,6 +49,10 @@ PER_RUN_MAX = 20          # runs drawn one by one (and series kept whole) up to 
 SERIES_EPOCHS = 100       # epochs of each run's series kept in a larger study
 ANGLES = ("roll", "pitch", "heading")
 END_QUANTITIES = [f"{w}_{a}" for w in ("current", "start") for a in ANGLES]
+RUN_ARRAYS = ("time", "current", "start", "end_current", "end_start", "start_at_window", "state", "sigma",
+              "sigma_floor", "state_time")       # the RunErrors fields a job file holds
+SIGMA_COLUMNS = ["variant", "angle", "runs", "sigma_rms_deg", "error_rms_deg", "inside_1sigma", "inside_3sigma",
+                 "floor_rms_deg"]
 
 _RUNS: dict = {}          # per worker process: (path, digest) -> ScenarioRuns
 
@@ -80,7 +86,7 @@ def mc_task(plan, digest: str, seed: int, max_epochs: int | None) -> list[tuple]
         return [(mc_key(seed), dict(meta, ok=False, error=describe(exc)), {})]
     arrays = {}
     for name, e in errs.items():
-        for attr in ("time", "current", "start", "end_current", "end_start", "start_at_window"):
+        for attr in RUN_ARRAYS:
             v = getattr(e, attr)
             if v is not None:
                 arrays[f"{name}:{attr}"] = v
@@ -88,9 +94,7 @@ def mc_task(plan, digest: str, seed: int, max_epochs: int | None) -> list[tuple]
 
 
 def _run_errors(plan, arrays) -> dict:
-    return {name: mcmod.RunErrors(**{a: arrays.get(f"{name}:{a}") for a in
-                                     ("time", "current", "start", "end_current", "end_start", "start_at_window")})
-            for name, _ in plan.variants}
+    return {name: mcmod.RunErrors(**{a: arrays.get(f"{name}:{a}") for a in RUN_ARRAYS}) for name, _ in plan.variants}
 
 
 @dataclass
@@ -172,7 +176,8 @@ def write_mc_report(outdir: Path, plan, store: JobStore, failed: dict, keep: int
     timing = []
     schema = pa.schema([("seed", pa.int64()), ("status", pa.string()), ("error", pa.string()),
                         ("seconds", pa.float64()), ("host", pa.string())]
-                       + [(q, pa.float64()) for q in END_QUANTITIES + [f"start_at_window_{a}" for a in ANGLES]])
+                       + [(q, pa.float64()) for q in END_QUANTITIES + [f"{w}_{a}" for w in ("start_at_window", "state",
+                                                                                              "sigma") for a in ANGLES]])
     with ResultsWriter(outdir / "results.parquet", schema) as parquet:
         for s in plan.seeds:
             if s in failed or not store.done(mc_key(s)):
@@ -189,14 +194,17 @@ def write_mc_report(outdir: Path, plan, store: JobStore, failed: dict, keep: int
                 for w, end in (("current", e.end_current), ("start", e.end_start)):
                     for i, a in enumerate(ANGLES):
                         row[f"{w}_{a}"] = None if end is None else float(end[i])
+                for w in ("start_at_window", "state", "sigma"):
+                    v = getattr(e, w)
+                    row.update({f"{w}_{a}": None if v is None or not np.isfinite(v[i]) else float(v[i])
+                                for i, a in enumerate(ANGLES)})
                 parquet.add({**row, "status": "ok", "error": "", "seconds": float(meta["seconds"]),
-                             "host": meta["host"],
-                             **{f"start_at_window_{a}": None if e.start_at_window is None else
-                                float(e.start_at_window[i]) for i, a in enumerate(ANGLES)}})
+                             "host": meta["host"]})
     if not acc.seeds:
         raise SinsError(f"every run failed (seed {plan.seeds[0]}: {failed.get(plan.seeds[0], 'not run')})")
     mc = acc.result()
-    files = ["summary.csv", "summary.md", "runs.csv", "stats.csv", "stats.md", "timing.csv", "results.parquet"]
+    files = ["summary.csv", "summary.md", "sigma.csv", "runs.csv", "stats.csv", "stats.md", "timing.csv",
+             "results.parquet"]
     summary = mc.summary_rows()
     cols = ["variant", "attitude", "angle", "mean_deg", "std_deg", "rms_deg", "theory_deg"]
     _csv(outdir / "summary.csv", [",".join(cols)] + [",".join(_cell(r[c]) for c in cols) for r in summary])
@@ -214,6 +222,16 @@ def write_mc_report(outdir: Path, plan, store: JobStore, failed: dict, keep: int
                 md.append("")
                 md.append(f"{name}: rms change of the start-attitude roll error from {mc.roll_window:g} s to the end: "
                           f"{mc.drift(name, mc.roll_window):.3g} deg")
+    sigma_rows = mc.sigma_rows()
+    _csv(outdir / "sigma.csv", [",".join(SIGMA_COLUMNS)] + [",".join(_cell(r[c]) for c in SIGMA_COLUMNS)
+                                                            for r in sigma_rows])
+    if sigma_rows:
+        md += ["", "The 1-sigma each run reports for the state it writes, against that state's error (degrees; "
+               "an honest Gaussian claim has 0.683 of the runs inside 1 sigma and 0.9973 inside 3 sigma):", "",
+               "| variant | angle | rms sigma | rms error | inside 1 sigma | inside 3 sigma | noise floor |",
+               "|---|---|---|---|---|---|---|"]
+        md += [f"| {r['variant']} | {r['angle']} | {r['sigma_rms_deg']:.3g} | {r['error_rms_deg']:.3g} | "
+               f"{r['inside_1sigma']:.3f} | {r['inside_3sigma']:.3f} | {r['floor_rms_deg']:.3g} |" for r in sigma_rows]
     if failed:
         md += ["", f"{len(failed)} run(s) failed and are left out:"] + [f"- seed {s}: {e}" for s, e in
                                                                         sorted(failed.items())]
@@ -241,6 +259,8 @@ def write_mc_report(outdir: Path, plan, store: JobStore, failed: dict, keep: int
     summary_html = simple_table_html(cols, [[r[c] for c in cols] for r in summary])
     write_summary_html(outdir / "index.html", f"Monte Carlo: {mc.scenario}",
                        [("End errors (deg) against the static-base theory", summary_html),
+                        ("The reported 1-sigma against the errors (deg)",
+                         simple_table_html(SIGMA_COLUMNS, [[r[c] for c in SIGMA_COLUMNS] for r in sigma_rows])),
                         ("Statistics over the runs", stats_html(stats, "variant", labels)),
                         ("Figures", "\n".join(f"<p><img src=\"{f}\" alt=\"{f}\"></p>" for f in figs)),
                         ("Files", "<p>" + ", ".join(f"<a href=\"{f}\">{f}</a>" for f in files) + "</p>")],
