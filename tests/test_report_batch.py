@@ -40,8 +40,8 @@ def test_good_batch_loads(tmp_path):
     assert spec.methods[1].navigation["dcm_variant"] == "seed000"
     assert spec.methods[1].navigation["subsamples"] == 1          # defaults filled in
     assert spec.seeds == [0, 1, 2]
-    # 3 seeds of the scenario + 1 files dataset, each prepared once and navigated twice; 2 reports, 1 summary.
-    assert count_jobs(spec) == 4 * 3 + 2 + 1
+    # 3 seeds of the scenario + 1 files dataset, each navigated with 2 methods; 2 reports, 1 summary.
+    assert count_jobs(spec) == 4 * 2 + 2 + 1
 
 
 def test_default_method_names():
@@ -98,14 +98,17 @@ def test_shipped_batches_are_valid():
 
 
 def test_monte_carlo_table_rms_and_max():
-    from sinscli.report.batch import monte_carlo_table
-    from sinscli.report.errors import ROWS, ErrorTable
+    import pandas as pd
+
+    from sinscli.report.batch_report import mc_table
+    from sinscli.report.errors import ROW_UNITS, ROWS
+    from sinscli.report.stats import row_statistics
     vals = np.zeros((len(ROWS), 4))
     pos_e, max_att = ROWS.index("pos_E"), ROWS.index("max_att_deg")
     vals[pos_e] = [3.0, -4.0, 1.0, 1.0]          # a#s0, a#s1, b#s0, b#s1
     vals[max_att] = [0.1, 0.3, 0.2, 0.05]
-    table = ErrorTable(epoch=1.0, methods=["a#s0", "a#s1", "b#s0", "b#s1"], values=vals)
-    mc = monte_carlo_table([("a", None), ("a", None), ("b", None), ("b", None)], table)
+    frame = pd.DataFrame({"method": ["a", "a", "b", "b"], **{r: vals[i] for i, r in enumerate(ROWS)}})
+    mc = mc_table(row_statistics(frame, "method", ROWS, ROW_UNITS), 1.0)
     assert mc.methods == ["a", "b"]
     np.testing.assert_allclose(mc.values[pos_e], [np.sqrt(12.5), 1.0], rtol=1e-15)
     np.testing.assert_allclose(mc.values[max_att], [0.3, 0.2], rtol=0)

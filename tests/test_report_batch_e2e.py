@@ -40,8 +40,11 @@ def test_batch_end_to_end_with_a_failing_job(tmp_path):
     assert r.exit_code == 1, r.output
     assert "job broken/quat2 failed" in r.output and "broken/imu.csv" in r.output
 
-    for f in ("imu.csv", "truth.csv", "init.yaml", "gnss.csv"):
-        assert (out / "tiny" / "data" / f).exists(), f
+    # the simulated data stay on the worker (sins simulate reproduces them); each finished job's result
+    # is kept under jobs/, a failed job has none (--resume runs it again)
+    assert not (out / "tiny" / "data").exists()
+    assert (out / "jobs" / "tiny" / "quat2" / "data.npz").exists()
+    assert not (out / "jobs" / "broken").exists()
     with open(out / "tiny" / "errors.csv", newline="") as fh:
         rows = {row[0]: row[2:] for row in csv.reader(fh)}
     assert rows["quantity"] == ["quat2", "dcm000"]

@@ -19,7 +19,7 @@ from sinscli.io.trajectory import write_trajectory
 from sinscli.nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef
 from sinscli.nav.rotation import dcm_to_euler_many, euler_to_dcm_many, level_heading_frame, rotvec_to_dcm
 from sinscli.report.errors import CONSISTENCY_ROWS, build_consistency, compare_trajectories
-from sinscli.report.figures import _line_plot, _sigma_of
+from sinscli.report.figures import _line_plot, series_lines
 from sinscli.types import Trajectory
 
 SINS = Path(sys.executable).with_name("sins")
@@ -123,7 +123,7 @@ def test_bands_are_drawn_only_for_runs_with_sigma():
                                                               truth.vel_n, truth.Cbn))}
     assert series["honest"].has_sigma and not series["plain"].has_sigma
     ax = Figure().add_subplot()
-    _line_plot(ax, series, lambda s: s.pos_enu_m[:, 0], _sigma_of("pos_std_m", 0))
+    _line_plot(ax, {name: series_lines(s) for name, s in series.items()}, "pos_e")
     bands = [c for c in ax.collections if isinstance(c, PolyCollection)]
     assert len(bands) == 1                                # one +-3 sigma band, for the run with sigmas
     ylo, yhi = bands[0].get_paths()[0].vertices[:, 1].min(), bands[0].get_paths()[0].vertices[:, 1].max()
@@ -131,3 +131,33 @@ def test_bands_are_drawn_only_for_runs_with_sigma():
     labels = [ln.get_label() for ln in ax.get_lines()]
     assert labels.count("honest +-1 sigma") == 1 and "plain" in labels
     assert build_consistency({"plain": series["plain"]}) is None
+
+
+def test_a_batch_job_file_carries_the_sigma_report(tmp_path):
+    """What a batch job sends back and stores under DIR/jobs/ (the run's digest as flat arrays in a .npz)
+    gives the same report, byte for byte, as the single compare: consistency rows, sigma columns and bands."""
+    import filecmp
+
+    from sinscli.report.digest import SeriesDigest, digest
+    from sinscli.report.errors import build_table
+    from sinscli.report.report import write_report, write_report_files
+
+    truth = _truth(3000)
+    series = {"honest": compare_trajectories(truth, _nav(truth, 1.0, seed=5)),
+              "plain": compare_trajectories(truth, Trajectory(truth.time, truth.lat, truth.lon, truth.height,
+                                                              truth.vel_n, truth.Cbn))}
+    write_report(tmp_path / "single", series, "t", timeseries_every=7)
+    digests = {}
+    for name, s in series.items():
+        np.savez(tmp_path / f"{name}.npz", **digest(s, 7).arrays())
+        with np.load(tmp_path / f"{name}.npz", allow_pickle=False) as z:
+            digests[name] = SeriesDigest.from_arrays({k: z[k] for k in z.files})
+    assert digests["plain"].consistency is None and "pos_e_std" not in digests["plain"].lines
+    assert list(digests["honest"].lines)[-1] == "vel_u_std"
+    (tmp_path / "batch").mkdir()
+    files = write_report_files(tmp_path / "batch", digests, build_table(series), "t")
+    assert "att_roll.png" in files
+    _, mismatch, errors = filecmp.cmpfiles(tmp_path / "single", tmp_path / "batch", files, shallow=False)
+    assert not mismatch and not errors, (mismatch, errors)
+    rows = {r[0]: r for r in csv.reader(open(tmp_path / "batch" / "errors.csv", newline=""))}
+    assert rows["nees_pos"][3] == "" and abs(float(rows["nees_pos"][2]) - 3.0) <= 5 * math.sqrt(6.0 / 3000)

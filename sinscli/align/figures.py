@@ -60,6 +60,13 @@ def plot_monte_carlo(outdir, mc) -> list[str]:
                     continue
                 for run in arr:
                     ax.plot(v.time, run[:, i], lw=0.6, alpha=0.6)
+                band = getattr(v, "band", {}).get(which)
+                if band is not None:              # a large study: the first runs' lines, every run's spread
+                    mean, std = band[0][:, i], band[1][:, i]
+                    ax.fill_between(v.time, mean - std, mean + std, color="0.5", alpha=0.3, lw=0,
+                                    label=f"mean +- 1 sigma of all {mc.runs} runs")
+                    ax.plot(v.time, mean, color="k", lw=1.2)
+                    ax.legend(fontsize=7, loc="best")
                 lim = mc.theory.get(name)
                 if lim is not None:
                     s = lim["heading" if i == 2 else "tilt"]
@@ -70,8 +77,9 @@ def plot_monte_carlo(outdir, mc) -> list[str]:
                 ax.set_ylabel(f"{ang} error (deg)")
                 ax.grid(True, alpha=0.3)
                 ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
-        fig.suptitle(f"{mc.scenario}: {ang} error of {mc.runs} runs (dashed: static-base 1-sigma limit)",
-                     fontsize=10)
+        shown = next(iter(mc.variants.values())).current.shape[0]
+        runs = f"{mc.runs} runs" if shown == mc.runs else f"{mc.runs} runs (lines: the first {shown})"
+        fig.suptitle(f"{mc.scenario}: {ang} error of {runs} (dashed: static-base 1-sigma limit)", fontsize=10)
         fig.tight_layout()
         p = outdir / f"mc_{ang}.png"
         _save(fig, p)

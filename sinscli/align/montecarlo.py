@@ -9,7 +9,18 @@ time, both of the estimate of the start attitude ``Cbn(0)`` (what the
 attitude-determination method solves for, and where the roll window acts)
 and of the current attitude ``Cbn(t)`` (what navigation starts from).
 Statistics at the end are compared with the static-base limits of
-:mod:`.observability`.  No file I/O here.
+:mod:`.observability`, and the error of the state each run writes with the
+1-sigma it reports (:meth:`McResult.sigma_rows`, :class:`Coverage`).
+
+For studies spread over workers (``sins align --monte-carlo N --scheduler``,
+:mod:`sinscli.report.mc_study`) the work is split: :func:`plan_monte_carlo`
+checks the file at the client and gives a small :class:`McPlan`; each worker
+builds the truth once (:func:`scenario_runs`) and runs seeds
+(:func:`run_seed`); the client adds the runs in seed order into a
+:class:`McAccumulator`, which keeps every run's end errors but only the
+first few runs' series (plus the per-epoch mean and spread of all) for a
+large study.  :func:`run_monte_carlo` does all of it in this process.  No
+file output here.
 """
 from __future__ import annotations
 
@@ -32,12 +43,38 @@ MC_DEFAULTS = {"runs": 100, "seed": 0, "roll_window": 10.0, "methods": []}
 
 
 @dataclass
+class RunErrors:
+    """One run's errors (deg; roll, pitch, heading) of one variant: its series against alignment time
+    (decimated for a large study) and the values the statistics use, taken at full resolution."""
+    time: np.ndarray                   # (epochs,) s since the alignment start
+    current: np.ndarray                # (epochs, 3) error of the Cbn(t) estimate
+    start: np.ndarray | None           # (epochs, 3) error of the Cbn(0) estimate, when the method has one
+    end_current: np.ndarray            # (3,) at the end of the interval
+    end_start: np.ndarray | None       # (3,)
+    start_at_window: np.ndarray | None  # (3,) start-attitude error at the end of the roll window
+    # the state the alignment writes: its error and the 1-sigma it reports (None in job files from before)
+    state: np.ndarray | None = None        # (3,) error of the written state (its epoch: end or start)
+    sigma: np.ndarray | None = None        # (3,) reported 1-sigma (heading nan when not reported)
+    sigma_floor: np.ndarray | None = None  # (3,) the method's noise-only floor
+    state_time: np.ndarray | None = None   # () s, the state's time (log time)
+
+
+@dataclass
 class VariantErrors:
-    """Errors (deg) of one variant over all runs: (runs, epochs, 3) roll, pitch, heading."""
+    """Errors (deg) of one variant over the runs.
+
+    ``current``/``start``: the series of the kept runs (all of them, or the first few of a large
+    study), (runs kept, epochs, 3); ``band``: ``{"current": (mean, std), "start": ...}`` per epoch over
+    every run when not all are kept; ``end_*`` and ``start_at_window``: (runs, 3), every run."""
     name: str
     time: np.ndarray                   # (epochs,) s since the alignment start
-    current: np.ndarray                # (runs, epochs, 3) error of Cbn(t) estimate
-    start: np.ndarray | None           # (runs, epochs, 3) error of the Cbn(0) estimate, when the method has one
+    current: np.ndarray                # (kept, epochs, 3) error of Cbn(t) estimate
+    start: np.ndarray | None           # (kept, epochs, 3) error of the Cbn(0) estimate, when the method has one
+    end_current: np.ndarray | None = None
+    end_start: np.ndarray | None = None
+    start_at_window: np.ndarray | None = None
+    band: dict = field(default_factory=dict)
+    coverage: Coverage | None = None   # every run's written state against its reported 1-sigma
 
 
 @dataclass
@@ -54,10 +91,9 @@ class McResult:
         """One row per variant and angle: mean, std and rms at the end (current and start attitude), theory."""
         rows = []
         for v in self.variants.values():
-            for which, arr in (("current", v.current), ("start", v.start)):
-                if arr is None:
+            for which, end in (("current", v.end_current), ("start", v.end_start)):
+                if end is None:
                     continue
-                end = arr[:, -1, :]
                 for i, ang in enumerate(("roll", "pitch", "heading")):
                     lim = self.theory.get(v.name)
                     th = None if lim is None else lim["heading" if i == 2 else "tilt"]
@@ -68,11 +104,42 @@ class McResult:
         return rows
 
     def drift(self, name: str, t_from: float, which: str = "start", angle: int = 0) -> float:
-        """RMS over runs of the change of an error from ``t_from`` to the end (deg)."""
+        """RMS over runs of the change of an error from ``t_from`` to the end (deg).  At the end of the
+        roll window it comes from every run; at another time from the kept series (every run when all
+        are kept)."""
         v = self.variants[name]
+        if which == "start" and v.start_at_window is not None and t_from == self.roll_window:
+            return _rms_change(v.end_start[:, angle], v.start_at_window[:, angle])
         arr = v.start if which == "start" else v.current
+        if arr.shape[0] != self.runs:
+            raise ValueError(f"drift from {t_from} s: only {arr.shape[0]} of {self.runs} runs' series are kept")
         j = int(np.searchsorted(v.time, t_from - 1e-9))
-        return float(np.sqrt(((arr[:, -1, angle] - arr[:, j, angle]) ** 2).mean()))
+        return _rms_change(arr[:, -1, angle], arr[:, j, angle])
+
+    def sigma_rows(self):
+        """One row per variant and angle: is the 1-sigma the alignment reports for its written state
+        borne out by the runs?  rms of the reported sigma and of the error, the fractions of runs inside
+        1 and 3 reported sigma (0.683 and 0.9973 for an honest Gaussian claim), and the rms noise-only
+        floor.  Angles without a reported sigma (a user heading) are left out."""
+        rows = []
+        for v in self.variants.values():
+            c = v.coverage
+            if c is None or c.err.shape[0] == 0:
+                continue
+            in1, in3 = c.inside(1.0), c.inside(3.0)
+            for i, ang in enumerate(("roll", "pitch", "heading")):
+                if not np.isfinite(c.sigma[:, i]).all():
+                    continue
+                rows.append({"variant": v.name, "angle": ang, "runs": int(c.err.shape[0]),
+                             "sigma_rms_deg": float(np.sqrt((c.sigma[:, i] ** 2).mean())),
+                             "error_rms_deg": float(np.sqrt((c.err[:, i] ** 2).mean())),
+                             "inside_1sigma": float(in1[i]), "inside_3sigma": float(in3[i]),
+                             "floor_rms_deg": float(np.sqrt((c.floor[:, i] ** 2).mean()))})
+        return rows
+
+
+def _rms_change(end: np.ndarray, at: np.ndarray) -> float:
+    return float(np.sqrt(((end - at) ** 2).mean()))
 
 
 def _euler_err(est, truth, conv):
@@ -81,6 +148,12 @@ def _euler_err(est, truth, conv):
     e[..., 2] = (e[..., 2] + 180.0) % 360.0 - 180.0
     e[..., 0] = (e[..., 0] + 180.0) % 360.0 - 180.0
     return e
+
+
+def _state_error(res, truth, conv) -> np.ndarray:
+    """(3,) deg: roll, pitch, heading error (estimate - truth) of the state an alignment writes."""
+    k = int(np.argmin(np.abs(truth.time - res.state.time)))
+    return _euler_err(res.state.Cbn[None], truth.Cbn[k][None], conv)[0]
 
 
 def sensor_budget(sensor: dict):
@@ -109,8 +182,29 @@ def theory_limits(lat, T, sb: dict, g, method: str = "inertial") -> dict:
     return {"tilt": math.degrees(tilt), "heading": math.degrees(head)}
 
 
-def run_monte_carlo(path, runs: int | None = None, seed0: int | None = None, progress=None) -> McResult:
-    """Run the Monte Carlo of an alignment scenario file (simulator scenario + ``align`` + ``monte_carlo``)."""
+@dataclass
+class McPlan:
+    """Everything the runs of a study need but the truth: small, sent to the workers."""
+    path: str                          # the alignment scenario file (read again on each worker)
+    name: str                          # the scenario's name
+    seeds: list
+    variants: list                     # [(name, roll window s or None)]
+    base_opts: object                  # AlignOptions of the scenario's align section
+    uses_gnss: dict                    # variant -> bool
+    conv: int
+    lat: float                         # rad
+    h0: float                          # m
+    budget: dict                       # sensor_budget() of the scenario's sensor
+    at_rest: bool
+    roll_window: float | None
+
+    @property
+    def runs(self) -> int:
+        return len(self.seeds)
+
+
+def plan_monte_carlo(path, runs: int | None = None, seed0: int | None = None) -> McPlan:
+    """Read and check an alignment scenario file (simulator scenario + ``align`` + ``monte_carlo``)."""
     sim_part, align_sec, sway_sec, src, base = load_align_scenario(path)
     mc = dict(MC_DEFAULTS)
     mc_sec = sim_part.pop("monte_carlo", None) or {}
@@ -140,39 +234,143 @@ def run_monte_carlo(path, runs: int | None = None, seed0: int | None = None, pro
         variants.append((f"{base_opts.method}+roll-window", rw))
     for m in mc["methods"] or []:
         variants.append((m, None))
-    runs_src = ScenarioRuns(prepared)
     at_rest = all(seg["type"] == "rest" for seg in sc.segments)
     uses_gnss = {name: name.split("+")[0] == "gnss-inertial" or (name.split("+")[0] == "kf" and not at_rest)
                  for name, _ in variants}
-    acc = {name: {"t": None, "cur": [], "start": []} for name, _ in variants}
-    seeds = [int(mc["seed"]) + k for k in range(n)]
-    for s in seeds:
-        r = runs_src.run(s)
-        for name, window in variants:
-            o = copy.copy(base_opts)
-            o.method = name.split("+")[0]
-            o.roll_window = window
-            res = align(r.imu, o, r.gnss if uses_gnss[name] else None)
-            ser = res.series
-            idx = np.searchsorted(r.truth.time, ser.time - time_tolerance(float(ser.time[0])))
-            a = acc[name]
+    return McPlan(path=str(path), name=sc.name, seeds=[int(mc["seed"]) + k for k in range(n)], variants=variants,
+                  base_opts=base_opts, uses_gnss=uses_gnss, conv=sc.conv, lat=sc.lat0, h0=sc.h0, budget=sb,
+                  at_rest=at_rest, roll_window=rw)
+
+
+def scenario_runs(plan: McPlan) -> ScenarioRuns:
+    """The exact truth of the plan's scenario (read from its file), ready for seeded runs."""
+    sim_part, _, sway_sec, src, base = load_align_scenario(plan.path)
+    sim_part.pop("monte_carlo", None)
+    return ScenarioRuns(prepare_scenario(sim_part, sway_sec, src, base))
+
+
+def _decimate(n: int, max_epochs: int | None) -> np.ndarray:
+    """Indices of at most about ``max_epochs`` evenly spaced epochs of ``n``, the last included."""
+    if max_epochs is None or n <= max_epochs:
+        return np.arange(n)
+    keep = np.arange(0, n, int(math.ceil(n / max_epochs)))
+    return keep if keep[-1] == n - 1 else np.append(keep, n - 1)
+
+
+def run_seed(plan: McPlan, runs_src: ScenarioRuns, seed: int, max_epochs: int | None = None) -> dict:
+    """Align one seeded run with every variant: variant -> :class:`RunErrors` (series decimated to
+    about ``max_epochs``; end and roll-window values at full resolution)."""
+    r = runs_src.run(seed)
+    out = {}
+    for name, window in plan.variants:
+        o = copy.copy(plan.base_opts)
+        o.method = name.split("+")[0]
+        o.roll_window = window
+        res = align(r.imu, o, r.gnss if plan.uses_gnss[name] else None)
+        ser = res.series
+        idx = np.searchsorted(r.truth.time, ser.time - time_tolerance(float(ser.time[0])))
+        t = ser.time - res.t0
+        cur = _euler_err(ser.cbn, r.truth.Cbn[idx], plan.conv)
+        start = at_window = None
+        if ser.cbn0 is not None:
+            k0 = int(np.searchsorted(r.truth.time, res.t0 - 1e-9))
+            start = _euler_err(ser.cbn0, np.broadcast_to(r.truth.Cbn[k0], ser.cbn0.shape), plan.conv)
+            if plan.roll_window is not None:
+                at_window = start[int(np.searchsorted(t, plan.roll_window - 1e-9))].copy()
+        keep = _decimate(t.shape[0], max_epochs)
+        floor = np.full(3, np.nan) if res.sigma_floor is None else np.degrees(res.sigma_floor)
+        out[name] = RunErrors(time=t[keep], current=cur[keep], start=None if start is None else start[keep],
+                              end_current=cur[-1].copy(), end_start=None if start is None else start[-1].copy(),
+                              start_at_window=at_window, state=_state_error(res, r.truth, plan.conv),
+                              sigma=np.degrees(res.sigma), sigma_floor=floor,
+                              state_time=np.array(float(res.state.time)))
+    return out
+
+
+class _Welford:
+    """Per-epoch mean and standard deviation over runs added one at a time (in seed order)."""
+
+    def __init__(self):
+        self.n, self.mean, self.m2 = 0, None, None
+
+    def add(self, x: np.ndarray) -> None:
+        self.n += 1
+        if self.mean is None:
+            self.mean, self.m2 = x.astype(float).copy(), np.zeros_like(x, dtype=float)
+            return
+        d = x - self.mean
+        self.mean += d / self.n
+        self.m2 += d * (x - self.mean)
+
+    def result(self):
+        return self.mean, np.sqrt(self.m2 / max(self.n - 1, 1))
+
+
+class McAccumulator:
+    """The runs of a study, added in seed order, into a :class:`McResult`; keeps the series of the
+    first ``keep`` runs (all with None) and the per-epoch mean and spread of every run's."""
+
+    def __init__(self, plan: McPlan, keep: int | None = None):
+        self.plan, self.keep = plan, keep
+        self.seeds: list = []
+        self.acc = {name: {"t": None, "cur": [], "start": [], "end_cur": [], "end_start": [], "at_w": [],
+                           "band": {"current": _Welford(), "start": _Welford()},
+                           "cov": {"err": [], "sigma": [], "floor": [], "times": [], "seeds": []}}
+                    for name, _ in plan.variants}
+
+    def add(self, seed: int, errs: dict) -> None:
+        self.seeds.append(seed)
+        for name, e in errs.items():
+            a = self.acc[name]
             if a["t"] is None:
-                a["t"] = ser.time - res.t0
-            a["cur"].append(_euler_err(ser.cbn, r.truth.Cbn[idx], sc.conv))
-            if ser.cbn0 is not None:
-                k0 = int(np.searchsorted(r.truth.time, res.t0 - 1e-9))
-                a["start"].append(_euler_err(ser.cbn0, np.broadcast_to(r.truth.Cbn[k0], ser.cbn0.shape), sc.conv))
+                a["t"] = e.time
+            if self.keep is None or len(a["cur"]) < self.keep:
+                a["cur"].append(e.current)
+                if e.start is not None:
+                    a["start"].append(e.start)
+            a["band"]["current"].add(e.current)
+            a["end_cur"].append(e.end_current)
+            if e.start is not None:
+                a["band"]["start"].add(e.start)
+                a["end_start"].append(e.end_start)
+            if e.start_at_window is not None:
+                a["at_w"].append(e.start_at_window)
+            if e.sigma is not None:
+                for k, v in (("err", e.state), ("sigma", e.sigma), ("floor", e.sigma_floor),
+                             ("times", float(e.state_time)), ("seeds", seed)):
+                    a["cov"][k].append(v)
+
+    def result(self) -> McResult:
+        plan = self.plan
+        out = {}
+        for name, _ in plan.variants:
+            a = self.acc[name]
+            all_kept = len(a["cur"]) == len(self.seeds)
+            band = {} if all_kept else {w: b.result() for w, b in a["band"].items() if b.n}
+            c = a["cov"]
+            out[name] = VariantErrors(
+                name, a["t"], np.array(a["cur"]), np.array(a["start"]) if a["start"] else None,
+                end_current=np.array(a["end_cur"]), end_start=np.array(a["end_start"]) if a["end_start"] else None,
+                start_at_window=np.array(a["at_w"]) if a["at_w"] else None, band=band,
+                coverage=Coverage(*(np.array(c[k]).reshape(-1, 3) for k in ("err", "sigma", "floor")),
+                                  np.array(c["times"]), c["seeds"]) if c["seeds"] else None)
+        g = float(gravity(math.sin(plan.lat), plan.h0))
+        T = float(next(iter(out.values())).time[-1])
+        theory = ({name: theory_limits(plan.lat, T, plan.budget, g, name.split("+")[0]) for name in out}
+                  if plan.at_rest else {})
+        return McResult(plan.name, len(self.seeds), list(self.seeds), out, theory, plan.roll_window)
+
+
+def run_monte_carlo(path, runs: int | None = None, seed0: int | None = None, progress=None) -> McResult:
+    """Run the Monte Carlo of an alignment scenario file in this process (every series kept)."""
+    plan = plan_monte_carlo(path, runs, seed0)
+    runs_src = scenario_runs(plan)
+    acc = McAccumulator(plan)
+    for s in plan.seeds:
+        acc.add(s, run_seed(plan, runs_src, s))
         if progress is not None:
             progress(1)
-    out = {}
-    for name, _ in variants:
-        a = acc[name]
-        out[name] = VariantErrors(name, a["t"], np.array(a["cur"]), np.array(a["start"]) if a["start"] else None)
-    lat = sc.lat0
-    g = float(gravity(math.sin(lat), sc.h0))
-    T = float(next(iter(out.values())).time[-1])
-    theory = {name: theory_limits(lat, T, sb, g, name.split("+")[0]) for name in out} if at_rest else {}
-    return McResult(sc.name, n, seeds, out, theory, rw)
+    return acc.result()
 
 
 # --------------------------------------------------------------------------- coverage of the 1-sigma
@@ -231,8 +429,7 @@ def coverage_runs(scenario: dict, methods, seeds, cases=("right", "absent", "opt
                 except SinsError as exc:
                     a["refused"].append((seed, str(exc).splitlines()[0]))
                     continue
-                k = int(np.argmin(np.abs(r.truth.time - res.state.time)))
-                a["err"].append(_euler_err(res.state.Cbn[None], r.truth.Cbn[k][None], sc.conv)[0])
+                a["err"].append(_state_error(res, r.truth, sc.conv))
                 a["sigma"].append(np.degrees(res.sigma))
                 a["floor"].append(np.degrees(res.sigma_floor))
                 a["times"].append(res.state.time)

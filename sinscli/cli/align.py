@@ -1,6 +1,8 @@
 """``sins align``: IMU (+GNSS) log -> initial state YAML; ``--monte-carlo N --scenario S``: seed 001 Figs. 1-3."""
 from __future__ import annotations
 
+import logging
+import sys
 from pathlib import Path
 
 import click
@@ -11,6 +13,7 @@ from ..io.atomic import atomic_path
 from ..io.init_state import write_init_yaml
 from ..nav.rotation import BODY_CONVENTIONS, dcm_to_euler_many
 from .base import log, main, progress, quiet_option
+from .batch_options import info_echo, interrupted_exit, scheduler_options
 
 
 def _parse_heading(value):
@@ -53,9 +56,13 @@ def _parse_heading(value):
 @click.option("--seed", type=click.IntRange(min=0), default=None, help="First seed of the Monte Carlo runs.")
 @click.option("-o", "--output", type=click.Path(path_type=Path), required=True,
               help="Initial-state YAML (or, with --monte-carlo, the output directory).")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
+              help="--monte-carlo: worker processes of the local pool (default: all cores).")
+@scheduler_options
 @quiet_option
 def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, heading, epoch, config_path, body,
-              imu_topic, gnss_topic, vel_topic, series, plot, mc_runs, scenario, seed, output, quiet):
+              imu_topic, gnss_topic, vel_topic, series, plot, mc_runs, scenario, seed, output, jobs, scheduler, resume,
+              figures, quiet):
     """Initial alignment: the attitude (and state) where navigation starts, with its 1-sigma.
 
     \b
@@ -65,12 +72,17 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
       sins align imu.csv --gnss gnss.csv --method gnss-inertial --duration 100 -o init.yaml
       sins align log.bag --gnss log.bag --config configs/align/husky.yaml -o init.yaml
       sins align --monte-carlo 100 --scenario configs/align/seed001_static.yaml -o mc
+      sins align --monte-carlo 10000 --scenario S.yaml -o mc --scheduler tcp://10.0.0.5:8786 --resume
     """
     if mc_runs is not None or scenario is not None:
         if mc_runs is None or scenario is None:
             raise SinsError("--monte-carlo N and --scenario FILE go together")
-        _monte_carlo(scenario, mc_runs, seed, output, quiet)
+        _monte_carlo(scenario, mc_runs, seed, output, quiet, jobs, scheduler, resume, figures)
         return
+    for opt, val in (("--jobs", jobs), ("--scheduler", scheduler), ("--resume", resume),
+                     ("--figures", figures != "auto")):
+        if val:
+            raise SinsError(f"{opt}: only used with --monte-carlo")
     if imu is None:
         raise SinsError("give an IMU log (or --monte-carlo N --scenario FILE)")
     from ..align.options import build_options, load_align_config, parse_position
@@ -134,48 +146,24 @@ def _write_series(path, res, eul, conv):
         write_table_csv(tmp, data)
 
 
-def _monte_carlo(scenario, runs, seed, outdir, quiet):
-    from ..align.figures import plot_monte_carlo
-    from ..align.montecarlo import run_monte_carlo
-    from ..io.csvcore import write_table_csv
+def _monte_carlo(scenario, runs, seed, outdir, quiet, jobs, scheduler, resume, figures):
+    from ..report.mc_study import run_mc_study
 
-    if outdir.exists() and not outdir.is_dir():
-        raise SinsError(f"{outdir}: exists and is not a directory (--monte-carlo writes a directory)")
-    with progress(runs, "monte carlo", quiet) as bar:
-        mc = run_monte_carlo(scenario, runs, seed, progress=bar.update)
-    outdir.mkdir(parents=True, exist_ok=True)
-    rows = mc.summary_rows()
-    cols = ["variant", "attitude", "angle", "mean_deg", "std_deg", "rms_deg", "theory_deg"]
-    with atomic_path(outdir / "summary.csv", suffix=".csv") as tmp:
-        lines = [",".join(cols)] + [",".join("" if r[c] is None else (r[c] if isinstance(r[c], str) else repr(r[c]))
-                                             for c in cols) for r in rows]
-        Path(tmp).write_text("\n".join(lines) + "\n")
-    md = [f"# Monte Carlo: {mc.scenario}, {mc.runs} runs (seeds {mc.seeds[0]}..{mc.seeds[-1]})", "",
-          "Errors at the end of the interval, degrees (estimate minus truth); theory: static-base 1-sigma.", "",
-          "| variant | attitude | angle | mean | std | rms | theory |", "|---|---|---|---|---|---|---|"]
-    for r in rows:
-        th = "" if r["theory_deg"] is None else f"{r['theory_deg']:.3g}"
-        md.append(f"| {r['variant']} | {r['attitude']} | {r['angle']} | {r['mean_deg']:.3g} | {r['std_deg']:.3g} | "
-                  f"{r['rms_deg']:.3g} | {th} |")
-    if mc.roll_window is not None:
-        base = next(iter(mc.variants))
-        for name in (base, f"{base}+roll-window"):
-            if name in mc.variants and mc.variants[name].start is not None:
-                md.append("")
-                md.append(f"{name}: rms change of the start-attitude roll error from {mc.roll_window:g} s to the end: "
-                          f"{mc.drift(name, mc.roll_window):.3g} deg")
-    with atomic_path(outdir / "summary.md", suffix=".md") as tmp:
-        Path(tmp).write_text("\n".join(md) + "\n")
-    data = {"seed": np.array(mc.seeds, dtype=float)}
-    for name, v in mc.variants.items():
-        for i, ang in enumerate(("roll", "pitch", "heading")):
-            data[f"{name}:{ang}"] = v.current[:, -1, i]
-    with atomic_path(outdir / "runs.csv", suffix=".csv") as tmp:
-        write_table_csv(tmp, data)
-    figs = plot_monte_carlo(outdir, mc)
+    def on_error(msg):
+        click.echo(f"\nsins: error: {msg}", err=True)
+
+    with interrupted_exit(), progress(runs, "monte carlo", quiet) as bar:
+        study = run_mc_study(scenario, outdir, runs, seed, jobs=jobs, scheduler=scheduler, resume=resume,
+                             figures=figures, on_progress=bar.update, on_error=on_error, on_info=info_echo(quiet),
+                             verbose=log.getEffectiveLevel() <= logging.INFO)
+    mc = study.mc
     if not quiet:
-        click.echo(f"monte carlo {mc.scenario}: {mc.runs} runs -> {outdir} (summary.csv, summary.md, runs.csv, "
-                   f"{', '.join(Path(f).name for f in figs)})", err=True)
-    for r in rows:
+        resumed = f" ({study.resumed} resumed from {outdir}/jobs, {study.ran} run)" if study.resumed else ""
+        failed = f", {len(study.failed)} failed" if study.failed else ""
+        click.echo(f"monte carlo {mc.scenario}: {mc.runs} runs{resumed}{failed} -> {outdir} "
+                   f"({', '.join(study.files)})", err=True)
+    for r in mc.summary_rows():
         if r["attitude"] == "current" and r["theory_deg"] is not None:
             log.info("%s %s: std %.3g deg, theory %.3g deg", r["variant"], r["angle"], r["std_deg"], r["theory_deg"])
+    if study.failed:
+        sys.exit(1)

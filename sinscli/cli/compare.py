@@ -8,6 +8,7 @@ import click
 
 from ..errors import SinsError
 from .base import main, progress, quiet_option
+from .batch_options import info_echo, interrupted_exit, scheduler_options, verbose
 
 BODY = {"flu": 0, "rfu": 1, "frd": 2}
 
@@ -51,7 +52,7 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
               help="Write every N-th epoch to timeseries.csv (tables and figures use all).")
 @click.option("--title", default=None, help="Report title.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
-              help="Batch: worker processes (default: all cores).")
+              help="Batch: worker processes of the local pool (default: all cores).")
 @click.option("--metrics", "metrics", default=None, metavar="ate,rpe",
               help="Trajectory metrics (evo's definitions) added to the table: ate, rpe or both. "
                    "Default: none, or ate,rpe when an input is a TUM file.")
@@ -64,15 +65,17 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
 @click.option("--rpe-pairs", type=click.Choice(["ref", "est"]), default="ref", show_default=True,
               help="Take the RPE pairs from the truth path (the same pairs for every method) or from each "
                    "trajectory (evo's default).")
+@scheduler_options
 @quiet_option
 @click.pass_context
 def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeseries_every, title, jobs,
-            metrics, align_traj, rpe_delta, rpe_unit, rpe_pairs, quiet):
+            metrics, align_traj, rpe_delta, rpe_unit, rpe_pairs, scheduler, resume, figures, quiet):
     """Compare navigation results with a truth: error tables, time series, figures, index.html.
 
     \b
       sins compare --truth truth.csv nav_quat.csv nav_dcm.csv -o report/
       sins compare configs/batch/seed000.yaml -o seed000/ --jobs 2
+      sins compare study.yaml -o out/ --scheduler tcp://10.0.0.5:8786 --resume
 
     Errors are truth minus navigation.  Exit status: 0 success; 2 bad input
     (nothing written); in batch mode 1 when some jobs failed (the others are
@@ -89,8 +92,12 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
                          ("--rpe-pairs", rpe_pairs != "ref")):
             if val:
                 raise SinsError(f"{opt}: not used with a batch file; set it in {inputs[0]}")
-        _batch(inputs[0], outdir, jobs, quiet)
+        _batch(inputs[0], outdir, jobs, scheduler, resume, figures, quiet, ctx)
         return
+    for opt, val in (("--jobs", jobs), ("--scheduler", scheduler), ("--resume", resume),
+                     ("--figures", figures != "auto")):
+        if val:
+            raise SinsError(f"{opt}: only used with a batch file (sins compare BATCH.yaml -o DIR)")
     if any(p.suffix.lower() in (".yaml", ".yml") for p in inputs):
         raise SinsError(f"{next(p for p in inputs if p.suffix.lower() in ('.yaml', '.yml'))}: a batch file "
                         "is given alone, without --truth")
@@ -161,20 +168,21 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
             click.echo(f"sins: compare: {line}", err=True)
 
 
-def _batch(batch_path, outdir, jobs, quiet):
+def _batch(batch_path, outdir, jobs, scheduler, resume, figures, quiet, ctx):
     from ..report.batch import count_jobs, load_batch, run_batch
 
     spec = load_batch(batch_path)
-    failures = []
 
     def on_error(msg):
-        failures.append(msg)
         click.echo(f"\nsins: error: {msg}", err=True)
 
-    with progress(count_jobs(spec), "batch", quiet) as bar:
-        result = run_batch(spec, outdir, jobs=jobs, on_progress=bar.update, on_error=on_error)
+    with interrupted_exit(), progress(count_jobs(spec), "batch", quiet) as bar:
+        result = run_batch(spec, outdir, jobs=jobs, on_progress=bar.update, on_error=on_error,
+                           scheduler=scheduler, resume=resume, figures=figures, on_info=info_echo(quiet),
+                           verbose=verbose(ctx))
     n_fail = len(result.failed) + len(result.report_errors)
-    click.echo(f"sins: compare: {len(result.jobs)} jobs, {len(result.failed)} failed; "
+    resumed = f" ({result.resumed} resumed from {outdir}/jobs, {result.ran} run)" if result.resumed else ""
+    click.echo(f"sins: compare: {len(result.jobs)} jobs{resumed}, {len(result.failed)} failed; "
                f"{len(result.reports)} report(s) -> {outdir}/index.html", err=True)
     if n_fail:
         sys.exit(1)

@@ -336,7 +336,14 @@ def consistency_column(s: ErrorSeries) -> np.ndarray:
 
 def build_consistency(series: dict[str, ErrorSeries]) -> ConsistencyTable | None:
     """The consistency table of the runs that carry sigma columns (None when none does)."""
-    if not any(s.has_sigma for s in series.values()):
+    return consistency_table({name: consistency_column(s) if s.has_sigma else None for name, s in series.items()})
+
+
+def consistency_table(columns: dict[str, np.ndarray | None]) -> ConsistencyTable | None:
+    """The consistency table from each method's :func:`consistency_column` (None for a run without sigma
+    columns: its cells are empty); None when no run has any (a batch's workers send the columns)."""
+    if all(c is None for c in columns.values()):
         return None
-    return ConsistencyTable(methods=list(series),
-                            values=np.stack([consistency_column(s) for s in series.values()], axis=1))
+    empty = np.full(len(CONSISTENCY_ROWS), np.nan)
+    return ConsistencyTable(methods=list(columns),
+                            values=np.stack([empty if c is None else c for c in columns.values()], axis=1))

@@ -2,7 +2,8 @@
 
 For a run that carries the navigator's own 1-sigma (an aided trajectory), its
 claim is drawn around zero: a shaded +-3 sigma band and dotted +-1 sigma lines.
-The figures only draw: every number comes from :class:`ErrorSeries`.
+The figures only draw: every number comes from :class:`ErrorSeries`, through
+:func:`series_lines` (computed on a batch's worker).
 
 Matplotlib's object API with the Agg canvas (no pyplot, no global state, safe
 in worker processes and without a display).  Long runs are drawn as a min/max
@@ -22,9 +23,9 @@ _DEG = float(np.degrees(1.0))
 
 #: Attitude figures in the order of seed 000: Fig. 1 pitch, Fig. 2 yaw (heading), Fig. 3 roll.
 ATTITUDE_FIGURES = [
-    ("att_pitch.png", 1, "Pitch error (about the horizontal right axis)"),
-    ("att_heading.png", 2, "Heading (yaw) error (about the vertical)"),
-    ("att_roll.png", 0, "Roll error (about the horizontal forward axis)"),
+    ("att_pitch.png", "att_pitch", "Pitch error (about the horizontal right axis)"),
+    ("att_heading.png", "att_heading", "Heading (yaw) error (about the vertical)"),
+    ("att_roll.png", "att_roll", "Roll error (about the horizontal forward axis)"),
 ]
 
 
@@ -46,9 +47,44 @@ def envelope(t: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS) -> tupl
     return np.concatenate([tt, t[m * per:]]), np.concatenate([yy, y[m * per:]])
 
 
-def _angle_unit(series: dict[str, ErrorSeries]) -> tuple[str, float]:
+#: The plotted quantities: line name -> (ErrorSeries attribute, column or None).
+LINE_QUANTITIES = {
+    "att_roll": ("att_rph_rad", 0), "att_pitch": ("att_rph_rad", 1), "att_heading": ("att_rph_rad", 2),
+    "att_angle": ("angle_rad", None),
+    "pos_e": ("pos_enu_m", 0), "pos_n": ("pos_enu_m", 1), "pos_u": ("pos_enu_m", 2),
+    "vel_e": ("vel_enu_mps", 0), "vel_n": ("vel_enu_mps", 1), "vel_u": ("vel_enu_mps", 2),
+}
+#: The navigator's own 1-sigma of a plotted quantity (aided runs only): line name -> (attribute, column).
+#: Its line is ``<name>_std``.
+SIGMA_QUANTITIES = {
+    "att_roll": ("att_std_rad", 0), "att_pitch": ("att_std_rad", 1), "att_heading": ("att_std_rad", 2),
+    "pos_e": ("pos_std_m", 0), "pos_n": ("pos_std_m", 1), "pos_u": ("pos_std_m", 2),
+    "vel_e": ("vel_std_mps", 0), "vel_n": ("vel_std_mps", 1), "vel_u": ("vel_std_mps", 2),
+}
+#: Every line a run may have, in their order.
+LINE_NAMES = list(LINE_QUANTITIES) + [f"{n}_std" for n in SIGMA_QUANTITIES]
+
+
+def series_lines(s: ErrorSeries, max_points: int = MAX_POINTS) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """What the figures draw of one run: the :func:`envelope` ``(t, y)`` of each of
+    :data:`LINE_QUANTITIES` (SI units, attitude in rad), and of each claimed 1-sigma of
+    :data:`SIGMA_QUANTITIES` that the run carries (``<name>_std``).  A batch computes it on the worker,
+    so only these few thousand points per line travel back."""
+    out = {}
+    for name, (attr, col) in LINE_QUANTITIES.items():
+        arr = getattr(s, attr)
+        out[name] = envelope(s.time, arr if col is None else arr[:, col], max_points)
+    for name, (attr, col) in SIGMA_QUANTITIES.items():
+        arr = getattr(s, attr)
+        if arr is not None and len(s):
+            out[f"{name}_std"] = envelope(s.time, arr[:, col], max_points)
+    return out
+
+
+def _angle_unit(lines: dict[str, dict]) -> tuple[str, float]:
     """Degrees, or arcseconds when every attitude error stays below 1 arcminute."""
-    peak = max((float(np.max(s.angle_rad)) for s in series.values() if len(s)), default=0.0)
+    peak = max((float(np.max(ln["att_angle"][1])) for ln in lines.values() if len(ln["att_angle"][1])),
+               default=0.0)
     return ("arcsec", _DEG * 3600.0) if peak * _DEG < 1.0 / 60.0 else ("deg", _DEG)
 
 
@@ -67,18 +103,27 @@ def _title(ax, title: str, what: str) -> None:
     ax.set_title(f"{short}\n{what}" if short else what, fontsize=9)
 
 
-def _line_plot(ax, series: dict[str, ErrorSeries], values, sigma=None) -> None:
+MAX_LEGEND = 20            # lines labelled in a legend; more are told apart in timeseries.csv
+
+
+def _legend(ax, n: int) -> None:
+    if n <= MAX_LEGEND:
+        ax.legend(fontsize=8)
+
+
+def _line_plot(ax, lines: dict[str, dict], quantity: str, scale: float = 1.0) -> None:
     """One line per method; line styles cycle too, so that coinciding methods stay visible.
 
-    ``sigma(s)`` (optional) gives the method's claimed 1-sigma of the same quantity, or None: it is drawn
-    as a shaded +-3 sigma band and thin +-1 sigma lines around zero, in the method's colour.
+    A method whose lines hold the claimed 1-sigma of the quantity (``<quantity>_std``) gets it drawn as a
+    shaded +-3 sigma band and thin +-1 sigma lines around zero, in the method's colour.
     """
-    for k, (name, s) in enumerate(series.items()):
-        t, y = envelope(s.time, values(s))
-        (line,) = ax.plot(t, y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name, zorder=3)
-        sd = sigma(s) if sigma is not None else None
-        if sd is not None and len(s):
-            ts, ys = envelope(s.time, sd)
+    for k, (name, ln) in enumerate(lines.items()):
+        t, y = ln[quantity]
+        (line,) = ax.plot(t, y * scale if scale != 1.0 else y, lw=1.0, ls=_STYLES[k % len(_STYLES)], label=name,
+                          zorder=3)
+        sd = ln.get(f"{quantity}_std")
+        if sd is not None:
+            ts, ys = sd[0], (sd[1] * scale if scale != 1.0 else sd[1])
             color = line.get_color()
             ax.fill_between(ts, -3.0 * ys, 3.0 * ys, color=color, alpha=0.12, lw=0, label=f"{name} +-3 sigma",
                             zorder=1)
@@ -88,66 +133,59 @@ def _line_plot(ax, series: dict[str, ErrorSeries], values, sigma=None) -> None:
     ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
 
 
-def _sigma_of(attr: str, col: int, scale: float = 1.0):
-    """``s -> s.<attr>[:, col] * scale`` or None when the run has no such sigma."""
-    def get(s):
-        arr = getattr(s, attr)
-        return None if arr is None else arr[:, col] * scale
-    return get
-
-
-def plot_attitude(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
-    """``att_pitch.png``, ``att_heading.png``, ``att_roll.png`` (Figs. 1-3) and ``att_angle.png``."""
-    unit, scale = _angle_unit(series)
+def plot_attitude(outdir, lines: dict[str, dict], title: str = "") -> list[str]:
+    """``att_pitch.png``, ``att_heading.png``, ``att_roll.png`` (Figs. 1-3) and ``att_angle.png``;
+    ``lines``: method -> :func:`series_lines`."""
+    unit, scale = _angle_unit(lines)
     names = []
-    for fname, col, label in ATTITUDE_FIGURES:
+    for fname, quantity, label in ATTITUDE_FIGURES:
         fig = Figure(figsize=(8, 4))
         ax = fig.add_subplot()
-        _line_plot(ax, series, lambda s, c=col: s.att_rph_rad[:, c] * scale, _sigma_of("att_std_rad", col, scale))
+        _line_plot(ax, lines, quantity, scale)
         ax.set_xlabel("time (s)")
         ax.set_ylabel(f"truth - navigation ({unit})")
         _title(ax, title, label)
-        ax.legend(fontsize=8)
+        _legend(ax, len(lines))
         fig.tight_layout()
         _save(fig, outdir / fname)
         names.append(fname)
     fig = Figure(figsize=(8, 4))
     ax = fig.add_subplot()
-    _line_plot(ax, series, lambda s: s.angle_rad * scale)
-    if any(np.max(s.angle_rad) > 0 for s in series.values() if len(s)):
+    _line_plot(ax, lines, "att_angle", scale)
+    if any(np.max(ln["att_angle"][1]) > 0 for ln in lines.values() if len(ln["att_angle"][1])):
         ax.set_yscale("log")                 # methods often differ by orders of magnitude
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"angle ({unit})")
     _title(ax, title, "Attitude error angle |phi| (log scale)")
-    ax.legend(fontsize=8)
+    _legend(ax, len(lines))
     fig.tight_layout()
     _save(fig, outdir / "att_angle.png")
     return names + ["att_angle.png"]
 
 
-def _three_panel(outdir, fname, series, attr, unit, what, title, std_attr=None) -> str:
+def _three_panel(outdir, fname, lines, prefix, unit, what, title) -> str:
     fig = Figure(figsize=(8, 7))
     axes = fig.subplots(3, 1, sharex=True)
-    for c, (ax, axis) in enumerate(zip(axes, ("east", "north", "up"))):
-        _line_plot(ax, series, lambda s: getattr(s, attr)[:, c], _sigma_of(std_attr, c) if std_attr else None)
+    for ax, axis in zip(axes, ("east", "north", "up")):
+        _line_plot(ax, lines, f"{prefix}_{axis[0]}")
         ax.set_ylabel(f"{axis} ({unit})")
     _title(axes[0], title, f"{what} error, truth - navigation")
-    axes[0].legend(fontsize=8)
+    _legend(axes[0], len(lines))
     axes[-1].set_xlabel("time (s)")
     fig.tight_layout()
     _save(fig, outdir / fname)
     return fname
 
 
-def plot_position_velocity(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
+def plot_position_velocity(outdir, lines: dict[str, dict], title: str = "") -> list[str]:
     """``pos_error.png`` and ``vel_error.png``: E, N, U panels, one line per method."""
-    return [_three_panel(outdir, "pos_error.png", series, "pos_enu_m", "m", "Position", title, "pos_std_m"),
-            _three_panel(outdir, "vel_error.png", series, "vel_enu_mps", "m/s", "Velocity", title, "vel_std_mps")]
+    return [_three_panel(outdir, "pos_error.png", lines, "pos", "m", "Position", title),
+            _three_panel(outdir, "vel_error.png", lines, "vel", "m/s", "Velocity", title)]
 
 
-def plot_all(outdir, series: dict[str, ErrorSeries], title: str = "") -> list[str]:
-    """Every figure of a report; returns the file names (relative to ``outdir``)."""
-    return plot_attitude(outdir, series, title) + plot_position_velocity(outdir, series, title)
+def plot_all(outdir, lines: dict[str, dict], title: str = "") -> list[str]:
+    """Every figure of a report from ``lines`` (method -> :func:`series_lines`); returns the file names."""
+    return plot_attitude(outdir, lines, title) + plot_position_velocity(outdir, lines, title)
 
 
 def plot_metrics(outdir, results: dict, title: str = "", frame: str = "") -> list[str]:

@@ -9,32 +9,34 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..io.atomic import staged_dir  # noqa: F401  (re-exported: the batch runner writes reports through it)
-from .errors import ErrorSeries, ErrorTable, build_consistency, build_table
+from .digest import SeriesDigest, digest
+from .errors import ErrorSeries, ErrorTable, build_table, consistency_table
 from .figures import plot_all, plot_metrics
 from .html import consistency_table_html, summary_html, write_report_html
 from .tables import write_errors_csv, write_errors_md, write_metric_series_csv, write_timeseries_csv
 
 
-def write_report_files(outdir: Path, series: dict[str, ErrorSeries], table: ErrorTable, title: str,
-                       timeseries_every: int = 1, notes: list[str] = (), extra_files: list[str] = (),
-                       extra_html: str = "", metrics: dict | None = None, summary: list[str] = (),
-                       frame: str = "") -> list[str]:
-    """Write the report files into ``outdir`` (an existing, usually staging, directory).
+def write_report_files(outdir: Path, digests: dict[str, SeriesDigest], table: ErrorTable, title: str,
+                       notes: list[str] = (), extra_files: list[str] = (), extra_html: str = "",
+                       metrics: dict | None = None, summary: list[str] = (), frame: str = "") -> list[str]:
+    """Write the report files into ``outdir`` (an existing, usually staging, directory) from each
+    method's :class:`~sinscli.report.digest.SeriesDigest` (the batch gets them from its workers).
 
-    ``series`` may be empty (TUM inputs: trajectory metrics alone); ``metrics``
-    (method -> :class:`~.metrics.TrajectoryMetrics`) adds ``ate.csv``,
-    ``rpe.csv`` and their figures; ``summary`` lines open errors.md and the page.
+    ``digests`` may be empty (TUM inputs: trajectory metrics alone); the runs with
+    the navigator's 1-sigma add the consistency rows; ``metrics`` (method ->
+    :class:`~.metrics.TrajectoryMetrics`) adds ``ate.csv``, ``rpe.csv`` and their
+    figures; ``summary`` lines open errors.md and the page.
     """
     outdir = Path(outdir)
-    consistency = build_consistency(series) if series else None
+    consistency = consistency_table({n: d.consistency for n, d in digests.items()}) if digests else None
     write_errors_csv(outdir / "errors.csv", table, consistency)
     write_errors_md(outdir / "errors.md", table, title, summary, consistency)
     files = ["errors.csv", "errors.md"]
     figures = []
-    if series:
-        write_timeseries_csv(outdir / "timeseries.csv", series, timeseries_every)
+    if digests:
+        write_timeseries_csv(outdir / "timeseries.csv", {n: d.timeseries for n, d in digests.items()})
         files.append("timeseries.csv")
-        figures = plot_all(outdir, series, title)
+        figures = plot_all(outdir, {n: d.lines for n, d in digests.items()}, title)
     if metrics:
         files += write_metric_series_csv(outdir, metrics)
         figures += plot_metrics(outdir, metrics, title, frame)
@@ -62,6 +64,6 @@ def write_report(outdir, series: dict[str, ErrorSeries], title: str, epoch: floa
         table = with_metric_rows(table, metrics, metric_options)
         summary = summary_lines(metrics, metric_options)
     with staged_dir(outdir) as tmp:
-        write_report_files(tmp, series, table, title, timeseries_every, notes, metrics=metrics, summary=summary,
-                           frame=frame)
+        write_report_files(tmp, {n: digest(s, timeseries_every) for n, s in series.items()}, table, title, notes,
+                           metrics=metrics, summary=summary, frame=frame)
     return table

@@ -130,35 +130,43 @@ def write_errors_md(path, table: ErrorTable, title: str = "", summary: list[str]
         tmp.write_text(text, encoding="utf-8")
 
 
-def timeseries_frame(series: dict[str, ErrorSeries], every: int = 1):
-    """Wide table on the union of epochs: ``time``, then ``<method>.<quantity>`` (empty where absent).
+def timeseries_columns(s: ErrorSeries, every: int = 1) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """One run's part of ``timeseries.csv``: every n-th epoch (plus the last) and each quantity of
+    :data:`TIMESERIES_QUANTITIES`, then of :data:`TIMESERIES_SIGMAS` when the run carries them, in its
+    unit.  A batch computes it on the worker."""
+    keep = np.arange(0, len(s), max(int(every), 1))
+    if keep[-1] != len(s) - 1:
+        keep = np.append(keep, len(s) - 1)
+    cols = {}
+    for suffix, attr, col, scale in TIMESERIES_QUANTITIES + TIMESERIES_SIGMAS:
+        arr = getattr(s, attr)
+        if arr is None:                  # no sigma columns (a navigation that is not aided)
+            continue
+        v = arr[keep] if col is None else arr[keep, col]
+        cols[suffix] = v * scale
+    return s.time[keep], cols
 
-    ``every`` keeps every n-th epoch of each run (plus its last), for long runs.
-    """
+
+def timeseries_frame(columns: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]):
+    """Wide table on the union of epochs: ``time``, then ``<method>.<quantity>`` (empty where absent);
+    ``columns``: method -> :func:`timeseries_columns`."""
     import pandas as pd
 
     cols = {}
-    for name, s in series.items():
-        keep = np.arange(0, len(s), max(int(every), 1))
-        if keep[-1] != len(s) - 1:
-            keep = np.append(keep, len(s) - 1)
-        idx = pd.Index(s.time[keep], name="time")
-        for suffix, attr, col, scale in TIMESERIES_QUANTITIES + TIMESERIES_SIGMAS:
-            arr = getattr(s, attr)
-            if arr is None:
-                continue
-            v = arr[keep] if col is None else arr[keep, col]
-            cols[f"{name}.{suffix}"] = pd.Series(v * scale, index=idx)
+    for name, (time, values) in columns.items():
+        idx = pd.Index(time, name="time")
+        for suffix, v in values.items():
+            cols[f"{name}.{suffix}"] = pd.Series(v, index=idx)
     return pd.DataFrame(cols).sort_index()
 
 
-def write_timeseries_csv(path, series: dict[str, ErrorSeries], every: int = 1) -> None:
+def write_timeseries_csv(path, columns: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]) -> None:
     """``timeseries.csv`` (see :func:`timeseries_frame`); floats in shortest round-trip form."""
-    for name, s in series.items():
-        check_finite(path, {f"{name}.{attr}": getattr(s, attr) for _, attr, _, _ in
-                            TIMESERIES_QUANTITIES + TIMESERIES_SIGMAS if getattr(s, attr) is not None}, s.time,
-                     sigmas=[f"{name}.{attr}" for _, attr, _, _ in TIMESERIES_SIGMAS])
-    frame = timeseries_frame(series, every)
+    sigma_suffixes = {suffix for suffix, _, _, _ in TIMESERIES_SIGMAS}
+    for name, (time, values) in columns.items():
+        check_finite(path, {f"{name}.{k}": v for k, v in values.items()}, time,
+                     sigmas=[f"{name}.{k}" for k in values if k in sigma_suffixes])
+    frame = timeseries_frame(columns)
     with atomic_path(path) as tmp:
         frame.to_csv(tmp, index=True, na_rep="", lineterminator="\n")
 
