@@ -6,9 +6,10 @@ reads back to the identical float64 (FORMATS.md).
 """
 from __future__ import annotations
 
+import collections
 import csv
-import io
 import os
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -86,11 +87,30 @@ def _convert_options(file_cols):
                                 strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[])
 
 
+def float_column(col) -> np.ndarray:
+    """A pyarrow float64 column (Array or ChunkedArray) as a numpy float64 array.
+
+    Without nulls each chunk is viewed in place (``np.frombuffer``): pyarrow's own ``to_numpy`` imports
+    pandas on first use, 0.15-0.3 s of every ``sins navigate``; other types and nulls go through it.
+    The result is always writable (a copy when pyarrow's buffer is not; the CSV reader's are), so the
+    numba kernels see the same array type as for logs made in memory: one compiled signature.
+    """
+    chunks = col.chunks if isinstance(col, pa.ChunkedArray) else [col]
+    parts = []
+    for c in chunks:
+        if c.type == pa.float64() and c.null_count == 0:
+            parts.append(np.frombuffer(c.buffers()[1], dtype=np.float64, count=len(c), offset=c.offset * 8))
+        else:
+            parts.append(c.to_numpy(zero_copy_only=False).astype(np.float64, copy=False))
+    out = parts[0] if len(parts) == 1 else np.concatenate(parts) if parts else np.empty(0)
+    return out if out.flags.writeable else out.copy()
+
+
 def _finite_columns(path, columns: dict[str, str], column, first_line: int) -> dict[str, np.ndarray]:
     """``{our name: float64 array}`` via ``column(file name)``; SinsError at the first NaN or infinity."""
     out = {}
     for ours, theirs in columns.items():
-        arr = column(theirs).to_numpy().astype(np.float64, copy=False)
+        arr = float_column(column(theirs))
         bad = ~np.isfinite(arr)
         if bad.any():
             k = int(np.argmax(bad))
@@ -218,40 +238,87 @@ def iter_numeric_columns(path, columns: dict[str, str], block_bytes: int = 1 << 
         raise SinsError(f"{path}: no data rows after the header")
 
 
+FORMAT_ROWS = 1 << 15          # rows per formatting task of CsvTableWriter (~17 MB of text for 26 columns)
+
+
+def writer_threads() -> int:
+    """Formatting threads of :class:`CsvTableWriter`: the CPUs this process may use, at most 4."""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        n = os.cpu_count() or 1
+    return max(1, min(4, n))
+
+
+def _format_csv(table: pa.Table, options: pacsv.WriteOptions) -> pa.Buffer:
+    """CSV text of ``table`` (no header) by pyarrow's C++ writer; it releases the GIL, so tasks run in parallel."""
+    sink = pa.BufferOutputStream()
+    pacsv.write_csv(table, sink, write_options=options)
+    return sink.getvalue()
+
+
 class CsvTableWriter:
     """Stream float64 columns to a CSV file in chunks (exact round-trip floats).
 
     Use inside :func:`sinscli.io.atomic.atomic_path`; ``write`` takes a dict of
     equally long 1-D arrays with the same keys each time.  Every chunk passes
     :func:`sinscli.io.atomic.check_finite` (``sigmas``: the 1-sigma columns, which must be positive).
+
+    Floats are formatted by pyarrow's C++ CSV writer, which writes the shortest text that reads back to
+    the identical float64 (``tests/test_io_csv_roundtrip.py`` checks hard cases and random bit
+    patterns).  Formatting runs on :func:`writer_threads` threads in slices of :data:`FORMAT_ROWS`
+    rows, while the caller computes the next chunk; the slices are written in order, and at most
+    ``2 * threads`` slices wait in memory.
     """
 
-    def __init__(self, path, columns: list[str], sigmas=()):
+    def __init__(self, path, columns: list[str], sigmas=(), threads: int | None = None):
         self.columns = list(columns)
         self.path = path
         self.sigmas = tuple(sigmas)
         self._rows = 0
+        self._threads = writer_threads() if threads is None else max(1, int(threads))
+        self._pool = ThreadPoolExecutor(self._threads, thread_name_prefix="sins-csv") if self._threads > 1 else None
+        self._pending = collections.deque()
         self._fh = open(path, "wb")
         self._fh.write((",".join(self.columns) + "\n").encode())
-        self._opts = pacsv.WriteOptions(include_header=False, quoting_style="none", batch_size=1 << 16)
+        self._opts = pacsv.WriteOptions(include_header=False, quoting_style="none", batch_size=1 << 14)
 
     def write(self, data: dict[str, np.ndarray]) -> None:
         check_finite(self.path, {c: data[c] for c in self.columns}, data.get("time"), self._rows + 1, self.sigmas)
         table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in self.columns})
         self._rows += table.num_rows
-        buf = io.BytesIO()
-        pacsv.write_csv(table, buf, write_options=self._opts)
-        self._fh.write(buf.getbuffer())
+        if self._pool is None:
+            self._fh.write(_format_csv(table, self._opts))
+            return
+        for a in range(0, table.num_rows, FORMAT_ROWS):
+            self._pending.append(self._pool.submit(_format_csv, table.slice(a, FORMAT_ROWS), self._opts))
+            self._drain(2 * self._threads)
+
+    def _drain(self, keep: int) -> None:
+        """Write the finished slices at the head of the queue, and wait until at most ``keep`` are left."""
+        while self._pending and (len(self._pending) > keep or self._pending[0].done()):
+            self._fh.write(self._pending.popleft().result())
 
     def close(self) -> None:
+        self._drain(0)
+        self._shutdown()
         self._fh.flush()
         os.fsync(self._fh.fileno())
         self._fh.close()
+
+    def _shutdown(self) -> None:
+        if self._pool is not None:
+            for f in self._pending:
+                f.cancel()
+            self._pool.shutdown(wait=True)
+            self._pool = None
+        self._pending.clear()
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
+        self._shutdown()
         if not self._fh.closed:
             self._fh.close()
 
