@@ -1,0 +1,175 @@
+"""End to end: ``sins navigate`` on an increment CSV against the kernel it runs, and the CSV writer.
+
+Builds a 720,000-row increment CSV (``sample_data/imu.csv``, the vehicle drive, repeated on a uniform
+100 Hz grid) and prints, all in one process (ratios are robust to the machine's load):
+
+- ``kernel``: :func:`sinscli.nav.pipeline.navigate` on the same samples in memory (quat, 2-sample
+  coning), samples/s: the speed of the kernels;
+- ``writer``: the trajectory's 26 columns through :class:`sinscli.io.csvcore.CsvTableWriter` with one
+  thread (the formatting alone, as before issue 14) and with the default threads overlapped;
+- ``sins navigate`` (the installed console script, warm numba cache, best of ``--repeat``) to a full
+  CSV and to Parquet, and on a 1,000-row log (the fixed cost: start-up, imports, kernel loading), with
+  the wall time, the peak memory of the child, and the ratio of its time to the kernel's;
+- the CSV it wrote read back and compared bit for bit with the in-memory trajectory.
+
+``--big N`` adds the N-sample run (issue 14: 10,000,000 samples <= 30 s at <= 1 GB peak), to CSV.
+
+    python benchmarks/bench_end_to_end.py [--rows 720000] [--repeat 3] [--big 10000000] [--dir DIR]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
+
+from sinscli.io import csvcore
+from sinscli.io.atomic import atomic_path
+from sinscli.io.imu_csv import read_imu_csv
+from sinscli.io.init_state import read_init
+from sinscli.io.trajectory import BASE_COLUMNS, DCM_COLUMNS, trajectory_columns
+from sinscli.nav.pipeline import NavOptions, navigate
+
+ROOT = Path(__file__).resolve().parent.parent
+SINS = Path(sys.executable).with_name("sins")
+INIT = ROOT / "sample_data" / "init.yaml"
+
+
+def write_increment_csv(path: Path, n: int) -> None:
+    """The vehicle drive of ``sample_data/imu.csv`` repeated to ``n`` rows on its own time grid."""
+    drive = read_imu_csv(ROOT / "sample_data" / "imu.csv")
+    dt = float(np.median(np.diff(drive.time)))
+    names = ["dtheta_x", "dtheta_y", "dtheta_z", "dvel_x", "dvel_y", "dvel_z"]
+    opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
+    step = 1_000_000
+    with open(path, "wb") as fh:
+        fh.write(("time," + ",".join(names) + "\n").encode())
+        for a in range(0, n, step):
+            k = np.arange(a, min(a + step, n))
+            j = k % len(drive.time)
+            cols = {"time": (k + 1) * dt}
+            for i in range(3):
+                cols[names[i]] = drive.dtheta_b[j, i]
+                cols[names[3 + i]] = drive.dvel_b[j, i]
+            pacsv.write_csv(pa.table(cols), fh, write_options=opts)
+
+
+_WRAPPER = ("import resource, subprocess, sys, time\n"
+            "t0 = time.perf_counter()\n"
+            "r = subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)\n"
+            "wall = time.perf_counter() - t0\n"
+            "sys.stderr.write(r.stderr.decode())\n"
+            "print(r.returncode, wall, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n")
+
+
+def run_cli(args: list[str], cwd: Path) -> tuple[float, float]:
+    """(wall s, peak memory GB) of one ``sins`` run, started from a small wrapper process: a child forked
+    from this (large) process would count this process's memory in its peak."""
+    r = subprocess.run([sys.executable, "-c", _WRAPPER, str(SINS), *args], cwd=cwd, capture_output=True,
+                       text=True, check=True)
+    code, wall, rss_kb = r.stdout.split()
+    if int(code):
+        raise SystemExit(f"sins {' '.join(args)} failed ({code}): {r.stderr}")
+    return float(wall), int(rss_kb) / 1024 ** 2
+
+
+def best(fn, repeat):
+    out = [fn() for _ in range(repeat)]
+    return min(out, key=lambda r: r[0] if isinstance(r, tuple) else r)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rows", type=int, default=720_000)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--big", type=int, default=0, help="also the N-sample run to CSV (e.g. 10000000)")
+    ap.add_argument("--dir", type=Path, default=None)
+    a = ap.parse_args()
+    work = Path(tempfile.mkdtemp(prefix="sins-e2e-", dir=a.dir))
+    try:
+        return _bench(a, work)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _bench(a, work: Path) -> int:
+    n = a.rows
+    imu_path, small_path = work / "imu.csv", work / "imu_small.csv"
+    write_increment_csv(imu_path, n)
+    write_increment_csv(small_path, 1000)
+    print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs; "
+          f"writer threads {csvcore.writer_threads()}")
+
+    imu = read_imu_csv(imu_path)
+    init = read_init(INIT, imu.t0, 0)
+    navigate(read_imu_csv(small_path), init, NavOptions())            # JIT warm-up
+    kern = best(lambda: _timed(lambda: navigate(imu, init, NavOptions())), a.repeat)
+    traj = navigate(imu, init, NavOptions())
+    print(f"kernel (navigate in memory, quat coning 2): {kern:.3f} s, samples_per_s={n / kern:.0f}")
+
+    cols = trajectory_columns(traj, 0)
+    names = BASE_COLUMNS + DCM_COLUMNS
+    w1 = best(lambda: _timed(lambda: _write(work / "w1.csv", cols, names, 1)), a.repeat)
+    wn = best(lambda: _timed(lambda: _write(work / "wn.csv", cols, names, None)), a.repeat)
+    floats = len(traj) * len(names)
+    print(f"writer: {floats / 1e6:.1f} M floats; 1 thread {w1:.3f} s ({floats / w1 / 1e6:.1f} M floats/s), "
+          f"{csvcore.writer_threads()} threads {wn:.3f} s; speed-up {w1 / wn:.2f}")
+
+    run_cli(["navigate", str(small_path), "--init", str(INIT), "-q", "-o", "warm.csv"], work)   # warm cache
+    fixed = best(lambda: run_cli(["navigate", str(small_path), "--init", str(INIT), "-q", "-o", "s.csv"], work),
+                 a.repeat)
+    print(f"sins navigate, 1,000 rows (fixed cost): {fixed[0]:.2f} s, peak {fixed[1]:.2f} GB")
+    for suffix, target in ((".csv", 2.5), (".parquet", 1.5)):
+        wall, peak = best(lambda: run_cli(["navigate", str(imu_path), "--init", str(INIT), "-q", "-o",
+                                           f"out{suffix}"], work), a.repeat)
+        print(f"sins navigate {n:,} rows -> {suffix}: {wall:.2f} s (target <= {target} s warm), "
+              f"peak {peak:.2f} GB, samples_per_s={n / wall:.0f}, time / kernel = {wall / kern:.2f}, "
+              f"(time - fixed cost) / kernel = {(wall - fixed[0]) / kern:.2f}")
+    back = csvcore.read_numeric_columns(work / "out.csv", {c: c for c in names})
+    same = all(np.array_equal(back[c].view(np.int64), np.asarray(cols[c], dtype=float).view(np.int64))
+               for c in names)
+    print(f"CSV read back bit for bit equal to the in-memory trajectory: {same}")
+    if not same:
+        return 1
+    if a.big:
+        big = work / "imu_big.csv"
+        write_increment_csv(big, a.big)
+        for f in work.glob("*.csv"):
+            if f != big:
+                f.unlink()
+        wall, peak = run_cli(["navigate", str(big), "--init", str(INIT), "-q", "-o", "big.csv"], work)
+        size = (work / "big.csv").stat().st_size / 1e9
+        print(f"sins navigate {a.big:,} rows -> .csv ({size:.1f} GB): {wall:.1f} s (target <= 30 s), "
+              f"peak {peak:.2f} GB (target <= 1 GB), samples_per_s={a.big / wall:.0f}, "
+              f"time / kernel rate = {wall / (kern * a.big / n):.2f}")
+    print(f"load average at end: {os.getloadavg()[0]:.2f}")
+    return 0
+
+
+def _timed(fn) -> float:
+    t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0
+
+
+def _write(path, cols, names, threads):
+    with atomic_path(path) as tmp:
+        with csvcore.CsvTableWriter(tmp, names, threads=threads) as w:
+            step = 1 << 17
+            n = len(cols["time"])
+            for s in range(0, n, step):
+                w.write({c: cols[c][s:s + step] for c in names})
+            w.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
