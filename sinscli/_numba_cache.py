@@ -66,3 +66,25 @@ def ensure_cache_dir() -> str | None:
     where = f"NUMBA_CACHE_DIR={given}" if given else f"{user or 'the home folder'}"
     return (f"cannot write numba's kernel cache (neither the package's __pycache__ nor {where} is writable); "
             f"compiled kernels are cached in {d}")
+
+
+def will_compile(dispatcher, *args) -> bool:
+    """True when calling the numba ``dispatcher`` with ``args`` will compile it (a cold cache).
+
+    Neither compiled in this process for these argument types, nor in numba's on-disk cache: the
+    function's index file (``<module>.<name>-<line>.py<ver>.nbi``) must hold the signature with this
+    machine's codegen and the function's bytecode hash, and its source stamp must match the file
+    (else numba treats the index as stale).  Reads the index only; loads and compiles nothing.
+    When it cannot tell (numba's internals changed), it answers False: no message rather than a wrong one.
+    """
+    try:
+        sig = tuple(dispatcher.typeof_pyval(a) for a in args)
+        if sig in dispatcher.overloads:
+            return False
+        cache = dispatcher._cache
+        if not hasattr(cache, "_index_key"):          # NullCache: cache=False, compiles every process
+            return True
+        key = cache._index_key(sig, dispatcher.targetctx.codegen())
+        return key not in cache._cache_file._load_index()
+    except Exception:                                  # pragma: no cover - numba internals moved
+        return False

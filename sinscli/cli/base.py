@@ -168,4 +168,12 @@ def progress(length: int, label: str, quiet: bool):
                              hidden=quiet, show_eta=True, show_percent=True)
 
 
+def finish_progress(bar) -> None:
+    """End a bar whose length was an estimate (e.g. rows from the file size) at 100 %: the length
+    becomes the count actually done."""
+    if bar.pos != bar.length and bar.pos > 0:
+        bar.length = bar.pos
+        bar.render_progress()
+
+
 quiet_option = click.option("-q", "--quiet", is_flag=True, help="No progress bar.")

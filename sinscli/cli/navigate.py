@@ -9,7 +9,7 @@ import click
 
 from ..conventions import BODY_CONVENTIONS
 from ..errors import SinsError
-from .base import log, main, progress, quiet_option
+from .base import finish_progress, log, main, progress, quiet_option
 
 # the readers, the kernels (numpy, numba) and the writers are imported when the command runs, so
 # that `sins navigate --help` does not load them
@@ -127,6 +127,10 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
         run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
                   opts, output, quiet)
         return
+    from ..nav.pipeline import first_run_compile
+    seconds = first_run_compile(opts)
+    if seconds is not None:          # before the first kernel (the initial state's conversions) is compiled
+        click.echo(f"sins: compiling navigation kernels (first run only, about {seconds:.0f} s)", err=True)
     blocks = iter_imu(imu, cfg, allow_gaps=nav["allow_gaps"])
     first = next(blocks, None)
     if first is None or len(first) == 0:
@@ -146,6 +150,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
 
     total = _count_rows(Path(imu)) if Path(imu).is_file() else len(first)
     streaming = output.suffix.lower() in (".csv", ".parquet")
+    written = [0, None, None]                  # rows, first and last time written
     with progress(total, "navigating", quiet or total < 200_000) as bar:
         chunks = navigate_blocks(all_blocks(), init, opts, progress=bar.update)
         if streaming:
@@ -153,6 +158,20 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
             with TrajectoryWriter(output, conv, extra_columns=extra) as writer:
                 for chunk in chunks:
                     writer.write(chunk)
+                    _count(written, chunk)
         else:
-            write_trajectory(output, concat(list(chunks)), conv)
-    log.info("wrote %s", os.fspath(output))
+            traj = concat(list(chunks))
+            write_trajectory(output, traj, conv)
+            _count(written, traj)
+        finish_progress(bar)
+    rows, t0, t1 = written[0], written[1] or 0.0, written[2] or 0.0
+    click.echo(f"sins: navigated {os.fspath(imu)}: wrote {rows:,} rows, t = {t0:.3f} .. {t1:.3f} s "
+               f"({t1 - t0:.3f} s), to {os.fspath(output)}", err=True)
+
+
+def _count(written: list, chunk) -> None:
+    """Add a written chunk to ``[rows, first time, last time]`` (the run's summary line)."""
+    if len(chunk):
+        written[0] += len(chunk)
+        written[1] = float(chunk.time[0]) if written[1] is None else written[1]
+        written[2] = float(chunk.time[-1])

@@ -57,7 +57,7 @@ def save_memory(st, i_dth, i_dv, prev_dth, prev_dv):
             st[i_dv + 3 * j + i] = prev_dv[j, i]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def push_sample(prev_dth, prev_dv, dth, dv, n_prev):
     """Shift the memory back by one sample, put (dth, dv) first; returns the new count of valid samples."""
     for j in range(MAX_ORDER - 2, 0, -1):
@@ -70,7 +70,7 @@ def push_sample(prev_dth, prev_dv, dth, dv, n_prev):
     return min(n_prev + 1, MAX_ORDER - 1)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fast_step(alpha, upsilon, beta, scul, dth, dv, prev_dth, prev_dv, n_prev, coeffs):
     """One fast-rate update of the interval sums; returns new (alpha, upsilon, beta, scul).
 
@@ -89,7 +89,7 @@ def fast_step(alpha, upsilon, beta, scul, dth, dv, prev_dth, prev_dv, n_prev, co
     return v_add(alpha, dth), v_add(upsilon, dv), v_add(beta, d_beta), v_add(scul, d_scul)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _jacobian_coeffs(a2):
     """``((1 - cos a)/a^2, (a - sin a)/a^3)`` for ``a^2 = a2``; series below a = 1e-2."""
     if a2 < 1e-4:
@@ -100,7 +100,7 @@ def _jacobian_coeffs(a2):
     return (1.0 - np.cos(a)) / a2, (a - np.sin(a)) / (a2 * a)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def body_increments(alpha, upsilon, beta, scul, alpha_prev, upsilon_prev, have_prev):
     """Rotation vector and velocity increment of the interval in the frame b(m-1).
 

@@ -240,6 +240,39 @@ def concat(parts: list[Trajectory]) -> Trajectory:
                       source=next((p.source for p in parts if p.source != "<memory>"), parts[0].source))
 
 
+# First-run compile time of `sins navigate` (all of its kernels, cold numba cache), seconds, measured with
+# benchmarks/bench_first_run.py on the 2-core reference machine; the estimate of the first-run message.
+FIRST_RUN_SECONDS = {"quat": 9, "dcm": 9, "krylov": 14, "euler": 11, "launch-inertial": 12}
+
+
+def first_run_compile(opts: NavOptions) -> float | None:
+    """Seconds the kernels of a navigation with ``opts`` will spend compiling in this process (the
+    estimate of :data:`FIRST_RUN_SECONDS`), or None when numba's cache holds them all (a warm cache).
+
+    Checks, without loading anything, the entry point of the attitude method (or of the launch-inertial
+    frame) for the argument types the navigator passes, and the conversions of the initial state and of
+    the writers (:func:`sinscli._numba_cache.will_compile`).
+    """
+    from .._numba_cache import will_compile
+    from . import rotation as rot
+    f1, f2, f3, i1 = np.empty(1), np.empty((1, 3)), np.empty((1, 3, 3)), 1
+    c = np.eye(3)
+    checks = [(rot.euler_to_dcm, 0.0, 0.0, 0.0, i1), (rot.dcm_to_quat, c), (rot.conv_to_flu, i1),
+              (rot.dcm_to_euler_many, f3, i1), (rot.dcm_to_quat_many, f3)]
+    if opts.frame == "launch-inertial":
+        from . import inertial
+        checks.append((inertial.run, f1, f2, f2, f1, i1, i1, i1, i1, f1, f2, f2, f3))
+        key = "launch-inertial"
+    else:
+        method = opts.method_code()
+        checks.append((sd.RUN[method], f1, f2, f2, f1, i1, i1, i1, c, i1, 0.0, f1, f2, f2,
+                       f3, np.empty((1, 5)), np.empty((1, sd.N_EVENT))))
+        key = opts.attitude
+    if any(will_compile(*chk) for chk in checks):
+        return FIRST_RUN_SECONDS[key]
+    return None
+
+
 def navigate_blocks(blocks, init: NavState, opts: NavOptions, progress=None):
     """Yield trajectory chunks (the initial row first) for an iterable of IMU blocks."""
     nav = Navigator(init, opts)

@@ -104,7 +104,7 @@ def rotvec_coeffs(phi2):
     return np.sin(p) / p, (1.0 - np.cos(p)) / phi2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def exp_so3_delta(phi, a, b):
     """``a [phi x] + b [phi x]^2``: the rotation matrix minus I (the shared body of eqs 8, 13, 26).
 
@@ -156,7 +156,7 @@ def rotvec_to_quat_t(phi):
     return (1.0 + d[0], d[1], d[2], d[3])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def quat_mul_t(p, q):
     """Hamilton product ``p o q`` (seed 000 eq 3 in matrix form)."""
     return (p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3],
@@ -165,7 +165,7 @@ def quat_mul_t(p, q):
             p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def quat_normalize_t(q):
     """``q / |q|`` (Savage 4.2.3, seed 000 eq 4), sign chosen with ``q0 >= 0``."""
     n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
@@ -174,7 +174,7 @@ def quat_normalize_t(q):
     return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def quat_to_dcm_t(q):
     """``Cbn`` from ``q_b^n`` (seed 000 eq 1)."""
     q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
@@ -398,12 +398,25 @@ def dcm_to_euler(cbn, conv):
 
 
 @njit(cache=True)
+def put_row(out, k, a):
+    """``out[k] = a`` element by element, for ``out`` of shape (N, m) or (N, m, m).
+
+    The slice assignment would compile numba's shape-checked broadcast with its error-message
+    formatting (str, repr, concatenation: 4-8 s of a first compile on the 2-core machine).
+    """
+    row = out[k].reshape(a.size)
+    flat = a.reshape(a.size)
+    for i in range(a.size):
+        row[i] = flat[i]
+
+
+@njit(cache=True)
 def euler_to_dcm_many(roll, pitch, heading, conv):
     """Vectorized :func:`euler_to_dcm` over arrays of angles (radians) -> (N, 3, 3)."""
     n = roll.shape[0]
     out = np.empty((n, 3, 3))
     for k in range(n):
-        out[k] = euler_to_dcm(roll[k], pitch[k], heading[k], conv)
+        put_row(out, k, euler_to_dcm(roll[k], pitch[k], heading[k], conv))
     return out
 
 
@@ -426,7 +439,7 @@ def dcm_to_quat_many(cbn):
     n = cbn.shape[0]
     out = np.empty((n, 4))
     for k in range(n):
-        out[k] = dcm_to_quat(cbn[k])
+        put_row(out, k, dcm_to_quat(cbn[k]))
     return out
 
 
@@ -436,7 +449,7 @@ def quat_to_dcm_many(q):
     n = q.shape[0]
     out = np.empty((n, 3, 3))
     for k in range(n):
-        out[k] = quat_to_dcm(q[k])
+        put_row(out, k, quat_to_dcm(q[k]))
     return out
 
 
@@ -450,7 +463,7 @@ def attitude_error_many(cbn_true, cbn_est):
     n = cbn_true.shape[0]
     out = np.empty((n, 3))
     for k in range(n):
-        out[k] = dcm_to_rotvec(mm3(cbn_true[k], cbn_est[k].T.copy()))
+        put_row(out, k, dcm_to_rotvec(mm3(cbn_true[k], cbn_est[k].T.copy())))
     return out
 
 
