@@ -12,9 +12,11 @@ Builds a 720,000-row increment CSV (``sample_data/imu.csv``, the vehicle drive, 
   the wall time, the peak memory of the child, and the ratio of its time to the kernel's;
 - the CSV it wrote read back and compared bit for bit with the in-memory trajectory.
 
+``--baseline DIR`` runs ``sins navigate`` also from another source tree (e.g. ``git archive`` of main
+unpacked in DIR; its own numba cache), interleaved with this one, and prints the ratio of the times.
 ``--big N`` adds the N-sample run (issue 14: 10,000,000 samples <= 30 s at <= 1 GB peak), to CSV.
 
-    python benchmarks/bench_end_to_end.py [--rows 720000] [--repeat 3] [--big 10000000] [--dir DIR]
+    python benchmarks/bench_end_to_end.py [--rows 720000] [--repeat 3] [--baseline DIR] [--big 10000000] [--dir DIR]
 """
 from __future__ import annotations
 
@@ -71,11 +73,19 @@ _WRAPPER = ("import resource, subprocess, sys, time\n"
             "print(r.returncode, wall, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)\n")
 
 
-def run_cli(args: list[str], cwd: Path) -> tuple[float, float]:
+def run_cli(args: list[str], cwd: Path, source: Path | None = None) -> tuple[float, float]:
     """(wall s, peak memory GB) of one ``sins`` run, started from a small wrapper process: a child forked
-    from this (large) process would count this process's memory in its peak."""
-    r = subprocess.run([sys.executable, "-c", _WRAPPER, str(SINS), *args], cwd=cwd, capture_output=True,
-                       text=True, check=True)
+    from this (large) process would count this process's memory in its peak.  ``source``: run the
+    ``sinscli`` of that source tree instead of the installed one (``python -S``, so that no editable
+    install shadows it)."""
+    env = None
+    cmd = [str(SINS)]
+    if source is not None:
+        import site
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(source), *site.getsitepackages()]))
+        cmd = [sys.executable, "-S", "-c", "from sinscli.cli.base import main; main()"]
+    r = subprocess.run([sys.executable, "-c", _WRAPPER, *cmd, *args], cwd=cwd, capture_output=True,
+                       text=True, check=True, env=env)
     code, wall, rss_kb = r.stdout.split()
     if int(code):
         raise SystemExit(f"sins {' '.join(args)} failed ({code}): {r.stderr}")
@@ -93,6 +103,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--big", type=int, default=0, help="also the N-sample run to CSV (e.g. 10000000)")
     ap.add_argument("--dir", type=Path, default=None)
+    ap.add_argument("--baseline", type=Path, default=None, help="source tree to compare with (its sinscli/)")
     a = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="sins-e2e-", dir=a.dir))
     try:
@@ -134,6 +145,17 @@ def _bench(a, work: Path) -> int:
         print(f"sins navigate {n:,} rows -> {suffix}: {wall:.2f} s (target <= {target} s warm), "
               f"peak {peak:.2f} GB, samples_per_s={n / wall:.0f}, time / kernel = {wall / kern:.2f}, "
               f"(time - fixed cost) / kernel = {(wall - fixed[0]) / kern:.2f}")
+    if a.baseline is not None:
+        src = a.baseline.resolve()
+        nav = ["navigate", str(imu_path), "--init", str(INIT), "-q", "-o"]
+        run_cli(nav + ["b.csv"], work, src)                           # its numba cache warm
+        for suffix in (".csv", ".parquet"):
+            this, base = [], []
+            for _ in range(a.repeat):                                  # interleaved: the load changes
+                this.append(run_cli(nav + [f"n{suffix}"], work)[0])
+                base.append(run_cli(nav + [f"b{suffix}"], work, src)[0])
+            print(f"sins navigate {n:,} rows -> {suffix}: this tree {min(this):.2f} s, baseline {src} "
+                  f"{min(base):.2f} s; baseline / this = {min(base) / min(this):.2f}")
     back = csvcore.read_numeric_columns(work / "out.csv", {c: c for c in names})
     same = all(np.array_equal(back[c].view(np.int64), np.asarray(cols[c], dtype=float).view(np.int64))
                for c in names)
