@@ -489,44 +489,17 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
                        out_t, out_pos, out_vel, out_cbn, out_ang, events)
 
 
-# One compiled entry point per attitude method: ``method`` is a constant inside each, so numba prunes the
-# other methods' branches before typing, and a quat run does not compile the Krylov or 3-angle updates
-# (the first run compiles 1/3 of the IR it did with one kernel for all methods).
-@njit(cache=True)
-def run_dcm(time, dtheta_b, dvel_b, st, order, nsub, every, cflu_arr, integrator, cos_stop,
-            out_t, out_pos, out_vel, out_cbn, out_ang, events):
-    return _run(time, dtheta_b, dvel_b, st, ATT_DCM, order, nsub, every, cflu_arr, integrator, cos_stop,
-                out_t, out_pos, out_vel, out_cbn, out_ang, events)
-
-
-@njit(cache=True)
-def run_dcm_seed000(time, dtheta_b, dvel_b, st, order, nsub, every, cflu_arr, integrator, cos_stop,
-                    out_t, out_pos, out_vel, out_cbn, out_ang, events):
-    return _run(time, dtheta_b, dvel_b, st, ATT_DCM_SEED000, order, nsub, every, cflu_arr, integrator, cos_stop,
-                out_t, out_pos, out_vel, out_cbn, out_ang, events)
-
-
-@njit(cache=True)
-def run_quat(time, dtheta_b, dvel_b, st, order, nsub, every, cflu_arr, integrator, cos_stop,
-             out_t, out_pos, out_vel, out_cbn, out_ang, events):
-    return _run(time, dtheta_b, dvel_b, st, ATT_QUAT, order, nsub, every, cflu_arr, integrator, cos_stop,
-                out_t, out_pos, out_vel, out_cbn, out_ang, events)
-
-
-@njit(cache=True)
-def run_krylov(time, dtheta_b, dvel_b, st, order, nsub, every, cflu_arr, integrator, cos_stop,
-               out_t, out_pos, out_vel, out_cbn, out_ang, events):
-    return _run(time, dtheta_b, dvel_b, st, ATT_KRYLOV, order, nsub, every, cflu_arr, integrator, cos_stop,
-                out_t, out_pos, out_vel, out_cbn, out_ang, events)
-
-
-@njit(cache=True)
-def run_euler(time, dtheta_b, dvel_b, st, order, nsub, every, cflu_arr, integrator, cos_stop,
+def _entry(method):
+    """The compiled entry point of one attitude method: ``method`` is a constant (a closure cell) inside it,
+    so numba prunes the other methods' branches before typing, and a quat run does not compile the Krylov
+    or 3-angle updates (nor their error-message code)."""
+    @njit(cache=True)
+    def entry(time, dtheta_b, dvel_b, st, order, nsub, every, cflu_arr, integrator, cos_stop,
               out_t, out_pos, out_vel, out_cbn, out_ang, events):
-    return _run(time, dtheta_b, dvel_b, st, ATT_EULER, order, nsub, every, cflu_arr, integrator, cos_stop,
-                out_t, out_pos, out_vel, out_cbn, out_ang, events)
+        return _run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integrator, cos_stop,
+                    out_t, out_pos, out_vel, out_cbn, out_ang, events)
+    return entry
 
 
 #: attitude method code -> its compiled entry point (:func:`run` dispatches through it)
-RUN = {ATT_DCM: run_dcm, ATT_DCM_SEED000: run_dcm_seed000, ATT_QUAT: run_quat, ATT_KRYLOV: run_krylov,
-       ATT_EULER: run_euler}
+RUN = {m: _entry(m) for m in (ATT_DCM, ATT_DCM_SEED000, ATT_QUAT, ATT_KRYLOV, ATT_EULER)}
