@@ -240,9 +240,11 @@ def concat(parts: list[Trajectory]) -> Trajectory:
                       source=next((p.source for p in parts if p.source != "<memory>"), parts[0].source))
 
 
-# First-run compile time of `sins navigate` (all of its kernels, cold numba cache), seconds, measured with
-# benchmarks/bench_first_run.py on the 2-core reference machine; the estimate of the first-run message.
-FIRST_RUN_SECONDS = {"quat": 9, "dcm": 9, "krylov": 14, "euler": 11, "launch-inertial": 12}
+# First-run compile time of `sins navigate` (all of its kernels, cold numba cache), seconds: the CPU time of
+# the first run measured on the shared 2-core machine (load 5-9; numba compiles on one thread, so this is
+# about the wall time of an idle machine): quat 9.5-11.6, dcm 13.6, krylov 23.8, euler 12.8,
+# launch-inertial 12.8.  The estimate of the first-run message.
+FIRST_RUN_SECONDS = {"quat": 10, "dcm": 12, "krylov": 22, "euler": 12, "launch-inertial": 12}
 
 
 def first_run_compile(opts: NavOptions) -> float | None:
