@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+import os
 import shutil
+import sys
 import subprocess
 from pathlib import Path
 
@@ -18,7 +20,7 @@ from sinscli.sim.run import simulate
 from sinscli.types import BodyVelLog, GnssLog
 
 ROOT = Path(__file__).resolve().parents[1]
-SINS = shutil.which("sins") or str(ROOT / ".venv" / "bin" / "sins")
+SINS = shutil.which("sins", path=str(Path(sys.executable).parent) + os.pathsep + os.environ.get("PATH", "")) or "sins"
 LEVER = [0.8, 0.0, 1.5]
 INIT_SIGMA = {"position": [0.1] * 3, "velocity": [0.01] * 3, "attitude": np.radians([0.1, 0.1, 1.0])}
 OUTAGE = (600.0, 660.0)
