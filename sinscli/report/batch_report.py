@@ -31,7 +31,6 @@ from ..errors import SinsError
 from ..io.atomic import atomic_path
 from .digest import SeriesDigest, TailTable, table_from_tails
 from .errors import ROW_UNITS, ROWS, ErrorTable
-from .html import error_table_html, simple_table_html, write_summary_html
 from .report import write_report_files
 from .results import ResultsWriter
 from .stats import pivot, row_statistics
@@ -103,8 +102,13 @@ def results_schema() -> pa.Schema:
                      + [(r, pa.float64()) for r in ROWS])
 
 
-def _stats_section(stage_ds: Path, frame: pd.DataFrame, title: str, epoch: float) -> tuple[list[str], str]:
-    """``errors_stats.*``, ``errors_mc.*`` and the box plots; returns (files, html)."""
+BOX_QUANTITIES = ["pos_E", "pos_N", "pos_U", *MAX_ROWS]     # the interactive box plots of a dataset page
+
+
+def _stats_section(stage_ds: Path, frame: pd.DataFrame, title: str, epoch: float):
+    """``errors_stats.*``, ``errors_mc.*`` and the box plots; returns (files, a function adding the
+    section to a :class:`~.webpage.Page`)."""
+    from .compare_page import add_box_plots, error_table
     stats = row_statistics(frame, "method", ROWS, ROW_UNITS)
     write_stats_csv(stage_ds / "errors_stats.csv", stats)
     n = int(frame.groupby("method", sort=False).size().max())
@@ -118,10 +122,18 @@ def _stats_section(stage_ds: Path, frame: pd.DataFrame, title: str, epoch: float
     for fname, quantities, what in BOX_FIGURES:
         plot_boxes(stage_ds / fname, frame, "method", quantities, ROW_UNITS, f"{title}: {what}", _LABELS)
         figs.append(fname)
-    body = ("<h2>Monte Carlo over seeds (RMS at the epoch, maximum of the maxima)</h2>\n" + error_table_html(mc)
-            + f"\n<h2>Statistics over {n} seeds</h2>\n" + stats_html(stats, "method", _LABELS)
-            + "\n" + "\n".join(f"<p><img src=\"{f}\" alt=\"{f}\"></p>" for f in figs))
-    return ["errors_stats.csv", "errors_stats.md", "errors_mc.csv", "errors_mc.md"] + figs, body
+
+    def add(page) -> None:
+        page.h(f"Statistics across {n} seeds and {len(mc.methods)} method(s)")
+        page.p("Box: 25th to 75th percentile over the seeds; line: median; whiskers: 5th to 95th percentile; "
+               "points: minimum and maximum.", "note")
+        add_box_plots(page, stats, "method", BOX_QUANTITIES, _LABELS, ROW_UNITS, "box")
+        page.h("Monte Carlo over seeds (RMS at the epoch, maximum of the maxima)")
+        page.raw(error_table(mc, {}))
+        page.h(f"Statistics over {n} seeds")
+        page.raw(stats_html(stats, "method", _LABELS))
+
+    return ["errors_stats.csv", "errors_stats.md", "errors_mc.csv", "errors_mc.md"] + figs, add
 
 
 def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, failed: dict,
@@ -142,21 +154,31 @@ def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, 
     notes += [f"FAILED {r.label}: {failed[r.key]}" for r in refs if r.key in failed]
     title = f"{ds.name}: {spec.title}"
     stage_ds.mkdir(parents=True, exist_ok=True)
-    extra_files, extra_html = [], ""
+    extra_files, add_stats = [], None
     if len(seeds) > 1:
         frame = pd.DataFrame({"method": [r.method for r in ok], "seed": [r.seed for r in ok],
                               **{row: table.values[i] for i, row in enumerate(ROWS)}})
-        extra_files, extra_html = _stats_section(stage_ds, frame, title, table.epoch)
+        extra_files, add_stats = _stats_section(stage_ds, frame, title, table.epoch)
     if per_run:
         digests = {r.label: loaded[r.key][1] for r in ok}
-        write_report_files(stage_ds, digests, table, title, notes, extra_files, extra_html)
+        write_report_files(stage_ds, digests, table, title, notes, extra_files, page_hook=add_stats,
+                           truth_name=str(ds.truth.name) if ds.scenario is None else None)
         return table
-    body = [f"<p class=\"note\">Errors truth minus navigation at t = {float(table.epoch)!r} s. "
-            f"{len(seeds)} seeds: no figure per run (sins compare --figures all draws them); every run's "
-            "table row is in ../results.parquet.</p>", extra_html,
-            "<p>Files: " + ", ".join(f"<a href=\"{f}\">{f}</a>" for f in extra_files)
-            + ", <a href=\"../results.parquet\">../results.parquet</a></p>"]
-    write_summary_html(stage_ds / "index.html", title, [("Errors over the seeds", "\n".join(body))], notes)
+    from .compare_page import files_section
+    from .webpage import Page
+    page = Page(title)
+    page.h("Summary")
+    page.items([f"{len(ok)} runs of {len({r.method for r in ok})} method(s) over {len(seeds)} seeds; errors truth "
+                f"minus navigation at t = {float(table.epoch)!r} s, maxima over each run.",
+                "No figure per run at this number of seeds (sins compare --figures all draws them); every run's "
+                "table row is in ../results.parquet."])
+    for n in notes:
+        page.p(n, "note")
+    if add_stats is not None:
+        add_stats(page)
+    files_section(page, [f for f in extra_files if not f.endswith(".png")] + ["../results.parquet"],
+                  [f for f in extra_files if f.endswith(".png")])
+    page.write(stage_ds / "index.html")
     return table
 
 
@@ -269,15 +291,46 @@ def write_summary(outdir: Path, spec, result: BatchResult) -> None:
                     tables_md.append(p.read_text(encoding="utf-8"))
     with atomic_path(outdir / "summary.md") as tmp:
         tmp.write_text("\n".join(md) + "\n" + "\n".join(tables_md), encoding="utf-8")
+    _summary_page(outdir, spec, result, rows, listed, failed_flags, head, note)
+
+
+def _summary_page(outdir: Path, spec, result: BatchResult, rows, listed, failed_flags, head: str, note: str) -> None:
+    """The batch's ``index.html``: summary in words, box plots of each run's maxima by dataset and method,
+    links to every dataset's report, and the sortable table of jobs (each linked to its report)."""
+    from .compare_page import add_box_plots
+    from .webpage import Page, table
+    page = Page(spec.title)
+    ok = [j for j in result.jobs if j.ok]
+    page.h("Summary")
+    lines = [head, "Errors are truth minus navigation; maxima over the whole run (position m, velocity m/s, "
+             "attitude error angle deg)."] + ([note] if note else [])
+    if ok:
+        frame = pd.DataFrame({"group": [f"{j.dataset} / {j.method}" for j in ok],
+                              **{k: [float(j.maxima[MAX_ROWS.index(k)]) for j in ok] for k in _MAX_ORDER}})
+        stats = row_statistics(frame, "group", _MAX_ORDER, ROW_UNITS)
+        for q, what, unit in (("max_att_deg", "largest attitude error angle", "deg"),
+                              ("max_pos_E", "largest east position error", "m")):
+            sub = stats[stats["quantity"] == q]
+            best = sub.loc[sub["p50"].idxmin()]
+            lines.append(f"Lowest median {what}: {best['group']} ({best['p50']:.3g} {unit} over {int(best['n'])} "
+                         "run(s)).")
+    page.items(lines)
     links = [[(ds.name, f"{ds.name}/index.html") if ds.name in result.reports else ds.name,
               "written" if ds.name in result.reports else f"not written: {result.report_errors.get(ds.name, 'every job failed')}"]
              for ds in spec.datasets]
-    jobs_html = simple_table_html(SUMMARY_COLUMNS, listed, failed=failed_flags)
-    notes = [head, "Errors are truth minus navigation; maxima over the whole run "
-             "(position m, velocity m/s, attitude error angle deg)."] + ([note] if note else [])
-    files = ("<p>Every run: <a href=\"results.parquet\">results.parquet</a> (partitioned by method), "
+    page.h("Reports")
+    page.raw(table(["dataset", "report"], links))
+    page.raw("<p>Every run: <a href=\"results.parquet\">results.parquet</a> (partitioned by method), "
              "<a href=\"summary.csv\">summary.csv</a>; navigation times and hosts: "
              "<a href=\"timing.csv\">timing.csv</a>.</p>")
-    write_summary_html(outdir / "index.html", spec.title,
-                       [("Reports", simple_table_html(["dataset", "report"], links) + files), ("Jobs", jobs_html)],
-                       notes=notes)
+    if ok:
+        page.h("Maxima over each run, by dataset and method")
+        page.p("Box: 25th to 75th percentile over the runs; line: median; whiskers: 5th to 95th percentile; "
+               "points: minimum and maximum.", "note")
+        add_box_plots(page, stats, "group", _MAX_ORDER, _LABELS, ROW_UNITS, "box")
+    page.h("Jobs")
+    page.p("Click a column header to sort; a dataset name links to its report.", "note")
+    reported = set(result.reports)
+    linked = [[(r[0], f"{r[0]}/index.html") if r[0] in reported else r[0], *r[1:]] for r in listed]
+    page.raw(table(SUMMARY_COLUMNS, linked, sortable=True, failed=failed_flags))
+    page.write(outdir / "index.html")
