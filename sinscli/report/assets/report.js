@@ -82,7 +82,8 @@
         }
       }
     });
-    if (p.robust && p.robust.length === 2) {       // a robust y-range chosen by the writer (start-up transients)
+    var fx = fullX(p), whole = a <= fx[0] + 1e-9 * (fx[1] - fx[0]) && b >= fx[1] - 1e-9 * (fx[1] - fx[0]);
+    if (whole && p.robust && p.robust.length === 2) {   // the writer's robust y-range (start-up transient), unzoomed
       lo = Math.max(lo, p.robust[0]);
       hi = Math.min(hi, p.robust[1]);
     }
