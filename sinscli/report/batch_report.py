@@ -312,8 +312,10 @@ def _summary_page(outdir: Path, spec, result: BatchResult, rows, listed, failed_
                               ("max_pos_E", "largest east position error", "m")):
             sub = stats[stats["quantity"] == q]
             best = sub.loc[sub["p50"].idxmin()]
+            ties = sub[sub["p50"] <= best["p50"] * (1 + 1e-3) + 1e-300]["group"].tolist()
             lines.append(f"Lowest median {what}: {best['group']} ({best['p50']:.3g} {unit} over {int(best['n'])} "
-                         "run(s)).")
+                         "run(s))." if len(ties) == 1 else
+                         f"Equal lowest median {what} (within 0.1 %): {', '.join(ties)} ({best['p50']:.3g} {unit}).")
     page.items(lines)
     links = [[(ds.name, f"{ds.name}/index.html") if ds.name in result.reports else ds.name,
               "written" if ds.name in result.reports else f"not written: {result.report_errors.get(ds.name, 'every job failed')}"]
