@@ -58,6 +58,12 @@ def _clip_note(ax, lim, values) -> None:
 
 def plot_series(path, t, euler_deg, title: str = "", sigma_deg=None, final_deg=None,
                 heading_supplied: bool = False) -> None:
+    """Write :func:`series_figure` to ``path`` (PNG)."""
+    _save(series_figure(t, euler_deg, title, sigma_deg, final_deg, heading_supplied), path)
+
+
+def series_figure(t, euler_deg, title: str = "", sigma_deg=None, final_deg=None,
+                  heading_supplied: bool = False) -> Figure:
     """Roll, pitch and heading estimates (deg) against alignment time ``t`` (s): three panels.
 
     ``final_deg`` (roll, pitch, heading of the written state) is drawn as a marker at the end; with
@@ -91,7 +97,7 @@ def plot_series(path, t, euler_deg, title: str = "", sigma_deg=None, final_deg=N
     axes[-1].set_xlabel("alignment time (s)")
     axes[0].set_title(wrap_title(title or "attitude estimate against alignment time"), fontsize=10)
     fig.tight_layout()
-    _save(fig, path)
+    return fig
 
 
 def plot_monte_carlo(outdir, mc) -> list[str]:

@@ -1,5 +1,5 @@
 /* sins report: interactive SVG plots, linked zoom and sortable tables, with no dependency.
- * Reads the JSON in <script type="application/json" id="sins-data">: {plots: [...]}.
+ * Reads the JSON of the page's element id="sins-data" (a script of type application/json): {plots: [...]}.
  * A plot: {id, kind: "line"|"plan"|"box", title, xlabel, ylabel, group, logy, x0,
  *          series: [{name, x, y, lo, hi, style: "line"|"points"|"band"|"marker", dash, color}],
  *          spans: [[x_a, x_b], ...] (shaded time intervals), spanlabel,
