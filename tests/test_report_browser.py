@@ -167,8 +167,17 @@ def test_batch_report(browser, reports):
     down = [float(v) for v in _column(browser, table, k)]
     assert down == sorted(up, reverse=True)
     links = [a.get_attribute("href") for a in table.find_elements(By.TAG_NAME, "a")]
-    assert links and all(h.endswith("tiny/index.html") for h in links)
+    assert sum(h.endswith("/tiny/index.html") for h in links) == 6
+    runs = sorted(h for h in links if "/tiny/runs/" in h)
+    assert len(runs) == 6 and len(set(runs)) == 6
     assert_not_blank(browser)
+    # a run's own page: self-contained, truth + that run in its plan view
+    browser.get_log("browser")
+    browser.get(runs[0])
+    assert not [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+    plots = {p["id"]: p for p in plot_contents(browser)}
+    assert len(plots) == 11 and len(plots["plot-plan"]["legend"]) == 2
+    assert all(p["lines"] > 0 for p in plots.values())
     # the dataset's page: 3 seeds x 2 methods per run, box plots, its own plan view
     load(browser, reports["dataset"])
     plots = plot_contents(browser)

@@ -20,6 +20,7 @@ And for the batch: ``results.parquet`` (every run, partitioned by method),
 from __future__ import annotations
 
 import csv
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -80,6 +81,7 @@ class BatchResult:
     report_errors: dict      # dataset name -> error text (report could not be built)
     resumed: int = 0
     ran: int = 0
+    job_pages: dict = field(default_factory=dict)    # (dataset, seed, method) -> page path relative to the batch
 
     @property
     def failed(self) -> list:
@@ -136,8 +138,32 @@ def _stats_section(stage_ds: Path, frame: pd.DataFrame, title: str, epoch: float
     return ["errors_stats.csv", "errors_stats.md", "errors_mc.csv", "errors_mc.md"] + figs, add
 
 
+def _page_name(label: str) -> str:
+    """A run's page file name: its label with every character but letters, digits, '.', '-' and '_' as '_'."""
+    return "runs/" + re.sub(r"[^A-Za-z0-9._-]", "_", label) + ".html"
+
+
+def _job_pages(stage_ds: Path, ok: list[JobRef], digests: dict, table: ErrorTable, title: str, notes: list[str],
+               ds) -> dict[str, str]:
+    """One self-contained page per run (its plan view, errors against time, table column), written into
+    ``stage_ds/runs/``; returns label -> path relative to the dataset's directory."""
+    from .compare_page import compare_page
+    pages = {}
+    (stage_ds / "runs").mkdir(exist_ok=True)
+    for k, r in enumerate(ok):
+        one = ErrorTable(epoch=table.epoch, methods=[r.label], values=table.values[:, k:k + 1], rows=table.rows)
+        name = _page_name(r.label)
+        page = compare_page(f"{title}: {r.method}" + ("" if r.seed is None else f", seed {r.seed}"),
+                            {r.label: digests[r.label]}, one, notes=notes[:2],
+                            truth_name=str(ds.truth.name) if ds.scenario is None else None)
+        page.links("The dataset's report:", ["../index.html"])
+        page.write(stage_ds / name)
+        pages[r.label] = name
+    return pages
+
+
 def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, failed: dict,
-                    per_run: bool) -> ErrorTable | None:
+                    per_run: bool, job_pages: dict | None = None) -> ErrorTable | None:
     """Write one dataset's report into ``stage_ds``; returns its table (None when every job failed)."""
     ok = [r for r in refs if r.key in loaded]
     if not ok:
@@ -161,8 +187,18 @@ def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, 
         extra_files, add_stats = _stats_section(stage_ds, frame, title, table.epoch)
     if per_run:
         digests = {r.label: loaded[r.key][1] for r in ok}
-        write_report_files(stage_ds, digests, table, title, notes, extra_files, page_hook=add_stats,
+        pages = _job_pages(stage_ds, ok, digests, table, title, notes, ds)
+
+        def hook(page):
+            if add_stats is not None:
+                add_stats(page)
+            page.h("One page per run")
+            page.links("Each run alone (self-contained pages):", list(pages.values()))
+
+        write_report_files(stage_ds, digests, table, title, notes, extra_files, page_hook=hook,
                            truth_name=str(ds.truth.name) if ds.scenario is None else None)
+        if job_pages is not None:
+            job_pages.update({(r.dataset, r.seed, r.method): f"{ds.name}/{pages[r.label]}" for r in ok})
         return table
     from .compare_page import files_section
     from .webpage import Page
@@ -185,7 +221,7 @@ def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, 
 def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: dict, figures: str,
                         tick=lambda n: None, err=lambda msg: None) -> BatchResult:
     """Every report of the batch, written into ``stage`` (moved into place by the caller)."""
-    results, reports, report_errors = [], {}, {}
+    results, reports, report_errors, job_pages = [], {}, {}, {}
     with ResultsWriter(stage / "results.parquet", results_schema()) as parquet:
         for ds in spec.datasets:
             mine = [r for r in refs if r.dataset == ds.name]
@@ -201,7 +237,7 @@ def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: di
                 loaded[r.key] = (tail, SeriesDigest.from_arrays(arrays) if per_run else None)
             table = None
             try:
-                table = _dataset_report(stage / ds.name, ds, spec, mine, loaded, failed, per_run)
+                table = _dataset_report(stage / ds.name, ds, spec, mine, loaded, failed, per_run, job_pages)
                 if table is not None:
                     reports[ds.name] = stage / ds.name
             except SinsError as exc:
@@ -226,7 +262,7 @@ def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: di
                              **{row: (None if v is None else float(v)) for row, v in zip(ROWS, values)}})
             loaded.clear()
             tick(1)
-    result = BatchResult(results, reports, report_errors)
+    result = BatchResult(results, reports, report_errors, job_pages=job_pages)
     write_summary(stage, spec, result)
     tick(1)
     return result
@@ -331,8 +367,14 @@ def _summary_page(outdir: Path, spec, result: BatchResult, rows, listed, failed_
                "points: minimum and maximum.", "note")
         add_box_plots(page, stats, "group", _MAX_ORDER, _LABELS, ROW_UNITS, "box")
     page.h("Jobs")
-    page.p("Click a column header to sort; a dataset name links to its report.", "note")
+    page.p("Click a column header to sort; a dataset name links to its report, a page to the run's own page.",
+           "note")
     reported = set(result.reports)
-    linked = [[(r[0], f"{r[0]}/index.html") if r[0] in reported else r[0], *r[1:]] for r in listed]
-    page.raw(table(SUMMARY_COLUMNS, linked, sortable=True, failed=failed_flags))
+    keys = {(j.dataset, "" if j.seed is None else j.seed, j.method): j.seed for j in result.jobs}
+    linked = []
+    for r in listed:
+        page_path = result.job_pages.get((r[0], keys.get((r[0], r[1], r[2])), r[2]))
+        linked.append([(r[0], f"{r[0]}/index.html") if r[0] in reported else r[0], *r[1:],
+                       ("page", page_path) if page_path else None])
+    page.raw(table(SUMMARY_COLUMNS + ["run page"], linked, sortable=True, failed=failed_flags))
     page.write(outdir / "index.html")
