@@ -176,7 +176,11 @@ def test_batch_report(browser, reports):
     browser.get(runs[0])
     assert not [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
     plots = {p["id"]: p for p in plot_contents(browser)}
-    assert len(plots) == 11 and len(plots["plot-plan"]["legend"]) == 2
+    assert len(plots) == 11
+    # truth, the run, and the GNSS fixes the worker simulated with the run's seed
+    assert plots["plot-plan"]["legend"][0] == "truth" and len(plots["plot-plan"]["legend"]) == 3
+    assert plots["plot-plan"]["legend"][2].startswith("GNSS fixes (simulated, seed ")
+    assert plots["plot-plan"]["points"] >= 3
     assert all(p["lines"] > 0 for p in plots.values())
     # the dataset's page: 3 seeds x 2 methods per run, box plots, its own plan view
     load(browser, reports["dataset"])

@@ -32,6 +32,7 @@ from ..errors import SinsError
 from ..io.atomic import atomic_path
 from .digest import SeriesDigest, TailTable, table_from_tails
 from .errors import ROW_UNITS, ROWS, ErrorTable
+from .compare_page import overlay_from_arrays
 from .report import write_report_files
 from .results import ResultsWriter
 from .stats import pivot, row_statistics
@@ -144,7 +145,7 @@ def _page_name(label: str) -> str:
 
 
 def _job_pages(stage_ds: Path, ok: list[JobRef], digests: dict, table: ErrorTable, title: str, notes: list[str],
-               ds) -> dict[str, str]:
+               ds, gnss_of: dict) -> dict[str, str]:
     """One self-contained page per run (its plan view, errors against time, table column), written into
     ``stage_ds/runs/``; returns label -> path relative to the dataset's directory."""
     from .compare_page import compare_page
@@ -155,7 +156,7 @@ def _job_pages(stage_ds: Path, ok: list[JobRef], digests: dict, table: ErrorTabl
         name = _page_name(r.label)
         page = compare_page(f"{title}: {r.method}" + ("" if r.seed is None else f", seed {r.seed}"),
                             {r.label: digests[r.label]}, one, notes=notes[:2],
-                            truth_name=str(ds.truth.name) if ds.scenario is None else None)
+                            truth_name=str(ds.truth.name) if ds.scenario is None else None, gnss=gnss_of.get(r.key))
         page.links("The dataset's report:", ["../index.html"])
         page.write(stage_ds / name)
         pages[r.label] = name
@@ -163,7 +164,7 @@ def _job_pages(stage_ds: Path, ok: list[JobRef], digests: dict, table: ErrorTabl
 
 
 def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, failed: dict,
-                    per_run: bool, job_pages: dict | None = None) -> ErrorTable | None:
+                    per_run: bool, job_pages: dict | None = None, gnss_of: dict | None = None) -> ErrorTable | None:
     """Write one dataset's report into ``stage_ds``; returns its table (None when every job failed)."""
     ok = [r for r in refs if r.key in loaded]
     if not ok:
@@ -187,7 +188,8 @@ def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, 
         extra_files, add_stats = _stats_section(stage_ds, frame, title, table.epoch)
     if per_run:
         digests = {r.label: loaded[r.key][1] for r in ok}
-        pages = _job_pages(stage_ds, ok, digests, table, title, notes, ds)
+        gnss_of = gnss_of or {}
+        pages = _job_pages(stage_ds, ok, digests, table, title, notes, ds, gnss_of)
 
         def hook(page):
             if add_stats is not None:
@@ -195,8 +197,10 @@ def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, 
             page.h("One page per run")
             page.links("Each run alone (self-contained pages):", list(pages.values()))
 
+        seeds_ok = {r.seed for r in ok}          # the GNSS of one seed: every run of a single-seed dataset shares it
         write_report_files(stage_ds, digests, table, title, notes, extra_files, page_hook=hook,
-                           truth_name=str(ds.truth.name) if ds.scenario is None else None)
+                           truth_name=str(ds.truth.name) if ds.scenario is None else None,
+                           gnss=gnss_of.get(ok[0].key) if len(seeds_ok) == 1 else None)
         if job_pages is not None:
             job_pages.update({(r.dataset, r.seed, r.method): f"{ds.name}/{pages[r.label]}" for r in ok})
         return table
@@ -227,7 +231,7 @@ def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: di
             mine = [r for r in refs if r.dataset == ds.name]
             n_seeds = len({r.seed for r in mine})
             per_run = figures == "all" or n_seeds <= PER_RUN_MAX
-            loaded, metas = {}, {}
+            loaded, metas, gnss_of = {}, {}, {}
             for r in mine:
                 if r.key in failed or not store.done(r.key):
                     continue
@@ -235,9 +239,11 @@ def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: di
                 metas[r.key] = meta
                 tail = TailTable(arrays["tail.time"], arrays["tail.columns"], int(arrays["tail.last"]))
                 loaded[r.key] = (tail, SeriesDigest.from_arrays(arrays) if per_run else None)
+                if per_run and r.key not in gnss_of:
+                    gnss_of[r.key] = overlay_from_arrays(arrays, f"simulated, seed {r.seed}")
             table = None
             try:
-                table = _dataset_report(stage / ds.name, ds, spec, mine, loaded, failed, per_run, job_pages)
+                table = _dataset_report(stage / ds.name, ds, spec, mine, loaded, failed, per_run, job_pages, gnss_of)
                 if table is not None:
                     reports[ds.name] = stage / ds.name
             except SinsError as exc:

@@ -86,6 +86,17 @@ def gnss_overlay(gnss, truth, name: str) -> GnssOverlay:
     return GnssOverlay(name, gnss.time, enu[:, 0], enu[:, 1], outages(gnss.time, FusionOptions().outage))
 
 
+def overlay_from_arrays(arrays, name: str) -> GnssOverlay | None:
+    """The :class:`GnssOverlay` a batch job stored (``gnss.*`` arrays), or None."""
+    if "gnss.time" not in arrays:
+        return None
+    from ..fusion.options import FusionOptions
+    from ..fusion.pipeline import outages
+    t = np.asarray(arrays["gnss.time"])
+    return GnssOverlay(name, t, np.asarray(arrays["gnss.east"]), np.asarray(arrays["gnss.north"]),
+                       outages(t, FusionOptions().outage))
+
+
 def _fmt(v: float) -> str:
     return f"{v:.3g}"
 
