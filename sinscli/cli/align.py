@@ -124,8 +124,10 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
         _write_series(series, res, eul, conv)
     if plot is not None:
         from ..align.figures import plot_series
-        plot_series(plot, res.series.time - res.t0, eul, title=f"sins align --method {res.method}",
-                    sigma_deg=np.degrees(res.sigma))
+        final = np.degrees(dcm_to_euler_many(res.state.Cbn[None], conv)[0])
+        plot_series(plot, res.series.time - res.t0, eul,
+                    title=f"Alignment of {Path(imu).name} (--method {res.method}), heading from {res.heading_source}",
+                    sigma_deg=np.degrees(res.sigma), final_deg=final, heading_supplied=res.heading_source == "user")
     r, p, h = np.degrees(dcm_to_euler_many(res.state.Cbn[None], conv)[0])
     s = np.degrees(res.sigma)
     hs = f"{s[2]:.3g}" if np.isfinite(s[2]) else "unknown"

@@ -50,7 +50,9 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
               help="Body axes of the files' attitude, for the roll/pitch/heading error components.")
 @click.option("--timeseries-every", type=click.IntRange(min=1), default=1, show_default=True,
               help="Write every N-th epoch to timeseries.csv (tables and figures use all).")
-@click.option("--title", default=None, help="Report title.")
+@click.option("--title", default=None, help="Report title (default: the files compared, by name).")
+@click.option("--gnss", "gnss_path", type=click.Path(path_type=Path), default=None,
+              help="GNSS fixes (CSV, FORMATS.md) drawn in the plan view, their outages shaded on the time plots.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="Batch: worker processes of the local pool (default: all cores).")
 @click.option("--metrics", "metrics", default=None, metavar="ate,rpe",
@@ -68,7 +70,7 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
 @scheduler_options
 @quiet_option
 @click.pass_context
-def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeseries_every, title, jobs,
+def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeseries_every, title, gnss_path, jobs,
             metrics, align_traj, rpe_delta, rpe_unit, rpe_pairs, scheduler, resume, figures, quiet):
     """Compare navigation results with a truth: error tables, time series, figures, index.html.
 
@@ -87,7 +89,7 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
         if len(inputs) != 1 or inputs[0].suffix.lower() not in (".yaml", ".yml"):
             raise SinsError("give --truth TRUTH with one or more NAV files, or a single BATCH.yaml")
         for opt, val in (("--label", label), ("--epoch", epoch), ("--interpolate", interpolate),
-                         ("--title", title), ("--metrics", metrics), ("--align-traj", align_traj != "none"),
+                         ("--title", title), ("--gnss", gnss_path), ("--metrics", metrics), ("--align-traj", align_traj != "none"),
                          ("--rpe-delta", rpe_delta != 1.0), ("--rpe-unit", rpe_unit != "s"),
                          ("--rpe-pairs", rpe_pairs != "ref")):
             if val:
@@ -109,7 +111,7 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
         raise SinsError("--align-traj and --rpe-* set how the trajectory metrics are computed: "
                         "give --metrics ate,rpe too")
     _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body], timeseries_every, title, quiet,
-            mopts)
+            mopts, gnss_path)
 
 
 def _is_tum(path: Path) -> bool:
@@ -127,14 +129,40 @@ def _read(path: Path):
     return read_trajectory(path)
 
 
-def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts):
+def _legend(navs: list[Path], names: list[str], given: tuple[str, ...]) -> dict[str, str]:
+    """How figures and the page name each method: its ``--label``, else its file as given (or the file
+    name when the path is long)."""
+    if given:
+        return dict(zip(names, names))
+    out = {}
+    for name, p in zip(names, navs):
+        text = str(p) if len(str(p)) <= 60 else p.name
+        out[name] = text if text not in out.values() else name
+    return out
+
+
+def default_title(truth_path: Path, legend: dict[str, str]) -> str:
+    """The report title naming the files: ``a.csv, b.csv against the truth truth.csv``."""
+    return f"{', '.join(legend.values())} against the truth {Path(truth_path).name}"
+
+
+def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts, gnss_path=None):
     from ..report.errors import compare_trajectories
     from ..report.report import write_report
     from ..types import Trajectory
 
     names = _labels(navs, label)
+    legend = _legend(navs, names, label)
     truth = _read(truth_path)
     trajs = [_read(p) for p in navs]
+    gnss = None
+    if gnss_path is not None:
+        if not isinstance(truth, Trajectory):
+            raise SinsError(f"--gnss {gnss_path}: the plan view with GNSS needs a truth with latitude and longitude "
+                            "(not a TUM file)")
+        from ..io.gnss_csv import read_gnss_csv
+        from ..report.compare_page import gnss_overlay
+        gnss = gnss_overlay(read_gnss_csv(gnss_path), truth, gnss_path.name)
     full = all(isinstance(x, Trajectory) for x in (truth, *trajs))    # the seed-000 table needs lat/lon, velocity
     series, results, frame = {}, {}, ""
     with progress(len(navs) + 1, "compare", quiet) as bar:
@@ -148,7 +176,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
             if mopts is not None:
                 results[name] = compute_metrics(ref, poses[k], mopts, interpolate, str(truth_path), str(path))
             bar.update(1)
-        notes = [f"Truth: {truth_path}."] + [f"{n}: {p}" for n, p in zip(names, navs)]
+        notes = [f"{legend[n]}: {p}" for n, p in zip(names, navs) if legend[n] != str(p)]
         if interpolate:
             notes.append("The truth was interpolated at the navigation epochs.")
         if mopts is not None:
@@ -157,8 +185,9 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         if not full:
             notes.append("TUM inputs hold no latitude, longitude or velocity: the seed-000 rows (DCM elements, "
                          "ENU position and velocity errors) are omitted; the table holds the trajectory metrics.")
-        table = write_report(outdir, series, title or f"sins compare: {Path(truth_path).name}", epoch, every,
-                             notes, metrics=results or None, metric_options=mopts, frame=frame)
+        table = write_report(outdir, series, title or default_title(truth_path, legend), epoch, every,
+                             notes, metrics=results or None, metric_options=mopts, frame=frame, legend=legend,
+                             truth_name=str(truth_path), gnss=gnss)
         bar.update(1)
     at = "" if table.epoch is None else f" at t = {float(table.epoch)!r} s"
     click.echo(f"sins: compare: {len(navs)} method(s){at} -> {outdir}/index.html", err=True)
