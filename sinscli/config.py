@@ -225,6 +225,18 @@ def validate(cfg: dict, src: str) -> None:
                                        f"limits.time), got {off!r}")
 
 
+def mounting_angles(c: np.ndarray) -> dict:
+    """The ``{roll, pitch, yaw}`` (degrees) of ``imu.mounting`` giving the rotation ``c`` (the inverse of
+    :func:`mounting_matrix`: ``c = Rz(yaw) Ry(pitch) Rx(roll)``); pitch in [-90, 90]."""
+    c = np.asarray(c, dtype=float)
+    pitch = math.asin(max(-1.0, min(1.0, -c[2, 0])))
+    if abs(c[2, 0]) < 1.0 - 1e-12:
+        roll, yaw = math.atan2(c[2, 1], c[2, 2]), math.atan2(c[1, 0], c[0, 0])
+    else:                                   # pitch +-90: the roll is folded into the yaw
+        roll, yaw = 0.0, math.atan2(-c[0, 1], c[1, 1])
+    return {k: float(np.round(math.degrees(v), 6)) + 0.0 for k, v in (("roll", roll), ("pitch", pitch), ("yaw", yaw))}
+
+
 def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
     """``C_sensor^body`` from the config's ``imu.mounting`` (None -> identity).
 

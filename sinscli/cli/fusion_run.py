@@ -42,12 +42,21 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     gnss = read_gnss(gnss_path, cfg)
     t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
     check_gnss_against_imu(gnss, t0, float(imu.time[-1]))
+    from ..nav.earth import gravity
+    from ..nav.sanity import mounting_warning
     init_bias = None
-    if align_method is not None:
+    if align_method is not None:             # the attitude comes from the log: check its up axis
+        note = mounting_warning(imu, t0, gravity(np.sin(np.radians(gnss.lat[0])), float(gnss.height[0])), opts.conv,
+                                None, cfg["imu"])
+        if note:
+            log.warning(note)
         init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts.gnss_pos_sigma)
     else:
         init = read_init(init_path, t0, opts.conv, cfg["limits"])
         init_sigma, init_bias = align_estimates(init, init_path, cfg["limits"])
+        note = mounting_warning(imu, t0, gravity(np.sin(init.lat), init.height), opts.conv, init.Cbn, cfg["imu"])
+        if note:
+            log.warning(note)
     fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias)
     step = 1 << 16
     blocks = (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],

@@ -139,6 +139,10 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
         opts.launch = init.extra["launch"]
     if cfg["imu"]["static_start"]:
         check_static_start(first, gravity(math.sin(init.lat), init.height), conv)
+    from ..nav.sanity import mounting_warning
+    note = mounting_warning(first, t_start, gravity(math.sin(init.lat), init.height), conv, init.Cbn, cfg["imu"])
+    if note:
+        log.warning(note)
 
     def all_blocks():
         yield first
