@@ -65,11 +65,19 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
 @click.option("--rpe-pairs", type=click.Choice(["ref", "est"]), default="ref", show_default=True,
               help="Take the RPE pairs from the truth path (the same pairs for every method) or from each "
                    "trajectory (evo's default).")
+@click.option("--start", default=None, metavar="T",
+              help="Compare from T on (time of the files' clock, or +S after the truth's first epoch): the "
+                   "tables, maxima and figures cover the window only.")
+@click.option("--end", default=None, metavar="T", help="Compare up to T (time, or +S after the truth's first epoch).")
+@click.option("--time-offset", type=float, default=None,
+              help="Seconds added to every truth time on reading (a truth whose clock differs from the IMU's; "
+                   "as gnss.time_offset for GNSS).")
 @scheduler_options
 @quiet_option
 @click.pass_context
 def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeseries_every, title, jobs,
-            metrics, align_traj, rpe_delta, rpe_unit, rpe_pairs, scheduler, resume, figures, quiet):
+            metrics, align_traj, rpe_delta, rpe_unit, rpe_pairs, start, end, time_offset, scheduler, resume,
+            figures, quiet):
     """Compare navigation results with a truth: error tables, time series, figures, index.html.
 
     \b
@@ -89,7 +97,8 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
         for opt, val in (("--label", label), ("--epoch", epoch), ("--interpolate", interpolate),
                          ("--title", title), ("--metrics", metrics), ("--align-traj", align_traj != "none"),
                          ("--rpe-delta", rpe_delta != 1.0), ("--rpe-unit", rpe_unit != "s"),
-                         ("--rpe-pairs", rpe_pairs != "ref")):
+                         ("--rpe-pairs", rpe_pairs != "ref"), ("--start", start), ("--end", end),
+                         ("--time-offset", time_offset)):
             if val:
                 raise SinsError(f"{opt}: not used with a batch file; set it in {inputs[0]}")
         _batch(inputs[0], outdir, jobs, scheduler, resume, figures, quiet, ctx)
@@ -108,8 +117,10 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
     elif (align_traj, rpe_delta, rpe_unit, rpe_pairs) != ("none", 1.0, "s", "ref"):
         raise SinsError("--align-traj and --rpe-* set how the trajectory metrics are computed: "
                         "give --metrics ate,rpe too")
+    from ..nav.window import make_window
+    window = make_window(start, end, None)
     _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body], timeseries_every, title, quiet,
-            mopts)
+            mopts, window, time_offset)
 
 
 def _is_tum(path: Path) -> bool:
@@ -127,7 +138,8 @@ def _read(path: Path):
     return read_trajectory(path)
 
 
-def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts):
+def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts, window=None,
+            time_offset=None):
     from ..report.errors import compare_trajectories
     from ..report.report import write_report
     from ..types import Trajectory
@@ -135,6 +147,9 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
     names = _labels(navs, label)
     truth = _read(truth_path)
     trajs = [_read(p) for p in navs]
+    window_note = _apply_window(truth, truth_path, trajs, navs, window, time_offset)
+    if window is not None and window.active and title is None:        # the caption's "whole run" is the window
+        title = f"sins compare: {Path(truth_path).name}, window {window.resolve(float(truth.time[0])).text()}"
     full = all(isinstance(x, Trajectory) for x in (truth, *trajs))    # the seed-000 table needs lat/lon, velocity
     series, results, frame = {}, {}, ""
     with progress(len(navs) + 1, "compare", quiet) as bar:
@@ -148,7 +163,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
             if mopts is not None:
                 results[name] = compute_metrics(ref, poses[k], mopts, interpolate, str(truth_path), str(path))
             bar.update(1)
-        notes = [f"Truth: {truth_path}."] + [f"{n}: {p}" for n, p in zip(names, navs)]
+        notes = [f"Truth: {truth_path}."] + [f"{n}: {p}" for n, p in zip(names, navs)] + window_note
         if interpolate:
             notes.append("The truth was interpolated at the navigation epochs.")
         if mopts is not None:
@@ -166,6 +181,31 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         from ..report.compare_metrics import summary_lines
         for line in summary_lines(results, mopts):
             click.echo(f"sins: compare: {line}", err=True)
+
+
+def _apply_window(truth, truth_path, trajs, navs, window, time_offset) -> list[str]:
+    """Shift the truth's times by ``time_offset`` and cut every track to the window, in place; refuse a
+    window or an offset that leaves no common epoch.  Returns the report's notes on them."""
+    from ..errors import num
+    from ..nav.window import Window, check_in_log, cut_track
+    notes = []
+    if time_offset:
+        truth.time = truth.time + float(time_offset)
+        notes.append(f"The truth's times were shifted by {num(float(time_offset))} s (--time-offset).")
+    window = (window or Window()).resolve(float(truth.time[0]))
+    if window.active:
+        check_in_log(window, float(truth.time[0]), float(truth.time[-1]), str(truth_path))
+        cut_track(truth, window, str(truth_path))
+        for nav, path in zip(trajs, navs):
+            cut_track(nav, window, str(path))
+        notes.append(f"Window: {window.text()} (tables, maxima and figures cover it only).")
+    for nav, path in zip(trajs, navs):
+        if nav.time[-1] < truth.time[0] or nav.time[0] > truth.time[-1]:
+            shift = f" after the --time-offset of {num(float(time_offset))} s" if time_offset else ""
+            raise SinsError(f"{path}: no epoch in common with the truth {truth_path}{shift} (navigation "
+                            f"{num(float(nav.time[0]))} to {num(float(nav.time[-1]))} s, truth "
+                            f"{num(float(truth.time[0]))} to {num(float(truth.time[-1]))} s)")
+    return notes
 
 
 def _batch(batch_path, outdir, jobs, scheduler, resume, figures, quiet, ctx):
