@@ -46,8 +46,10 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
               help="Epoch (s) of the table rows (default: the last epoch common to all NAV files).")
 @click.option("--interpolate", is_flag=True,
               help="Interpolate the truth at the navigation epochs (default: exact time match only).")
-@click.option("--body", type=click.Choice(sorted(BODY)), default="flu", show_default=True,
-              help="Body axes of the files' attitude, for the roll/pitch/heading error components.")
+@click.option("--body", type=click.Choice(sorted(BODY)), default=None,
+              help="Body axes of a file that does not tell them (no 'body' column or Parquet metadata, and "
+                   "attitude columns that do not match its roll/pitch/heading); default flu (FORMATS.md). "
+                   "Each file's own axes are used otherwise, so files of different conventions compare.")
 @click.option("--timeseries-every", type=click.IntRange(min=1), default=1, show_default=True,
               help="Write every N-th epoch to timeseries.csv (tables and figures use all).")
 @click.option("--title", default=None, help="Report title.")
@@ -119,8 +121,8 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
                         "give --metrics ate,rpe too")
     from ..nav.window import make_window
     window = make_window(start, end, None)
-    _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body], timeseries_every, title, quiet,
-            mopts, window, time_offset)
+    _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body or "flu"], timeseries_every, title,
+            quiet, mopts, window, time_offset)
 
 
 def _is_tum(path: Path) -> bool:
@@ -148,6 +150,8 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
     truth = _read(truth_path)
     trajs = [_read(p) for p in navs]
     window_note = _apply_window(truth, truth_path, trajs, navs, window, time_offset)
+    window_note += _to_flu([truth, *trajs], [truth_path, *navs], conv)
+    conv = 0                                    # every attitude is now of the FLU body axes
     if window is not None and window.active and title is None:        # the caption's "whole run" is the window
         title = f"sins compare: {Path(truth_path).name}, window {window.resolve(float(truth.time[0])).text()}"
     full = all(isinstance(x, Trajectory) for x in (truth, *trajs))    # the seed-000 table needs lat/lon, velocity
@@ -181,6 +185,26 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         from ..report.compare_metrics import summary_lines
         for line in summary_lines(results, mopts):
             click.echo(f"sins: compare: {line}", err=True)
+
+
+def _to_flu(tracks, paths, default: int) -> list[str]:
+    """Turn each trajectory's attitude into that of its FLU body axes (the file's own convention: its marker,
+    else its angles, else ``default``), in place, so that files of different conventions compare.  Returns
+    the report's note on the conventions."""
+    from ..io.trajectory import BODY_NAMES
+    from ..nav.rotation import body_flu_in_enu
+    from ..types import Trajectory
+    said = []
+    for tr, path in zip(tracks, paths):
+        if not isinstance(tr, Trajectory):
+            continue                              # TUM attitudes are FLU
+        code = tr.body if tr.body is not None else default
+        how = {"marker": "its marker", "angles": "its attitude columns"}.get(tr.body_from, "--body or FORMATS.md")
+        said.append(f"{Path(path).name} {BODY_NAMES[code].upper()} ({how})")
+        if code != 0:
+            tr.Cbn = body_flu_in_enu(tr.Cbn, code)
+        tr.body, tr.body_from = 0, "converted"
+    return [f"Body axes: {', '.join(said)}; attitudes compared as those of the FLU axes."] if said else []
 
 
 def _apply_window(truth, truth_path, trajs, navs, window, time_offset) -> list[str]:

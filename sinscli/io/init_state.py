@@ -23,7 +23,8 @@ def read_init(path, t_start: float | None = None, conv: int = 0, limits=None) ->
 
     A YAML file must hold every key of FORMATS.md (extra keys from ``sins
     align`` are kept in ``extra``).  A trajectory CSV/Parquet gives the row at
-    the IMU start ``t_start``: the last row at or before it.  Values beyond the
+    the IMU start ``t_start``: the last row at or before it, its attitude turned
+    from the file's body axes (its marker or its angles) into those of ``conv``.  Values beyond the
     physical ``limits`` (the config's section) are refused naming the key or row.
     """
     path = input_file(path, "init file")
@@ -41,8 +42,12 @@ def read_init(path, t_start: float | None = None, conv: int = 0, limits=None) ->
                             f"(the trajectory starts at {num(traj.time[0])})")
         k = int(idx[-1])
     _check_lat(path, math.degrees(traj.lat[k]), f"row {k + 1}, column 'lat'")
+    cbn = traj.Cbn[k].copy()
+    if traj.body is not None and traj.body != conv:      # the file's body axes -> those of the run
+        from ..nav.rotation import body_flu_in_enu, cbn_from_flu
+        cbn = cbn_from_flu(body_flu_in_enu(cbn[None], traj.body), conv)[0]
     return NavState(float(traj.time[k]), float(traj.lat[k]), float(traj.lon[k]), float(traj.height[k]),
-                    traj.vel_n[k].copy(), traj.Cbn[k].copy())
+                    traj.vel_n[k].copy(), cbn)
 
 
 def _check_lat(path, lat_deg, where):
