@@ -38,6 +38,17 @@ DEFAULTS = {
         "ignore_columns": [],
         "lever_arm": [0.0, 0.0, 0.0],   # antenna position in body axes, m
         "time_offset": 0.0,             # s added to every GNSS time on reading (e.g. -18: GPS time -> UTC)
+        "frame": "enu",                 # enu | ned: velocity columns (NED: vel_d, std_d, std_vel_d; io/frames.py)
+        "units": {"angle": "deg"},      # lat, lon in deg | rad
+    },
+    "init": {                     # the --init file (init YAML or trajectory)
+        "frame": "enu",           # enu | ned (NED: key/column vel_d, attitude columns body -> NED)
+        "units": {"angle": "deg"},    # lat, lon, roll, pitch, heading in deg | rad
+    },
+    "truth": {                    # the truth trajectory of sins compare --config
+        "frame": "enu",
+        "units": {"angle": "deg"},
+        "time_offset": 0.0,       # s added to every truth time on reading (as gnss.time_offset; --time-offset)
     },
     "odometry": {
         "columns": {},            # FORMATS name (time, vel_x.., std_x..) -> column name in the CSV
@@ -219,10 +230,14 @@ def validate(cfg: dict, src: str) -> None:
                        for x in arm)):
         _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres (at most {MAX_LEVER_ARM:g} "
                                      f"each), got {arm!r}")
-    off = cfg["gnss"]["time_offset"]
-    if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
-        _fail(src, "gnss.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the config's "
-                                       f"limits.time), got {off!r}")
+    for section in ("gnss", "truth"):
+        off = cfg[section]["time_offset"]
+        if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
+            _fail(src, f"{section}.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the "
+                                                 f"config's limits.time), got {off!r}")
+    from .io.frames import validate_section
+    for section in ("gnss", "init", "truth"):
+        validate_section(cfg[section], section, lambda key, msg: _fail(src, key, msg))
 
 
 def mounting_angles(c: np.ndarray) -> dict:

@@ -100,7 +100,7 @@ def test_fused_window_and_gnss_time_offset(d):
      ["does not overlap", "time offset of 1e+06 s"]),
     (["navigate", "imu.csv", "--init", "init.yaml", "--time-offset", "3"], ["--time-offset needs --gnss"]),
     (["compare", "--truth", "truth.csv", "full.csv", "--time-offset", "1000"], ["no epoch in common",
-                                                                            "--time-offset of 1000"]),
+                                                                            "time offset of 1000.0 s"]),
     (["compare", "--truth", "truth.csv", "full.csv", "--start", "500"], ["starts after"]),
 ])
 def test_window_refusals(d, args, fragments):

@@ -73,13 +73,16 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
 @click.option("--end", default=None, metavar="T", help="Compare up to T (time, or +S after the truth's first epoch).")
 @click.option("--time-offset", type=float, default=None,
               help="Seconds added to every truth time on reading (a truth whose clock differs from the IMU's; "
-                   "as gnss.time_offset for GNSS).")
+                   "config truth.time_offset, as gnss.time_offset for GNSS).")
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
+              help="Config YAML whose truth section says the truth's frame (enu|ned), angle units (deg|rad) "
+                   "and time offset (configs/navigation.yaml).")
 @scheduler_options
 @quiet_option
 @click.pass_context
 def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeseries_every, title, jobs,
-            metrics, align_traj, rpe_delta, rpe_unit, rpe_pairs, start, end, time_offset, scheduler, resume,
-            figures, quiet):
+            metrics, align_traj, rpe_delta, rpe_unit, rpe_pairs, start, end, time_offset, config_path, scheduler,
+            resume, figures, quiet):
     """Compare navigation results with a truth: error tables, time series, figures, index.html.
 
     \b
@@ -100,7 +103,7 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
                          ("--title", title), ("--metrics", metrics), ("--align-traj", align_traj != "none"),
                          ("--rpe-delta", rpe_delta != 1.0), ("--rpe-unit", rpe_unit != "s"),
                          ("--rpe-pairs", rpe_pairs != "ref"), ("--start", start), ("--end", end),
-                         ("--time-offset", time_offset)):
+                         ("--time-offset", time_offset), ("--config", config_path)):
             if val:
                 raise SinsError(f"{opt}: not used with a batch file; set it in {inputs[0]}")
         _batch(inputs[0], outdir, jobs, scheduler, resume, figures, quiet, ctx)
@@ -119,10 +122,12 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
     elif (align_traj, rpe_delta, rpe_unit, rpe_pairs) != ("none", 1.0, "s", "ref"):
         raise SinsError("--align-traj and --rpe-* set how the trajectory metrics are computed: "
                         "give --metrics ate,rpe too")
+    from ..config import load_config, merge
     from ..nav.window import make_window
     window = make_window(start, end, None)
+    truth_cfg = merge(load_config(config_path), "truth", time_offset=time_offset)["truth"]
     _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body or "flu"], timeseries_every, title,
-            quiet, mopts, window, time_offset)
+            quiet, mopts, window, truth_cfg)
 
 
 def _is_tum(path: Path) -> bool:
@@ -130,25 +135,28 @@ def _is_tum(path: Path) -> bool:
     return path.suffix.lower() in (".tum", ".txt")
 
 
-def _read(path: Path):
-    """A trajectory (CSV/Parquet) or the rows of a TUM file."""
+def _read(path: Path, section=None):
+    """A trajectory (CSV/Parquet) or the rows of a TUM file; ``section`` (the config's ``truth``) its frame and
+    angle units."""
     if _is_tum(path):
         from ..io.tum import read_tum
         from ..report.compare_metrics import TumTrack
         return TumTrack(*read_tum(path), source=str(path))
+    from ..io.frames import convention
     from ..io.trajectory import read_trajectory
-    return read_trajectory(path)
+    return read_trajectory(path, None, *convention(section))
 
 
 def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts, window=None,
-            time_offset=None):
+            truth_cfg=None):
     from ..report.errors import compare_trajectories
     from ..report.report import write_report
     from ..types import Trajectory
 
     names = _labels(navs, label)
-    truth = _read(truth_path)
+    truth = _read(truth_path, truth_cfg)
     trajs = [_read(p) for p in navs]
+    time_offset = (truth_cfg or {}).get("time_offset", 0.0)
     window_note = _apply_window(truth, truth_path, trajs, navs, window, time_offset)
     window_note += _to_flu([truth, *trajs], [truth_path, *navs], conv)
     conv = 0                                    # every attitude is now of the FLU body axes
@@ -225,7 +233,8 @@ def _apply_window(truth, truth_path, trajs, navs, window, time_offset) -> list[s
         notes.append(f"Window: {window.text()} (tables, maxima and figures cover it only).")
     for nav, path in zip(trajs, navs):
         if nav.time[-1] < truth.time[0] or nav.time[0] > truth.time[-1]:
-            shift = f" after the --time-offset of {num(float(time_offset))} s" if time_offset else ""
+            shift = (f" after the truth time offset of {num(float(time_offset))} s (--time-offset, truth.time_offset)"
+                     if time_offset else "")
             raise SinsError(f"{path}: no epoch in common with the truth {truth_path}{shift} (navigation "
                             f"{num(float(nav.time[0]))} to {num(float(nav.time[-1]))} s, truth "
                             f"{num(float(truth.time[0]))} to {num(float(truth.time[-1]))} s)")

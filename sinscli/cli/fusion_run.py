@@ -66,7 +66,8 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
             log.warning(note)
         init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts.gnss_pos_sigma)
     else:
-        init = read_init(init_path, t0 if window.start is None else window.start, opts.conv, cfg["limits"])
+        init = read_init(init_path, t0 if window.start is None else window.start, opts.conv, cfg["limits"],
+                         cfg["init"])
         check_init(init.time, window, str(init_path))
         init_sigma, init_bias = align_estimates(init, init_path, cfg["limits"])
         note = mounting_warning(imu, t0, gravity(np.sin(init.lat), init.height), opts.conv, init.Cbn, cfg["imu"])

@@ -147,7 +147,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
         first.time[1] - first.time[0] if len(first) > 1 else 0.0))
     window = window.resolve(t_start)
     check_in_log(window, t_start, None, str(imu))
-    init = read_init(init_path, t_start if window.start is None else window.start, conv, cfg["limits"])
+    init = read_init(init_path, t_start if window.start is None else window.start, conv, cfg["limits"], cfg["init"])
     check_init(init.time, window, str(init_path))
     if opts.frame == "launch-inertial" and opts.launch is None and "launch" in init.extra:
         launch_frame(init.extra["launch"], init.time, f"{init_path}: launch")   # checked naming the file

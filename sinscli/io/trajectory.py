@@ -25,6 +25,7 @@ from . import aided_columns
 from . import limits as limits_mod
 from .atomic import atomic_path, check_finite, prepare_output
 from .csvcore import CsvTableWriter, read_header, read_numeric_columns
+from .frames import cbn_to_enu, file_name, to_enu
 
 BASE_COLUMNS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading",
                 "qw", "qx", "qy", "qz"]
@@ -159,11 +160,14 @@ def check_trajectory_output(path) -> Path:
     return prepare_output(path)
 
 
-def read_trajectory(path, limits=None) -> Trajectory:
+def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) -> Trajectory:
     """Read a trajectory CSV or Parquet.  ``c11..c33`` are used when present, else the quaternion.
 
     Rows beyond the physical ``limits`` (the config's section; default: the defaults), Euler angles
-    out of range and an attitude that is not a rotation are refused naming the row and column.
+    out of range and an attitude that is not a rotation are refused naming the row and column.  A file
+    in ``frame`` NED (``vel_d``, attitude body -> NED) or with angles in radians (``to_deg``, the factor to
+    degrees) is read into FORMATS.md's ENU and degrees (:mod:`sinscli.io.frames`, the config's ``init``
+    and ``truth`` sections).
     """
     lim = limits_mod.resolve(limits)
     path = input_file(path, "trajectory file")
@@ -174,7 +178,7 @@ def read_trajectory(path, limits=None) -> Trajectory:
         except Exception as exc:
             raise SinsError(f"{path}: cannot read as Parquet ({type(exc).__name__})") from None
         header = table.column_names
-        _check_columns(path, header)
+        _check_columns(path, header, frame)
         marker = (table.schema.metadata or {}).get(BODY_METADATA)
         body = _body_code(path, marker.decode("utf-8", "replace") if marker is not None else None,
                           f"metadata {BODY_METADATA.decode()}")
@@ -189,10 +193,13 @@ def read_trajectory(path, limits=None) -> Trajectory:
         first, row = 1, "row"
     else:
         header = read_header(path)
-        _check_columns(path, header)
+        _check_columns(path, header, frame)
         body = _read_body_column(path) if BODY_COLUMN in header else None
         data = read_numeric_columns(path, {c: c for c in header if c != BODY_COLUMN})
         first, row = 2, "line"
+    if frame == "ned":
+        data["vel_u"] = data.pop("vel_d")           # (negated by to_enu)
+    data = to_enu(data, frame, to_deg)
     from .imu_csv import check_time
     limits_mod.check_time(path, data["time"], lim, "time", first, row)
     check_time(path, data["time"], allow_gaps=True)
@@ -219,6 +226,7 @@ def read_trajectory(path, limits=None) -> Trajectory:
         limits_mod.check_abs(path, norm - 1.0, ROTATION_TOL, "departure of the quaternion norm from 1", None, "",
                              "qw..qz", first, row)
         cbn = quat_to_dcm_many(q / norm[:, None])
+    cbn = np.ascontiguousarray(cbn_to_enu(cbn, frame))
     extra = {c: data[c] for c in data if c not in BASE_COLUMNS and c not in DCM_COLUMNS and c != BODY_COLUMN}
     aided_columns.check_columns(str(path), extra, first, row)
     body_from = "marker"
@@ -274,11 +282,13 @@ def _read_body_column(path) -> int:
     return BODY_CONVENTIONS[first]
 
 
-def _check_columns(path, header):
-    missing = [c for c in REQUIRED if c not in header]
+def _check_columns(path, header, frame: str = "enu"):
+    required = [file_name(c, frame) for c in REQUIRED]
+    missing = [c for c in required if c not in header]
     if missing:
+        hint = " (a NED file: config frame: ned)" if frame != "ned" and "vel_d" in header else ""
         raise SinsError(f"{path}: missing trajectory column(s) {', '.join(missing)}; expected "
-                        f"{', '.join(REQUIRED)} (FORMATS.md)")
+                        f"{', '.join(required)} (FORMATS.md){hint}")
 
 
 # Result formats of other modules (MCAP for Foxglove/ROS, TUM for evo, GeoJSON and KML for maps).
