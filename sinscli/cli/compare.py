@@ -231,10 +231,9 @@ def _apply_window(truth, truth_path, trajs, navs, window, time_offset) -> list[s
         for nav, path in zip(trajs, navs):
             cut_track(nav, window, str(path))
         notes.append(f"Window: {window.text()} (tables, maxima and figures cover it only).")
-    for nav, path in zip(trajs, navs):
-        if nav.time[-1] < truth.time[0] or nav.time[0] > truth.time[-1]:
-            shift = (f" after the truth time offset of {num(float(time_offset))} s (--time-offset, truth.time_offset)"
-                     if time_offset else "")
+    for nav, path in zip(trajs, navs):                  # (without an offset report/errors.py diagnoses it)
+        if time_offset and (nav.time[-1] < truth.time[0] or nav.time[0] > truth.time[-1]):
+            shift = f" after the truth time offset of {num(float(time_offset))} s (--time-offset, truth.time_offset)"
             raise SinsError(f"{path}: no epoch in common with the truth {truth_path}{shift} (navigation "
                             f"{num(float(nav.time[0]))} to {num(float(nav.time[-1]))} s, truth "
                             f"{num(float(truth.time[0]))} to {num(float(truth.time[-1]))} s)")
