@@ -64,3 +64,13 @@ def test_distinct_output_still_written(d):
     rc, lines = sins(["navigate", "imu.csv", "--init", "nav.csv", "-q", "-o", "nav2.csv"], cwd=d)
     assert rc == 0, lines
     assert (d / "nav2.csv").stat().st_size > 0
+
+
+def test_library_may_rewrite_what_it_read(d):
+    """Outside a command (library use) reading a trajectory and writing it back is not refused."""
+    from sinscli.io.trajectory import read_trajectory, write_trajectory
+    rc, lines = sins(["navigate", "imu.csv", "--init", "init.yaml", "-q", "-o", "nav.csv"], cwd=d)
+    assert rc == 0, lines
+    t = read_trajectory(d / "nav.csv")
+    write_trajectory(d / "nav.csv", t)
+    assert len(read_trajectory(d / "nav.csv")) == len(t)

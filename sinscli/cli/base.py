@@ -89,7 +89,7 @@ class _Command(click.Command):
     before it runs, so that an output naming one of them is refused, whatever the command."""
 
     def invoke(self, ctx):
-        from ..io.atomic import reset_inputs
+        from ..io.atomic import end_inputs, reset_inputs
         paths = []
         for param in self.params:
             if param.name in OUTPUT_PARAMS or not isinstance(param.type, click.Path):
@@ -97,7 +97,10 @@ class _Command(click.Command):
             value = ctx.params.get(param.name)
             paths.extend(value if isinstance(value, (tuple, list)) else [value])
         reset_inputs(p for p in paths if p is not None)
-        return super().invoke(ctx)
+        try:
+            return super().invoke(ctx)
+        finally:
+            end_inputs()
 
 
 class _Group(click.Group):

@@ -25,20 +25,28 @@ _NO_SPACE = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS)
 # ``sinscli/cli/base.py``) and every file a reader opened (``sinscli/io/inputs.input_file``).  Every output
 # (``prepare_output``, and each file ``staged_dir`` moves into place) is checked against them, so that no
 # ``-o`` ever overwrites a log, a config or a truth it reads (issue 10).
+# Only while a command runs (library code that reads a file and writes it back is not refused).
 _INPUTS: dict[str, Path] = {}
+_ACTIVE = [False]
 
 
 def reset_inputs(paths=()) -> None:
-    """Forget the inputs of an earlier command (the CLI calls it at the start of each one) and note
-    ``paths``."""
+    """Start a command's record of inputs (the CLI calls it as each command starts) with ``paths``."""
     _INPUTS.clear()
+    _ACTIVE[0] = True
     for p in paths:
         note_input(p)
 
 
+def end_inputs() -> None:
+    """End the record (the command is done): no check until the next :func:`reset_inputs`."""
+    _INPUTS.clear()
+    _ACTIVE[0] = False
+
+
 def note_input(path) -> None:
     """Remember ``path`` as an input of the running command (its real path: symlinks and ``..`` resolved)."""
-    if path is None:
+    if path is None or not _ACTIVE[0]:
         return
     try:
         key = os.path.realpath(os.fspath(path))
@@ -59,6 +67,8 @@ def _same_file(a: str, b: str) -> bool:
 def check_not_input(path) -> None:
     """Refuse an output ``path`` that is one of the command's inputs (the same file by its real path or
     by ``os.path.samefile``), or a file inside an input folder (a ROS 2 bag directory)."""
+    if not _INPUTS:
+        return
     try:
         real = os.path.realpath(os.fspath(path))
     except (TypeError, ValueError, OSError):
