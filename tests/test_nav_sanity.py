@@ -121,3 +121,21 @@ def test_husky_without_its_mounting_warns_and_names_the_fix(tmp_path, caplog):
     msg = check_mounting(imu.time, imu.dtheta_b, imu.dvel_b, imu.t0 if imu.t0 is not None else imu.time[0],
                          9.80, 0, None)
     assert "from the body's up axis" in msg and "imu.mounting: {roll: 90" in msg
+
+
+def test_init_later_in_the_log_is_checked_there(tmp_path, caplog):
+    """An init from the truth at 100 s (the vehicle driving, turned from its start heading): the check
+    uses the samples after the init, with the attitude of the init: no false warning; with the init's
+    attitude rolled by 90 deg the warning names it."""
+    rc, lines = sins(["navigate", SAMPLE / "imu.csv", "--init", SAMPLE / "truth.csv", "--start", "100", "-q",
+                      "-o", tmp_path / "n.csv"])
+    assert rc == 0 and not [r for r in caplog.records if "mounting" in r.getMessage()], lines
+    from sinscli.io.readers import read_imu as _read
+    from sinscli.io.trajectory import read_trajectory
+    truth = read_trajectory(SAMPLE / "truth.csv")
+    k = int(np.flatnonzero(truth.time == 100.0)[0])
+    imu = _read(SAMPLE / "imu.csv", load_config())
+    from sinscli.nav.sanity import mounting_warning
+    assert mounting_warning(imu, 100.0, G, 0, truth.Cbn[k], {}) is None
+    rolled = truth.Cbn[k] @ euler_to_dcm(math.pi / 2, 0.0, 0.0, 0)
+    assert "init's roll and pitch" in mounting_warning(imu, 100.0, G, 0, rolled, {})

@@ -70,7 +70,8 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
                          cfg["init"])
         check_init(init.time, window, str(init_path))
         init_sigma, init_bias = align_estimates(init, init_path, cfg["limits"])
-        note = mounting_warning(imu, t0, gravity(np.sin(init.lat), init.height), opts.conv, init.Cbn, cfg["imu"])
+        note = mounting_warning(imu, max(t0, init.time), gravity(np.sin(init.lat), init.height), opts.conv,
+                                init.Cbn, cfg["imu"])
         if note:
             log.warning(note)
     fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias)

@@ -155,7 +155,8 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     if cfg["imu"]["static_start"]:
         check_static_start(first, gravity(math.sin(init.lat), init.height), conv)
     from ..nav.sanity import mounting_warning
-    note = mounting_warning(first, t_start, gravity(math.sin(init.lat), init.height), conv, init.Cbn, cfg["imu"])
+    note = mounting_warning(first, max(t_start, init.time), gravity(math.sin(init.lat), init.height), conv, init.Cbn,
+                            cfg["imu"])
     if note:
         log.warning(note)
 

@@ -130,7 +130,10 @@ def check_mounting(time, dtheta_b, dvel_b, t0: float, g: float, conv: int, cbn0=
 
 
 def mounting_warning(imu, t0: float, g: float, conv: int, cbn0, imu_cfg: dict) -> str | None:
-    """:func:`check_mounting` on an :class:`~sinscli.types.ImuLog` (block) with the config's ``imu`` section."""
+    """:func:`check_mounting` on an :class:`~sinscli.types.ImuLog` (block) with the config's ``imu`` section,
+    over the samples after ``t0`` (the epoch of ``cbn0``: the init's time, when it is inside the log)."""
     from ..config import mounting_matrix
-    return check_mounting(imu.time, imu.dtheta_b, imu.dvel_b, t0, g, conv, cbn0,
+    from ..types import time_tolerance
+    k = int(np.searchsorted(imu.time, t0 + time_tolerance(t0), side="right"))
+    return check_mounting(imu.time[k:], imu.dtheta_b[k:], imu.dvel_b[k:], t0, g, conv, cbn0,
                           mounting_matrix(imu_cfg.get("mounting")), str(imu.source or "IMU log"))
