@@ -139,3 +139,20 @@ def test_init_later_in_the_log_is_checked_there(tmp_path, caplog):
     assert mounting_warning(imu, 100.0, G, 0, truth.Cbn[k], {}) is None
     rolled = truth.Cbn[k] @ euler_to_dcm(math.pi / 2, 0.0, 0.0, 0)
     assert "init's roll and pitch" in mounting_warning(imu, 100.0, G, 0, rolled, {})
+
+
+def test_no_warning_fused_on_the_sample(tmp_path, caplog):
+    (tmp_path / "imu.csv").write_text("\n".join((SAMPLE / "imu.csv").read_text().splitlines()[:3102]) + "\n")
+    (tmp_path / "gnss.csv").write_text("\n".join((SAMPLE / "gnss.csv").read_text().splitlines()[:31]) + "\n")
+    rc, lines = sins(["navigate", "imu.csv", "--gnss", "gnss.csv", "--init", SAMPLE / "init.yaml", "-q", "-o",
+                      "f.csv"], cwd=tmp_path)
+    assert rc == 0, lines
+    # --align: the check runs before the alignment (which refuses this MEMS log's earth-rate heading)
+    rc, lines = sins(["navigate", "imu.csv", "--gnss", "gnss.csv", "--align", "static", "-q", "-o", "f.csv"],
+                     cwd=tmp_path)
+    assert not [r for r in caplog.records if "mounting" in r.getMessage()]
+    frd = tmp_path / "frd.yaml"                    # the same log said to be FRD without turning it: named
+    frd.write_text("imu:\n  body: frd\n")
+    rc, lines = sins(["navigate", "imu.csv", "--gnss", "gnss.csv", "--align", "static", "--config", frd, "-q",
+                      "-o", "f.csv"], cwd=tmp_path)
+    assert [r for r in caplog.records if "the data look FLU: set imu.body: flu" in r.getMessage()], lines
