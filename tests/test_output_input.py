@@ -43,6 +43,7 @@ def _digest(folder: Path) -> dict:
       "-o", "f.csv"], "gnss.csv"),
     (["align", "imu.csv", "--method", "static", "--position", "32,120,10", "--config", "cfg.yaml", "-o", "cfg.yaml"], "cfg.yaml"),
     (["compare", "--truth", "rep/errors.csv", "truth.csv", "-o", "rep"], "rep/errors.csv"),
+    (["simulate", "rep/init.yaml", "--duration", "2", "-o", "rep"], "rep/init.yaml"),     # a folder output
 ])
 def test_output_onto_input_refused(d, args, target):
     (d / "sub").mkdir()
@@ -51,6 +52,7 @@ def test_output_onto_input_refused(d, args, target):
     (d / "cfg.yaml").write_text("imu:\n  body: flu\n")
     (d / "rep").mkdir()
     (d / "rep" / "errors.csv").write_bytes((d / "truth.csv").read_bytes())
+    (d / "rep" / "init.yaml").write_bytes((ROOT / "configs" / "scenarios" / "vehicle_drive.yaml").read_bytes())
     before = _digest(d), _digest(d / "rep")
     refused(args, "the output would overwrite the input", target.split("/")[-1], cwd=d)
     assert (_digest(d), _digest(d / "rep")) == before
