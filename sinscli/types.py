@@ -97,6 +97,8 @@ class Trajectory:
     Cbn: np.ndarray        # (N, 3, 3)
     extra: dict = field(default_factory=dict)   # extra columns name -> (N,) array
     source: str = "<memory>"
+    body: int | None = None    # body convention of Cbn (FLU 0, RFU 1, FRD 2) as read from a file; None: not known
+    body_from: str = ""        # how it was known: "marker" (body column, Parquet metadata) or "angles"
 
     def __len__(self) -> int:
         return int(self.time.shape[0])

@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from ..errors import SinsError
-from ..io.atomic import atomic_path
+from ..io.atomic import atomic_path, prepare_output
 from ..io.init_state import write_init_yaml
 from ..nav.rotation import BODY_CONVENTIONS, dcm_to_euler_many
 from .base import log, main, progress, quiet_option
@@ -85,6 +85,9 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
             raise SinsError(f"{opt}: only used with --monte-carlo")
     if imu is None:
         raise SinsError("give an IMU log (or --monte-carlo N --scenario FILE)")
+    for out in (output, series, plot):         # before any work: a directory, no permission, an input
+        if out is not None:
+            prepare_output(out)
     from ..align.options import build_options, load_align_config, parse_position
     from ..align.pipeline import align
     from ..config import merge

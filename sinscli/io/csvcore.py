@@ -226,18 +226,22 @@ class CsvTableWriter:
     :func:`sinscli.io.atomic.check_finite` (``sigmas``: the 1-sigma columns, which must be positive).
     """
 
-    def __init__(self, path, columns: list[str], sigmas=()):
+    def __init__(self, path, columns: list[str], sigmas=(), text_columns: dict[str, str] | None = None):
         self.columns = list(columns)
         self.path = path
         self.sigmas = tuple(sigmas)
+        self.text_columns = dict(text_columns or {})     # name -> the same text on every row, after the numbers
         self._rows = 0
         self._fh = open(path, "wb")
-        self._fh.write((",".join(self.columns) + "\n").encode())
+        self._fh.write((",".join(self.columns + list(self.text_columns)) + "\n").encode())
         self._opts = pacsv.WriteOptions(include_header=False, quoting_style="none", batch_size=1 << 16)
 
     def write(self, data: dict[str, np.ndarray]) -> None:
         check_finite(self.path, {c: data[c] for c in self.columns}, data.get("time"), self._rows + 1, self.sigmas)
         table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in self.columns})
+        for name, text in self.text_columns.items():
+            table = table.append_column(name, pa.DictionaryArray.from_arrays(
+                pa.array(np.zeros(table.num_rows, np.int8)), pa.array([text])))
         self._rows += table.num_rows
         buf = io.BytesIO()
         pacsv.write_csv(table, buf, write_options=self._opts)
