@@ -19,7 +19,7 @@ from ..errors import SinsError
 from ..nav import strapdown as sd
 from ..nav.earth import gravity, radii_py
 from ..nav.pipeline import BLOCK, NavOptions, concat
-from ..nav.rotation import conv_to_flu, dcm_to_euler
+from ..nav.rotation import conv_to_flu
 from ..sensors import G0, load_sensor
 from ..types import GnssLog, ImuLog, NavState, Trajectory, time_tolerance
 from . import kernel as kn
@@ -247,6 +247,38 @@ def outages(time: np.ndarray, factor: float) -> list:
     return [(float(time[i]), float(d[i])) for i in k]
 
 
+class EpochStore:
+    """The smoother's epochs (:func:`sinscli.fusion.kernel._store_epoch`), grown as the filter runs:
+    per epoch the time, P- and P+ (upper triangles), the integral of F over its pattern, the fed-back
+    correction and the reset flag (about 2.6 kB for 15 states)."""
+    EMPTY = (np.empty(0), np.empty((0, 1)), np.empty((0, 1)), np.empty((0, 1)), np.empty((0, 1)), np.empty(0))
+
+    def __init__(self, nx: int, nnz: int):
+        self.nx, self.nnz, self.n = nx, nnz, 0
+        self._a = self._alloc(0)
+
+    def _alloc(self, cap):
+        nu = self.nx * (self.nx + 1) // 2
+        return (np.empty(cap), np.empty((cap, nu)), np.empty((cap, nu)), np.empty((cap, self.nnz)),
+                np.empty((cap, self.nx)), np.empty(cap))
+
+    def reserve(self, more: int) -> None:
+        """Room for ``more`` epochs after the ``n`` stored (grown by half again, copied once)."""
+        cap = len(self._a[0])
+        if self.n + more <= cap:
+            return
+        new = self._alloc(max(self.n + more, int(1.5 * cap)))
+        for a, b in zip(self._a, new):
+            b[:self.n] = a[:self.n]
+        self._a = new
+
+    def arrays(self):
+        return self._a
+
+    def trimmed(self):
+        return tuple(a[:self.n] for a in self._a)
+
+
 class Fusion:
     """Stateful fused navigator: feed IMU blocks in time order, get trajectory chunks back."""
 
@@ -267,8 +299,9 @@ class Fusion:
         self.st = sd.new_state(init.time, init.lat, init.lon, init.height, np.asarray(init.vel_n, float), c,
                                self.method, nav.conv)
         self.cflu = conv_to_flu(nav.conv)
-        self.ptr, self.col = sparsity(nx)
-        self.FT = np.zeros((nx, nx))
+        self.ptr, self.col = sparsity(nx, bool(np.any(self.model.inv_tau_g > 0) or np.any(self.model.inv_tau_a > 0)))
+        self.ftv = np.zeros(len(self.col))
+        self.mats, self.vecs, self.s3 = kn.workspace(nx)
         lever = fopts.lever_arm if fopts.lever_arm is not None else np.zeros(3)
         self.lever = np.asarray(lever, dtype=float)
         self.cv = self._config_vector()
@@ -298,8 +331,8 @@ class Fusion:
         self._t_nhc = init.time
         self._t_end_gnss = t_end
         self.inn_parts, self.ev_parts = [], []
-        self.epochs = []
-        self.forward_rows = []          # kept for the smoother
+        self.epochs = EpochStore(nx, len(self.col)) if smooth else None
+        self.forward_rows = []          # kept for the smoother: (trajectory, variances, sensor estimates)
         self.applied = 0
         self.heading_known = bool(self.fs[kn.F_HEAD_KNOWN] > 0)
         self._source = "<memory>"
@@ -337,6 +370,7 @@ class Fusion:
         cv[kn.C_NHC_AX0], cv[kn.C_NHC_AX1] = lat_axes
         cv[kn.C_HEAD_MINSPEED] = f.heading_min_speed
         cv[kn.C_QMAX] = f.adapt_max_scale
+        cv[kn.C_FWD] = fwd
         return cv
 
     def _initial_covariance(self, s: dict):
@@ -365,19 +399,17 @@ class Fusion:
     # ------------------------------------------------------------------ running
     def initial_row(self) -> Trajectory:
         s = self.init
-        cov = np.zeros((1, 12))
-        cov[0, :3] = np.diag(self.P)[0:3]
-        cov[0, 3:6] = np.diag(self.P)[3:6]
-        cov[0, 6:9] = np.diag(self.P)[6:9]
-        if self.fs[kn.F_HEAD_KNOWN] == 0:
-            cov[0, 8] = -1.0
-        bias = np.zeros((1, 24))
-        bias[0, :12] = self.fs[:12]
+        var = np.zeros((1, kn.NVAR))
+        bias = np.zeros((1, kn.NBIAS))
+        kn.row_variances(var, 0, tuple(tuple(r) for r in np.asarray(s.Cbn, float)), int(self.cv[kn.C_FWD]),
+                         *np.diag(self.P)[:9], self.P[PHI, PHI + 1], self.fs[kn.F_HEAD_KNOWN] > 0)
+        bias[0] = self.fs[:kn.NBIAS]
         traj = Trajectory(np.array([s.time]), np.array([s.lat]), np.array([s.lon]), np.array([s.height]),
                           np.asarray(s.vel_n, float)[None, :].copy(), np.asarray(s.Cbn, float)[None].copy())
-        traj.extra = self._columns(traj, cov, bias)
         if self.smooth:
-            self.forward_rows.append((traj, cov, bias))
+            self.forward_rows.append((traj, var, bias))
+        else:
+            traj.extra = self._columns(var, bias)
         return traj
 
     def _measurement_rows(self, imu_t, dth, dv, t_start):
@@ -440,31 +472,26 @@ class Fusion:
         out_pos = np.empty((cap, 3))
         out_vel = np.empty((cap, 3))
         out_cbn = np.empty((cap, 3, 3))
-        out_cov = np.empty((cap, 12))
-        out_bias = np.empty((cap, 24))
+        out_var = np.empty((cap, kn.NVAR))
+        out_bias = np.empty((cap, kn.NBIAS))
         inn = np.empty((3 * nm + 3, 7))
         evs = np.empty((nm + 8, 4))
-        nx = self.nx
         if self.smooth:
-            n_ep_cap = nm + int((time[-1] - self.fs[kn.F_TPREV]) / self.fopts.smoother_interval) + 4
+            ep = self.epochs
+            ep.reserve(nm + int((time[-1] - self.fs[kn.F_TPREV]) / self.fopts.smoother_interval) + 4)
+            arrays, n0 = ep.arrays(), ep.n
         else:
-            n_ep_cap = 0
-        ep_t = np.empty(n_ep_cap)
-        ep_pm = np.empty((n_ep_cap, nx, nx))
-        ep_pp = np.empty((n_ep_cap, nx, nx))
-        ep_ft = np.empty((n_ep_cap, nx, nx))
-        ep_x = np.empty((n_ep_cap, nx))
-        ep_reset = np.empty(n_ep_cap)
+            arrays, n0 = EpochStore.EMPTY, 0
         n, used, n_inn, n_evs, n_ep = kn.fuse(time, dth, dv, self.st, self.fs, self.cv, self.P, meas, self.ptr,
-                                              self.col, self.FT, self.cflu, out_t, out_pos, out_vel, out_cbn,
-                                              out_cov, out_bias, inn, evs, ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset)
+                                              self.col, self.ftv, self.cflu, self.mats, self.vecs, self.s3,
+                                              out_t, out_pos, out_vel, out_cbn, out_var, out_bias, inn, evs,
+                                              *arrays, n0)
+        if self.smooth:
+            self.epochs.n = n_ep
         if used < nm:                       # rows at the block's very end go with the next block
             self.rows = sort_rows(np.vstack([meas[used:], self.rows]))
         self.inn_parts.append(inn[:n_inn].copy())
         self.ev_parts.append(evs[:n_evs].copy())
-        if self.smooth and n_ep:
-            self.epochs.append((ep_t[:n_ep].copy(), ep_pm[:n_ep].copy(), ep_pp[:n_ep].copy(), ep_ft[:n_ep].copy(),
-                                ep_x[:n_ep].copy(), ep_reset[:n_ep].copy()))
         for e in evs[:n_evs]:
             self._log_event(e)
         if self.fs[kn.F_ERR] != 0:
@@ -472,12 +499,12 @@ class Fusion:
                       else "lost positive definiteness")
             raise SinsError(f"{self._source}: the filter covariance {reason} at t = {self.fs[kn.F_ERR_T]!r} s; "
                             f"stopped there (check the fusion config's sigmas and the sensor description)")
-        traj = Trajectory(out_t[:n].copy(), out_pos[:n, 0].copy(), out_pos[:n, 1].copy(), out_pos[:n, 2].copy(),
-                          out_vel[:n].copy(), out_cbn[:n].copy())
-        cov, bias = out_cov[:n].copy(), out_bias[:n].copy()
-        traj.extra = self._columns(traj, cov, bias)
+        traj = Trajectory(out_t[:n], out_pos[:n, 0], out_pos[:n, 1], out_pos[:n, 2], out_vel[:n], out_cbn[:n])
+        var, bias = out_var[:n], out_bias[:n]
         if self.smooth:
-            self.forward_rows.append((traj, cov, bias))
+            self.forward_rows.append((traj, var, bias))
+        else:
+            traj.extra = self._columns(var, bias)
         return traj
 
     def _log_event(self, e):
@@ -493,24 +520,15 @@ class Fusion:
             log.info("fusion: innovations larger than the covariance claims at %.6f s: P and Q widened x%.3g "
                      "(process noise scale now %.3g)", t, e[2], e[3])
 
-    def _columns(self, traj: Trajectory, cov, bias) -> dict:
-        """FORMATS.md aided-trajectory columns from the covariance and the sensor estimates."""
-        conv = self.nav.conv
-        heading = np.array([dcm_to_euler(np.ascontiguousarray(c), conv)[2] for c in traj.Cbn]) \
-            if len(traj) < 64 else _headings(traj.Cbn, conv)
-        s, c = np.sin(heading), np.cos(heading)
-        pee, pnn, pen = cov[:, 6], cov[:, 7], cov[:, 9]
-        var_roll = s * s * pee + c * c * pnn + 2 * s * c * pen          # forward axis (sin h, cos h)
-        var_pitch = c * c * pee + s * s * pnn - 2 * s * c * pen         # right axis (cos h, -sin h)
-        head = np.where(cov[:, 8] < 0, self.heading_prior ** 2, cov[:, 8])
+    def _columns(self, var, bias) -> dict:
+        """FORMATS.md aided-trajectory columns from the row variances and the sensor estimates (SI)."""
         d = math.degrees(1.0)
         out = {}
         for i, k in enumerate(SIGMA_COLUMNS[:6]):
-            out[k] = np.sqrt(cov[:, i])
-        out["roll_std"] = np.sqrt(var_roll) * d
-        out["pitch_std"] = np.sqrt(var_pitch) * d
-        out["heading_std"] = np.sqrt(head) * d
-        cflu = conv_to_flu(conv)
+            out[k] = np.sqrt(var[:, i])
+        out["roll_std"] = np.sqrt(var[:, 6]) * d
+        out["pitch_std"] = np.sqrt(var[:, 7]) * d
+        out["heading_std"] = np.sqrt(np.where(var[:, 8] < 0, self.heading_prior ** 2, var[:, 8])) * d
         for i, k in enumerate(BIAS_COLUMNS[:3]):
             out[k] = bias[:, i] * d * 3600.0
         for i, k in enumerate(BIAS_COLUMNS[3:]):
@@ -518,7 +536,6 @@ class Fusion:
         if self.nx == 21:
             for i, k in enumerate(SF_COLUMNS):
                 out[k] = bias[:, 6 + i] * 1e6
-        del cflu
         return out
 
     # ------------------------------------------------------------------ end
@@ -537,15 +554,16 @@ class Fusion:
     def events(self) -> np.ndarray:
         return np.vstack(self.ev_parts) if self.ev_parts else np.zeros((0, 4))
 
-    def smoothed(self, every_rows=None) -> Trajectory:
-        """The RTS-smoothed trajectory at the forward output rows."""
-        from .smoother import smooth_trajectory
+    def smoothed(self) -> Trajectory:
+        """The RTS-smoothed trajectory at the forward output rows (the forward rows are consumed)."""
+        from .smoother import smooth_rows
         traj = concat([r[0] for r in self.forward_rows])
-        cov = np.vstack([r[1] for r in self.forward_rows])
-        bias = np.vstack([r[2] for r in self.forward_rows])
-        ep = [np.concatenate([e[i] for e in self.epochs]) for i in range(6)] if self.epochs else None
-        traj, cov, bias = smooth_trajectory(traj, cov, bias, ep, self.nx, self.nav.conv)
-        traj.extra = self._columns(traj, cov, bias)
+        var = np.concatenate([r[1] for r in self.forward_rows])
+        bias = np.concatenate([r[2] for r in self.forward_rows])
+        self.forward_rows = []
+        smooth_rows(traj.time, traj.lat, traj.lon, traj.height, traj.vel_n, traj.Cbn, var, bias,
+                    self.epochs.trimmed(), self.ptr, self.col, self.nx, int(self.cv[kn.C_FWD]))
+        traj.extra = self._columns(var, bias)
         return traj
 
     def summary(self, traj: Trajectory) -> FusionSummary:
@@ -584,11 +602,6 @@ class Fusion:
         if self.applied == 0:
             raise SinsError(f"{self._source}: no IMU sample after the initial time {self.init.time!r}: "
                             f"the init time is outside the log")
-
-
-def _headings(cbn, conv):
-    from ..nav.rotation import dcm_to_euler_many
-    return dcm_to_euler_many(np.ascontiguousarray(cbn), conv)[:, 2]
 
 
 def standstill_intervals(rec, window: float) -> list:
