@@ -59,6 +59,7 @@ C_NHC_AX1 = 39
 C_HEAD_MINSPEED = 40
 C_QMAX = 41
 C_FWD = 42           # the body's forward axis (0 x, 1 y): roll/pitch sigma
+C_ZARU_Q = 43        # 1: the ZARU sigma derives from the ARW (its variance follows the process-noise scale)
 CV_SIZE = 45
 
 # filter scalars
@@ -71,8 +72,6 @@ F_W = 20             # 3: last compensated body rate
 F_HEAD_KNOWN = 23
 F_NREJ = 24
 F_TREJ0 = 25
-F_NIS_EWMA = 26
-F_NIS_N = 27
 F_T_EPOCH = 28
 F_ERR = 29
 F_ERR_T = 30
@@ -80,8 +79,10 @@ F_RESET = 31
 F_TPREV = 32
 F_NSAMP_OUT = 33
 F_HAVE_W = 34
-F_XACC = 40          # nx: correction fed back since the last stored epoch
-FS_SIZE = 64
+F_ADAPT = 35         # 3 x 3: per kind (GNSS position, velocity, ZARU) the adaptation window's sums of
+                     # the clipped NIS per dof, of measurements, of the P share of S (see _adapt)
+F_XACC = 44          # nx: correction fed back since the last stored epoch
+FS_SIZE = 72
 
 ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
 EV_REJECTION_RUN, EV_HEADING_INIT, EV_ADAPT = 1.0, 2.0, 3.0
@@ -370,6 +371,8 @@ def _model(row, kind, st, fs, cv, nx, H, z, r):
     for a in range(m):
         s = row[5 + ax[a]] if kind == MT_NHC else row[5 + a]
         r[a] = s * s
+        if kind == MT_ZARU and cv[C_ZARU_Q] > 0.0:
+            r[a] *= fs[F_QSCALE]
     return m, axis0, ax[0], ax[1], ax[2]
 
 
@@ -420,23 +423,44 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
         if not head_known:
             x[PHI + 2] = 0.0
         feedback(st, fs, x, nx, int(cv[C_METHOD]))
-    if kind == MT_GNSS_POS:
-        n_evs = _adapt(t, nis, m, acc, fs, cv, P, nx, evs, n_evs)
+    if kind == MT_GNSS_POS or kind == MT_GNSS_VEL or (kind == MT_ZARU and cv[C_ZARU_Q] > 0.0):
+        rho = 0.0
+        for a in range(m):
+            rho += (S[a, a] - r[a]) / (S[a, a] * m)
+        n_evs = _adapt(t, kind, nis, m, gate, rho, fs, cv, P, nx, evs, n_evs)
     return n_inn, n_evs
 
 
 @njit(cache=True)
-def _adapt(t, nis, m, acc, fs, cv, P, nx, evs, n_evs):
-    """Consistency guard: an exponentially weighted mean of the accepted fixes' NIS per dof over
-    ``adapt.threshold`` multiplies P and the process-noise scale by that mean (at most 10 per step)."""
-    if cv[C_ADAPT_THR] <= 0.0:
+def _adapt(t, kind, nis, m, gate, rho, fs, cv, P, nx, evs, n_evs):
+    """Consistency guard: covariance matching on a scale of Q (docs/fusion.md).
+
+    Per kind (GNSS position, GNSS velocity, and ZARU when its sigma derives from the sensor's ARW, so
+    that Q's scale is its scale too), over consecutive windows of ``adapt.window`` measurements:
+    the mean ``mu`` of the NIS per dof, each clipped at the gate (``min(NIS, gate) / m``: a rejected
+    outlier counts, but no more than a measurement at the gate), and the mean share ``rho`` of the
+    filter's own ``H P H^T`` in the innovation variance ``S = H P H^T + R``.  A consistent filter has
+    ``mu`` = 1 (std ``sqrt(2 / (m N))``); ``mu`` over ``adapt.threshold`` is the test.  Were the
+    filter's part of S too small by ``lam``, ``mu = 1 + rho (lam - 1)``: P and the process-noise scale
+    ``q_scale`` (and with it the ZARU variance derived from the ARW) are multiplied by
+    ``lam = 1 + (mu - 1) / rho``, at most 10x per window and ``adapt.max_scale`` in all.  Never below 1:
+    it only widens; each widening is an event (logged, summarized).
+    """
+    if cv[C_ADAPT_THR] <= 0.0 or not np.isfinite(nis):
         return n_evs
-    if acc:
-        a = 1.0 / cv[C_ADAPT_N]
-        fs[F_NIS_EWMA] = (1.0 - a) * fs[F_NIS_EWMA] + a * nis / m
-        fs[F_NIS_N] += 1.0
-    if fs[F_NIS_N] >= cv[C_ADAPT_N] and fs[F_NIS_EWMA] > cv[C_ADAPT_THR]:
-        f = min(fs[F_NIS_EWMA], 10.0)
+    b = F_ADAPT + 3 * min(kind, 2)
+    fs[b] += min(nis, gate) / m
+    fs[b + 1] += 1.0
+    fs[b + 2] += rho
+    if fs[b + 1] < cv[C_ADAPT_N]:
+        return n_evs
+    mu = fs[b] / fs[b + 1]
+    rho_m = max(fs[b + 2] / fs[b + 1], 0.01)
+    fs[b] = 0.0
+    fs[b + 1] = 0.0
+    fs[b + 2] = 0.0
+    if mu > cv[C_ADAPT_THR]:
+        f = min(1.0 + (mu - 1.0) / rho_m, 100.0)
         if fs[F_QSCALE] * f > cv[C_QMAX]:
             f = max(cv[C_QMAX] / fs[F_QSCALE], 1.0)
         if f > 1.0:
@@ -446,8 +470,6 @@ def _adapt(t, nis, m, acc, fs, cv, P, nx, evs, n_evs):
                     P[i, j] *= f
             n_evs = _event(evs, n_evs, t, EV_ADAPT, f, fs[F_QSCALE])
             fs[F_RESET] = 1.0
-        fs[F_NIS_EWMA] = 1.0
-        fs[F_NIS_N] = 0.0
     return n_evs
 
 

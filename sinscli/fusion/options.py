@@ -49,7 +49,7 @@ FUSION_DEFAULTS = {
     },
     "rejection_run": 10,             # consecutive rejected fixes that inflate P and re-accept
     "outage": 3.0,                   # a GNSS gap over this many nominal fix intervals is an outage
-    "adapt": {"threshold": 2.0, "window": 30, "max_scale": 1.0e4},   # NIS/dof mean that widens P, Q
+    "adapt": {"enabled": True, "probability": 0.99999, "window": 10, "max_scale": 1.0e4},   # widens P, Q
     "scale_factor_tau": 10.0,        # s: correlation time of unestimated scale-factor/misalignment noise
     "smoother_interval": 1.0,        # s: the smoother stores an epoch at least this often
 }
@@ -87,8 +87,9 @@ class FusionOptions:
     heading_sigma_floor: float = 2.0 * DEG
     rejection_run: int = 10
     outage: float = 3.0
-    adapt_threshold: float = 2.0
-    adapt_window: int = 30
+    adapt: bool = True
+    adapt_probability: float = 0.99999
+    adapt_window: int = 10
     adapt_max_scale: float = 1.0e4
     scale_factor_tau: float = 10.0
     smoother_interval: float = 1.0
@@ -194,7 +195,8 @@ def build_fusion_options(section, src: str, base_dir=None) -> FusionOptions:
     o.rejection_run = rr
     o.outage = _num(src, "outage", d["outage"], gt=1.0)
     ad = d["adapt"]
-    o.adapt_threshold = _num(src, "adapt.threshold", ad["threshold"], ge=0.0)
+    o.adapt = _bool(src, "adapt.enabled", ad["enabled"])
+    o.adapt_probability = _num(src, "adapt.probability", ad["probability"], gt=0.5, lt=1.0)
     w = ad["window"]
     if isinstance(w, bool) or not isinstance(w, int) or w < 2:
         _fail(src, "adapt.window", f"expected a whole number >= 2, got {w!r}")

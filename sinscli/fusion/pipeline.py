@@ -66,6 +66,7 @@ class FilterModel:
     sfmis_a: float
     source: str                 # where it came from (for the summary)
     default: bool = False
+    assumed: list = field(default_factory=list)     # terms taken from the default preset (unknown)
 
 
 def filter_model(spec, base_dir, states: int, src: str) -> FilterModel:
@@ -81,6 +82,7 @@ def filter_model(spec, base_dir, states: int, src: str) -> FilterModel:
                 raise SinsError(f"{where}: {which}.{k}: missing; the fusion filter needs {', '.join(keys)} "
                                 f"of the {which}")
     g, a = sens["gyro"], sens["accel"]
+    assumed = _fill_unknown_terms(sens, src)
 
     def gm(d):
         # The Gauss-Markov density 2 sigma^2 / tau with F = 0 (a random walk, the GM's own growth for
@@ -103,7 +105,27 @@ def filter_model(spec, base_dir, states: int, src: str) -> FilterModel:
     p0_bg = g["bias_sigma"] ** 2 + g["bias_instability"] ** 2
     return FilterModel(g["arw"] ** 2, a["vrw"] ** 2, q_bg, q_ba, itg, ita, p0_bg, p0_ba,
                        np.maximum(sf_g, 1e-6) ** 2, np.maximum(sf_a, 1e-6) ** 2, sfmis_g, sfmis_a,
-                       where + (" (no sensor given: conservative default)" if default else ""), default)
+                       where + (" (no sensor given: conservative default)" if default else ""), default,
+                       assumed)
+
+
+def _fill_unknown_terms(sens: dict, src: str) -> list:
+    """Terms a sensor description leaves unknown take the conservative default preset's values (said in
+    the summary): a missing scale factor or misalignment (a description from ``sins allan`` has none),
+    and a ``bias_sigma`` of 0 (what ``sins allan`` writes: a static log cannot observe the turn-on bias,
+    so 0 means unknown, not perfect).  Returns the notes."""
+    ref = load_sensor(DEFAULT_SENSOR, None, src, Path.cwd())
+    notes = []
+    for which in ("gyro", "accel"):
+        d = sens[which]
+        for k in ("scale_factor_sigma", "misalignment_sigma"):
+            if k not in d:
+                d[k] = ref[which][k]
+                notes.append(f"{which}.{k}")
+        if np.all(d["bias_sigma"] == 0.0):
+            d["bias_sigma"] = ref[which]["bias_sigma"]
+            notes.append(f"{which}.bias_sigma (0: unknown)")
+    return notes
 
 
 def chi2_cdf(x: float, k: int) -> float:
@@ -307,7 +329,6 @@ class Fusion:
         self.cv = self._config_vector()
         self.fs = np.zeros(kn.FS_SIZE)
         self.fs[kn.F_QSCALE] = 1.0
-        self.fs[kn.F_NIS_EWMA] = 1.0
         self.fs[kn.F_TPREV] = init.time
         self.fs[kn.F_T_EPOCH] = init.time
         if init_bias:
@@ -361,7 +382,9 @@ class Fusion:
         cv[kn.C_SFA] = m.sfmis_a * f.scale_factor_tau
         cv[kn.C_LEVER:kn.C_LEVER + 3] = self.lever
         cv[kn.C_REJ_RUN] = f.rejection_run
-        cv[kn.C_ADAPT_THR] = f.adapt_threshold
+        # the window's mean NIS per dof (3 dof per measurement) above its chi-square quantile
+        m_n = 3 * f.adapt_window
+        cv[kn.C_ADAPT_THR] = chi2_ppf(f.adapt_probability, m_n) / m_n if f.adapt else 0.0
         cv[kn.C_ADAPT_N] = f.adapt_window
         cv[kn.C_SMOOTH_DT] = f.smoother_interval if self.smooth else 0.0
         cv[kn.C_ZUPT_MAXV] = f.zupt_max_speed
@@ -370,6 +393,7 @@ class Fusion:
         cv[kn.C_NHC_AX0], cv[kn.C_NHC_AX1] = lat_axes
         cv[kn.C_HEAD_MINSPEED] = f.heading_min_speed
         cv[kn.C_QMAX] = f.adapt_max_scale
+        cv[kn.C_ZARU_Q] = 1.0 if f.zaru_sigma is None else 0.0
         cv[kn.C_FWD] = fwd
         return cv
 
@@ -584,18 +608,24 @@ class Fusion:
         s.residual_rms_h, s.residual_rms_u = residuals(traj, self.gnss, self.lever, inside)
         if len(traj):
             s.final_sigma = {k: float(traj.extra[k][-1]) for k in SIGMA_COLUMNS}
-        for e in self.events():
+        ev = self.events()
+        for e in ev:
             if e[1] == kn.EV_HEADING_INIT and s.heading_init_time is None:
                 s.heading_init_time = float(e[0])
             elif e[1] == kn.EV_REJECTION_RUN:
                 s.events.append(f"warning: {int(e[3])} consecutive fixes rejected {e[2]:.6g}-{e[0]:.6g} s "
                                 f"(position covariance widened, fix re-accepted)")
-            elif e[1] == kn.EV_ADAPT:
-                s.events.append(f"innovations inconsistent with the covariance at {e[0]:.6g} s: P and Q widened "
-                                f"x{e[2]:.3g}")
+        ad = ev[ev[:, 1] == kn.EV_ADAPT] if len(ev) else ev
+        if len(ad):
+            s.events.append(f"innovations inconsistent with the covariance (sensor description too optimistic?): "
+                            f"P and Q widened {len(ad)} time(s) from {ad[0, 0]:.6g} s, process-noise scale now "
+                            f"x{ad[-1, 3]:.3g}")
         if self.model.default:
             s.events.append(f"no sensor description given (fusion.sensor / --sensor): the conservative "
                             f"default '{DEFAULT_SENSOR}' preset is assumed")
+        elif self.model.assumed:
+            s.events.append(f"sensor description without {', '.join(self.model.assumed)}: the default "
+                            f"'{DEFAULT_SENSOR}' preset's value assumed")
         return s
 
     def finish(self) -> None:
