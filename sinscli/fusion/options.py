@@ -20,6 +20,7 @@ FUSION_DEFAULTS = {
     "states": 15,                    # 15 | 21 (+ gyro and accelerometer scale factors)
     "sensor": None,                  # preset (mems | tactical | navigation) or sensor YAML; null: the
                                      # conservative default (the mems preset), said in the summary
+    "bias_model": "gm-noise",        # gm-noise: F = 0, GM density 2 sigma^2/tau | gm-decay: F = -1/tau too
     "propagation_interval": 0.0,     # s between covariance propagations; 0: every attitude update; <= 0.1
     "gate_probability": 0.9999,      # chi-square innovation gate (of the whole measurement vector)
     "gnss_pos_sigma": [1.5, 1.5, 3.0],   # m E N U, for fixes without std columns
@@ -59,6 +60,7 @@ FUSION_DEFAULTS = {
 class FusionOptions:
     states: int = 15
     sensor: object = None
+    bias_model: str = "gm-noise"
     propagation_interval: float = 0.0
     gate_probability: float = 0.9999
     gnss_pos_sigma: np.ndarray = field(default_factory=lambda: np.array([1.5, 1.5, 3.0]))
@@ -156,6 +158,9 @@ def build_fusion_options(section, src: str, base_dir=None) -> FusionOptions:
     if d["sensor"] is not None and not isinstance(d["sensor"], (str, dict)):
         _fail(src, "sensor", f"expected a preset name, a sensor YAML path or a mapping, got {d['sensor']!r}")
     o.sensor = d["sensor"]
+    if d["bias_model"] not in ("gm-noise", "gm-decay"):
+        _fail(src, "bias_model", f"expected gm-noise or gm-decay, got {d['bias_model']!r}")
+    o.bias_model = d["bias_model"]
     o.propagation_interval = _num(src, "propagation_interval", d["propagation_interval"], ge=0.0, le=0.1)
     o.gate_probability = _num(src, "gate_probability", d["gate_probability"], gt=0.0, lt=1.0)
     o.gnss_pos_sigma = _vec(src, "gnss_pos_sigma", d["gnss_pos_sigma"], 3, gt=0.0)

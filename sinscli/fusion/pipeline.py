@@ -69,7 +69,7 @@ class FilterModel:
     assumed: list = field(default_factory=list)     # terms taken from the default preset (unknown)
 
 
-def filter_model(spec, base_dir, states: int, src: str) -> FilterModel:
+def filter_model(spec, base_dir, states: int, src: str, bias_model: str = "gm-noise") -> FilterModel:
     """The filter's noise model from a sensor preset/file (None: the stated conservative default)."""
     default = spec is None
     spec = DEFAULT_SENSOR if default else spec
@@ -85,10 +85,12 @@ def filter_model(spec, base_dir, states: int, src: str) -> FilterModel:
     assumed = _fill_unknown_terms(sens, src)
 
     def gm(d):
-        # The Gauss-Markov density 2 sigma^2 / tau with F = 0 (a random walk, the GM's own growth for
-        # t << tau): the filter's bias error holds the turn-on part, which does not decay, so F = -1/tau
-        # let its variance shrink unobserved (Monte Carlo attitude NEES 4.1 for 3 dof: overconfident).
-        return 2.0 * d["bias_instability"] ** 2 / d["bias_tau"], np.zeros(3)
+        # bias_model (docs/fusion.md): "gm-noise", the Gauss-Markov density 2 sigma^2 / tau with F = 0 (a
+        # random walk, the GM's own growth for t << tau; the filter's bias error also holds the turn-on
+        # part, which does not decay); "gm-decay", F = -1/tau on the whole bias error as the GM prescribes
+        # (its variance then shrinks unobserved toward sigma_BI^2: overconfident, Monte Carlo NEES).
+        q = 2.0 * d["bias_instability"] ** 2 / d["bias_tau"]
+        return q, (1.0 / d["bias_tau"] if bias_model == "gm-decay" else np.zeros(3))
 
     q_bg, itg = gm(g)
     q_ba, ita = gm(a)
@@ -313,7 +315,7 @@ class Fusion:
                             f"not {nav.attitude} / {nav.frame}")
         self.nav, self.fopts, self.gnss, self.init = nav, fopts, gnss, init
         self.smooth = smooth
-        self.model = filter_model(fopts.sensor, fopts.base_dir, fopts.states, src)
+        self.model = filter_model(fopts.sensor, fopts.base_dir, fopts.states, src, fopts.bias_model)
         nx = fopts.states
         self.nx = nx
         c = np.asarray(init.Cbn, dtype=float)
