@@ -352,3 +352,73 @@ def test_unknown_sensor_terms_take_the_conservative_default():
     assert np.allclose(decay.inv_tau_g, 1 / 100.0) and np.allclose(decay.q_bg, m.q_bg)
     with pytest.raises(Exception, match="fusion.bias_model"):
         build_fusion_options({"bias_model": "gm"}, "cfg.yaml")
+
+
+def _husky_course(tmp_path):
+    """The GNSS course over 10 s baselines (25 fixes) of the bag, its time and the baseline length."""
+    from sinscli.config import load_config
+    from sinscli.io.readers import read_gnss
+    from sinscli.nav.earth import radii_py
+    g = read_gnss(HUSKY, load_config(ROOT / "configs/fusion/husky.yaml"))
+    lat = np.radians(g.lat)
+    rm, rn = radii_py(np.sin(lat))
+    e = (np.radians(g.lon) - np.radians(g.lon[0])) * rn * np.cos(lat)
+    n = (lat - lat[0]) * rm
+    s = 25
+    de, dn = e[s:] - e[:-s], n[s:] - n[:-s]
+    return g, g.time[:-s], g.time[s:], np.degrees(np.arctan2(de, dn)), np.hypot(de, dn)
+
+
+@pytest.mark.skipif(not HUSKY.exists(), reason="shared Husky bag not present")
+def test_husky_heading_from_the_course_inside_the_filter(tmp_path):
+    """No heading at the start (sigma 180 deg: held out of the filter) and no alignment: the filter takes
+    its heading from the GNSS course once the rover drives, and then, while it drives straight, agrees
+    with the course of the fixes (10 s baselines) within the claimed sigma."""
+    from sinscli.io.trajectory import read_trajectory
+    g, ta, tb, course, dist = _husky_course(tmp_path)
+    init = {"time": 1432235498.0222695, "lat": float(g.lat[0]), "lon": float(g.lon[0]), "height": float(g.height[0]),
+            "vel_e": 0.0, "vel_n": 0.0, "vel_u": 0.0, "roll": 0.0, "pitch": 0.0, "heading": 0.0,
+            "sigma_roll": 3.0, "sigma_pitch": 3.0, "sigma_heading": 180.0}
+    (tmp_path / "init.yaml").write_text(yaml.safe_dump(init))
+    r = _sins(["navigate", str(HUSKY), "--gnss", str(HUSKY), "--config", str(ROOT / "configs/fusion/husky.yaml"),
+               "--init", "init.yaml", "-o", "h.csv", "-q"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "heading initialized from the GNSS course" in r.stderr
+    tr = read_trajectory(tmp_path / "h.csv")
+    head = np.degrees(np.unwrap(np.arctan2(tr.Cbn[:, 0, 0], tr.Cbn[:, 1, 0])))
+    ka, kb = (np.clip(np.searchsorted(tr.time, t), 0, len(tr) - 1) for t in (ta, tb))
+    km = np.clip(np.searchsorted(tr.time, 0.5 * (ta + tb)), 0, len(tr) - 1)
+    straight = (np.abs(head[kb] - head[ka]) < 5.0) & (dist > 7.0)
+    d = (head[km] - course + 180.0) % 360.0 - 180.0
+    sig = np.hypot(tr.extra["heading_std"][km], np.degrees(1.6 / dist))   # the course of two 0.8 m fixes
+    assert straight.sum() > 150
+    assert np.mean(np.abs(d[straight]) <= 3.0 * sig[straight]) >= 0.95
+    assert np.median(np.abs(d[straight])) < 8.0
+
+
+@pytest.mark.skipif(not HUSKY.exists(), reason="shared Husky bag not present")
+def test_husky_with_wheel_odometry(tmp_path):
+    """``--odom`` on the same bag (the Odometry topic auto-detected): body-velocity updates applied."""
+    import re
+    r = _sins(["navigate", str(HUSKY), "--gnss", str(HUSKY), "--odom", str(HUSKY), "--config",
+               str(ROOT / "configs/fusion/husky.yaml"), "--align", "gnss-inertial", "-o", "h.csv", "-q"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    m = re.search(r"odom (\d+) used/(\d+) rejected", r.stderr)
+    assert m and int(m.group(1)) > 3000 and int(m.group(2)) < 100, r.stderr
+    m = re.search(r"residual RMS against the fixes ([0-9.]+) m horizontal", r.stderr)
+    assert m and float(m.group(1)) < 2.0, r.stderr
+
+
+def test_cli_malformed_odometry(tmp_path):
+    S = ROOT / "sample_data"
+    (tmp_path / "odo.csv").write_text("time,vel_x,vel_y,vel_z\n0.0,1.0,0.0,0.0\n0.1,1.0,abc,0.0\n")
+    r = _sins(["navigate", str(S / "imu.csv"), "--gnss", str(S / "gnss.csv"), "--init", str(S / "init.yaml"),
+               "--odom", "odo.csv", "-o", "out.csv", "-q"], tmp_path)
+    assert r.returncode == 2, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("sins: error:") and "odo.csv" in lines[0], r.stderr
+    assert "line 3" in lines[0] and "vel_y" in lines[0], lines[0]
+    assert not (tmp_path / "out.csv").exists()
+    r = _sins(["navigate", str(S / "imu.csv"), "--init", str(S / "init.yaml"), "--odom", "odo.csv", "-o", "o.csv"],
+              tmp_path)
+    assert r.returncode == 2 and "--odom needs --gnss" in r.stderr

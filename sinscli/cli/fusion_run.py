@@ -14,7 +14,7 @@ from ..errors import SinsError
 from ..io.gnss_csv import check_gnss_against_imu
 from ..io.init_state import read_init
 from ..io.innovations import write_innovations
-from ..io.readers import read_gnss, read_imu
+from ..io.readers import read_body_velocity, read_gnss, read_imu
 from ..io.trajectory import write_trajectory
 from ..types import ImuLog, NavState
 from .base import log, progress
@@ -38,8 +38,12 @@ def init_from_yaml(init: NavState) -> tuple[dict, dict | None]:
     return sig, bias
 
 
+def _span(t) -> str:
+    return f"{float(t[0])!r} to {float(t[-1])!r} s" if len(t) else "no rows"
+
+
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-              opts, output, quiet):
+              opts, output, quiet, odom_path=None):
     from ..fusion.options import build_fusion_options
     from ..fusion.pipeline import Fusion, fuse_blocks
     from ..nav.pipeline import concat
@@ -61,13 +65,20 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     gnss = read_gnss(gnss_path, cfg)
     t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
     check_gnss_against_imu(gnss, t0, float(imu.time[-1]))
+    body_vel = None
+    if odom_path is not None:
+        body_vel = read_body_velocity(odom_path, cfg)
+        if len(body_vel.time) == 0 or body_vel.time[-1] < t0 or body_vel.time[0] > imu.time[-1]:
+            raise SinsError(f"{body_vel.source}: the body velocity ({_span(body_vel.time)}) does not overlap the "
+                            f"IMU log ({t0!r} to {float(imu.time[-1])!r} s)")
     init_bias = None
     if align_method is not None:
         init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts.gnss_pos_sigma)
     else:
         init = read_init(init_path, t0, opts.conv)
         init_sigma, init_bias = init_from_yaml(init)
-    fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias)
+    fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias,
+                    body_vel=body_vel)
     step = 1 << 16
     blocks = (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],
                      t0=imu.t0 if a == 0 else None, source=imu.source) for a in range(0, len(imu), step))

@@ -164,12 +164,14 @@ def _fail(fs, t, code):
 def _health(P, nx, fs, t, L, full):
     """A finite positive diagonal (after each propagation: a non-finite entry reaches the diagonal
     within one propagation); with ``full``, every entry finite and P positive definite (a Cholesky
-    factorization succeeds: after each measurement group)."""
+    factorization succeeds: after each measurement group).  While the heading is held out of the filter
+    its zero row and column are left out of the test."""
+    held = fs[F_HEAD_KNOWN] == 0.0             # heading held out: its row and column of P are zero
     for i in range(nx):
         d = P[i, i]
         if not np.isfinite(d):
             return _fail(fs, t, ERR_NONFINITE)
-        if not d > 0.0:
+        if not d > 0.0 and not (held and i == PHI + 2 and d == 0.0):
             return _fail(fs, t, ERR_NOT_PD)
     if full:
         s = 0.0
@@ -178,7 +180,12 @@ def _health(P, nx, fs, t, L, full):
                 s += P[i, j]
         if not np.isfinite(s):
             return _fail(fs, t, ERR_NONFINITE)
-        if not cholesky(P, nx, L):
+        if held:                                # the zero row/column: a unit variance for the check
+            P[PHI + 2, PHI + 2] = 1.0
+        ok = cholesky(P, nx, L)
+        if held:
+            P[PHI + 2, PHI + 2] = 0.0
+        if not ok:
             return _fail(fs, t, ERR_NOT_PD)
     return True
 
@@ -460,7 +467,7 @@ def _adapt(t, kind, nis, m, gate, rho, fs, cv, P, nx, evs, n_evs):
     fs[b + 1] = 0.0
     fs[b + 2] = 0.0
     if mu > cv[C_ADAPT_THR]:
-        f = min(1.0 + (mu - 1.0) / rho_m, 100.0)
+        f = min(mu if kind == MT_GNSS_POS else 1.0 + (mu - 1.0) / rho_m, 10.0)
         if fs[F_QSCALE] * f > cv[C_QMAX]:
             f = max(cv[C_QMAX] / fs[F_QSCALE], 1.0)
         if f > 1.0:

@@ -42,7 +42,7 @@ FUSION_DEFAULTS = {
         "accel_mag": 0.3,            # m/s^2: | |mean f| - g | under this
     },
     "nhc": {"enabled": False, "sigma": [0.1, 0.1], "interval": 0.1},   # m/s lateral, vertical; s
-    "odometry": {"enabled": True, "sigma": None},                 # m/s; null: the log's, else 0.05
+    "odometry": {"enabled": True, "sigma": None, "sigma_floor": 0.1},   # m/s; null: the log's, else the floor
     "heading_init": {
         "max_sigma": 20.0,           # deg: a heading less certain than this is held out of the filter
         "min_speed": 2.0,            # m/s: GNSS speed from which the course gives the heading
@@ -84,6 +84,7 @@ class FusionOptions:
     nhc_interval: float = 0.1
     odometry: bool = True
     odometry_sigma: float | None = None
+    odometry_sigma_floor: float = 0.1
     heading_max_sigma: float = 20.0 * DEG
     heading_min_speed: float = 2.0
     heading_sigma_floor: float = 2.0 * DEG
@@ -190,6 +191,7 @@ def build_fusion_options(section, src: str, base_dir=None) -> FusionOptions:
     o.odometry = _bool(src, "odometry.enabled", d["odometry"]["enabled"])
     if d["odometry"]["sigma"] is not None:
         o.odometry_sigma = _num(src, "odometry.sigma", d["odometry"]["sigma"], gt=0.0)
+    o.odometry_sigma_floor = _num(src, "odometry.sigma_floor", d["odometry"]["sigma_floor"], ge=0.0)
     hi = d["heading_init"]
     o.heading_max_sigma = _num(src, "heading_init.max_sigma", hi["max_sigma"], gt=0.0) * DEG
     o.heading_min_speed = _num(src, "heading_init.min_speed", hi["min_speed"], gt=0.0)

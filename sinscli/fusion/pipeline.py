@@ -343,8 +343,10 @@ class Fusion:
         t_end = float(gnss.time[-1]) if len(gnss) else init.time
         rows = [gnss_rows(gnss, fopts, init.time + time_tolerance(init.time))]
         if body_vel is not None and fopts.odometry and len(body_vel.time):
-            sv = body_vel.std if body_vel.std is not None else np.full(
-                (len(body_vel.time), 3), fopts.odometry_sigma or 0.05)
+            # the log's sigma (a wheel-odometry controller's covariance is often a placeholder: 1e-3) no
+            # smaller than the floor (wheel slip of a skid-steered vehicle, ~10 % at 1 m/s); or the config's
+            sv = body_vel.std if body_vel.std is not None else np.zeros((len(body_vel.time), 3))
+            sv = np.maximum(sv, fopts.odometry_sigma_floor)
             if fopts.odometry_sigma is not None:
                 sv = np.full_like(sv, fopts.odometry_sigma)
             n = len(body_vel.time)
