@@ -47,6 +47,16 @@ def mems():
     return sim, out
 
 
+@pytest.fixture(scope="module")
+def tactical():
+    sim = simulate(ROOT / "configs/scenarios/tactical_rtk_drive.yaml")
+    out = {}
+    for smooth in (False, True):
+        out[smooth] = run_fusion(sim.imu, sim.init, sim.gnss, _opts(sensor="tactical"), smooth=smooth,
+                                 init_sigma=INIT_SIGMA)
+    return sim, out
+
+
 def test_mems_drive_accuracy(mems):
     """Whole drive including the 60 s outage (docs/fusion.md): filtered 1.56 m with NHC (5.1 m without),
     0.34 m outside the outage; smoothed 0.27 m; heading within 0.2 deg once turned, 0.15 after the outage."""

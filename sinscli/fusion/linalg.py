@@ -5,31 +5,16 @@ from numba import njit
 
 
 @njit(cache=True)
-def matmul(a, b):
-    """``a b`` for 2-D arrays."""
-    n, k = a.shape
-    m = b.shape[1]
-    out = np.zeros((n, m))
-    for i in range(n):
-        for p in range(k):
-            x = a[i, p]
-            if x != 0.0:
-                for j in range(m):
-                    out[i, j] += x * b[p, j]
-    return out
-
-
-@njit(cache=True)
-def matvec(a, v):
-    """``a v``."""
-    n, k = a.shape
-    out = np.zeros(n)
-    for i in range(n):
-        s = 0.0
-        for p in range(k):
-            s += a[i, p] * v[p]
-        out[i] = s
-    return out
+def rows_times(A, m, P, n, out):
+    """``out[:m] = A[:m, :n] P[:n, :n]`` (the zero entries of A skipped: A sparse, e.g. H or Phi)."""
+    for a in range(m):
+        for j in range(n):
+            out[a, j] = 0.0
+        for k in range(n):
+            h = A[a, k]
+            if h != 0.0:
+                for j in range(n):
+                    out[a, j] += h * P[k, j]
 
 
 @njit(cache=True)
@@ -98,15 +83,3 @@ def chol_solve_into(L, n, X):
             for k in range(i + 1, n):
                 t -= L[k, i] * X[k, c]
             X[i, c] = t / L[i, i]
-
-
-@njit(cache=True)
-def spd_solve(A, B):
-    """``A^-1 B`` for a symmetric positive definite ``A`` (Cholesky); NaN when A is not SPD."""
-    n = A.shape[0]
-    L = np.zeros((n, n))
-    if not cholesky(A, n, L):
-        return np.full(B.shape, np.nan)
-    X = B.copy()
-    chol_solve_into(L, n, X)
-    return X

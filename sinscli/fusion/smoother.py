@@ -28,7 +28,7 @@ from numba import njit
 from ..nav.earth import radii
 from ..nav.rotation import m_from_array, m_mul, rotvec_to_dcm_t
 from .kernel import NVAR, row_variances
-from .linalg import cholesky
+from .linalg import chol_solve_into, cholesky, rows_times
 from .model import BA, BG, PHI, R, SA, SG, V
 
 NPS = 12         # smoothed covariance entries kept per epoch: pos, vel diag, phi ee nn uu en
@@ -103,25 +103,18 @@ def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ptr, col, nx):
             continue
         _unpack(ep_pm, k + 1, nx, Pm)
         _phi(ep_ft[k + 1], ptr, col, nx, A, A2, Phi)
-        # B = Phi P+; C^T = (P-)^-1 B, so row i of C solves P- c_i = column i of B
-        for i in range(nx):
-            for j in range(nx):
-                B[i, j] = 0.0
-            for c in range(nx):
-                f = Phi[i, c]
-                if f != 0.0:
-                    for j in range(nx):
-                        B[i, j] += f * Pp[c, j]
+        # B = Phi P+; C^T = (P-)^-1 B
+        rows_times(Phi, nx, Pp, nx, B)
         if not cholesky(Pm, nx, L):
             for i in range(nx):
                 for j in range(nx):
                     Ps[i, j] = Pp[i, j]
             _keep(ps, k, Ps)
             continue
+        chol_solve_into(L, nx, B)             # B <- (P-)^-1 Phi P+ = C^T
         for i in range(nx):
             for j in range(nx):
                 C[i, j] = B[j, i]
-            _solve_row(L, nx, C, i)
         for i in range(nx):
             dm[i] = d[k + 1, i] + ep_x[k + 1, i]
         for i in range(nx):
@@ -133,13 +126,7 @@ def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ptr, col, nx):
         for i in range(nx):
             for j in range(nx):
                 Ps[i, j] -= Pm[i, j]
-        for i in range(nx):                   # B = C D
-            for j in range(nx):
-                B[i, j] = 0.0
-            for c in range(nx):
-                f = C[i, c]
-                for j in range(nx):
-                    B[i, j] += f * Ps[c, j]
+        rows_times(C, nx, Ps, nx, B)          # B = C D
         for i in range(nx):
             for j in range(i, nx):
                 s = 0.0
@@ -150,21 +137,6 @@ def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ptr, col, nx):
                 Ps[j, i] = v
         _keep(ps, k, Ps)
     return d, ps
-
-
-@njit(cache=True)
-def _solve_row(L, n, X, i):
-    """``X[i] <- A^-1 X[i]`` for ``A = L L^T`` (one right-hand side stored as a row)."""
-    for r in range(n):
-        t = X[i, r]
-        for k in range(r):
-            t -= L[r, k] * X[i, k]
-        X[i, r] = t / L[r, r]
-    for r in range(n - 1, -1, -1):
-        t = X[i, r]
-        for k in range(r + 1, n):
-            t -= L[k, r] * X[i, k]
-        X[i, r] = t / L[r, r]
 
 
 @njit(cache=True)

@@ -17,7 +17,7 @@ Joseph form ``P = (I - K H) P (I - K H)^T + K R K^T`` (kept symmetric).
 import numpy as np
 from numba import njit
 
-from .linalg import inv_small
+from .linalg import inv_small, rows_times
 
 
 @njit(cache=True)
@@ -29,14 +29,7 @@ def kalman_update(P, nx, H, z, r, m, gate, x, force, HP, KT, A, S, Si):
     ``z^T S^-1 z``; when it is under ``gate`` (or ``force``) the error estimate ``x = K z`` is written
     and P updated in Joseph form.  ``S`` keeps the innovation covariance ``H P H^T + R``.
     """
-    for a in range(m):                          # HP = H P  (= (P H^T)^T, P symmetric)
-        for j in range(nx):
-            HP[a, j] = 0.0
-        for k in range(nx):
-            h = H[a, k]
-            if h != 0.0:
-                for j in range(nx):
-                    HP[a, j] += h * P[k, j]
+    rows_times(H, m, P, nx, HP)                 # HP = H P  (= (P H^T)^T, P symmetric)
     for a in range(m):
         for b in range(m):
             s = 0.0
