@@ -34,8 +34,10 @@ estimate enter as white noise of density ``(sigma_sf^2 + sigma_mis^2) |w|^2 tau_
 has the same variance; the part under gravity alone is a constant bias and is added to the initial
 accelerometer bias variance instead.
 
-Propagation: ``P <- (I + F T) P (I + F T)^T + Qd``, ``Qd = G Q G^T T``, with ``F P`` formed over
-the non-zero entries of F only (a compressed-row pattern) and P kept exactly symmetric.
+Propagation: ``P <- (I + F T) P (I + F T)^T + Qd``, ``Qd = G Q G^T T``, formed on F's 3x3 blocks
+(:func:`f_blocks`, tuples on the stack) by :func:`propagate`, which skips F's zero entries and keeps P
+exactly symmetric; :func:`add_process_noise` adds Qd in place.  :func:`sparsity` is F's pattern (the
+smoother stores the integral of F over it).
 """
 import numpy as np
 from numba import njit
