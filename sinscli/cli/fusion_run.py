@@ -14,14 +14,18 @@ from ..io.gnss_csv import check_gnss_against_imu
 from ..io.atomic import prepare_output
 from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
-from ..io.readers import read_gnss, read_imu
+from ..io.readers import read_body_velocity, read_gnss, read_imu
 from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
 from ..types import ImuLog
 from .base import log, progress
 
 
+def _span(t) -> str:
+    return f"{float(t[0])!r} to {float(t[-1])!r} s" if len(t) else "no rows"
+
+
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-              opts, output, quiet, window=None):
+              opts, output, quiet, window=None, odom_path=None):
     from ..fusion.options import build_fusion_options
     from ..fusion.pipeline import Fusion, fuse_blocks
     from ..nav.pipeline import concat
@@ -56,6 +60,12 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
             raise
         raise SinsError(f"{exc} (after the GNSS time offset of {offset:g} s, --time-offset or gnss.time_offset)") \
             from None
+    body_vel = None
+    if odom_path is not None:
+        body_vel = read_body_velocity(odom_path, cfg)
+        if len(body_vel.time) == 0 or body_vel.time[-1] < t0 or body_vel.time[0] > imu.time[-1]:
+            raise SinsError(f"{body_vel.source}: the body velocity ({_span(body_vel.time)}) does not overlap the "
+                            f"IMU log ({t0!r} to {float(imu.time[-1])!r} s)")
     from ..nav.earth import gravity
     from ..nav.sanity import mounting_warning
     init_bias = None
@@ -74,7 +84,8 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
                                 init.Cbn, cfg["imu"])
         if note:
             log.warning(note)
-    fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias)
+    fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias,
+                    body_vel=body_vel)
     step = 1 << 16
     blocks = (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],
                      t0=imu.t0 if a == 0 else None, source=imu.source) for a in range(0, len(imu), step))

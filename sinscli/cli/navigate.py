@@ -46,6 +46,9 @@ def _count_rows(path: Path) -> int:
 @click.option("--smooth", is_flag=True, help="With --gnss: Rauch-Tung-Striebel smoothed trajectory.")
 @click.option("--innovations", "innovations_path", default=None, type=click.Path(path_type=Path),
               help="With --gnss: CSV of every measurement's innovation, sigma, NIS and acceptance.")
+@click.option("--odom", "odom_path", default=None, type=click.Path(path_type=Path),
+              help="With --gnss: body velocity (odometry): a body-velocity CSV, or a bag/MCAP with an Odometry "
+                   "topic (ros.odom_topic, else auto-detected).")
 @click.option("--sensor", default=None,
               help="With --gnss: sensor description (preset mems|tactical|navigation or a sensor YAML).")
 @click.option("--attitude", type=click.Choice(["dcm", "quat", "krylov", "euler"]), default=None,
@@ -85,7 +88,7 @@ def _count_rows(path: Path) -> int:
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("trajectory.csv"),
               show_default=True, help="Trajectory output: .csv, .parquet, .mcap, .tum, .geojson, .kml.")
 @quiet_option
-def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_path, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
+def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_path, odom_path, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
                  frame, imu_topic, start, end, duration, time_offset, output, quiet):
     """Navigate IMU increments from an initial state and write the trajectory.
@@ -97,7 +100,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     """
     if gnss_path is None:
         for name, value in (("--align", align_method), ("--smooth", smooth or None),
-                            ("--innovations", innovations_path), ("--sensor", sensor)):
+                            ("--innovations", innovations_path), ("--odom", odom_path), ("--sensor", sensor)):
             if value is not None:
                 raise SinsError(f"{name} needs --gnss (fused navigation)")
         if init_path is None:
@@ -137,7 +140,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     if gnss_path is not None:
         from .fusion_run import run_fused
         run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-                  opts, output, quiet, window)
+                  opts, output, quiet, window, odom_path=odom_path)
         return
     blocks = iter_imu(imu, cfg, allow_gaps=nav["allow_gaps"])
     first = next(blocks, None)
