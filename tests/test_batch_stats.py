@@ -151,9 +151,10 @@ def test_monte_carlo_of_200_runs_in_bounded_memory(tmp_path):
             "gnss": {"rate": 1}, "segments": [{"type": "rest", "duration": 30}],
             "align": {"method": "inertial"}, "monte_carlo": {"roll_window": 5, "methods": ["static"]}}
     (tmp_path / "mc.yaml").write_text(yaml.safe_dump(scen))
-    # a first small run compiles the kernels (a cold numba cache costs ~1 GB once, in each worker):
+    # a first run of 21 (the statistical report's paths too) compiles the kernels (a cold numba cache costs ~1 GB
+    # once, in the client and in each worker):
     # the bound is on the batch, whose memory must not grow with the number of runs
-    subprocess.run([SINS, "align", "--monte-carlo", "2", "--scenario", "mc.yaml", "-o", "warm", "-q", "--jobs", "2"],
+    subprocess.run([SINS, "align", "--monte-carlo", "21", "--scenario", "mc.yaml", "-o", "warm", "-q", "--jobs", "2"],
                    cwd=tmp_path, check=True, capture_output=True)
     p = subprocess.Popen([SINS, "align", "--monte-carlo", "200", "--scenario", "mc.yaml", "-o", "out", "-q",
                           "--jobs", "2"], cwd=tmp_path, stderr=subprocess.PIPE, text=True)
