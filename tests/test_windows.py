@@ -127,6 +127,12 @@ def test_compare_window_and_truth_offset(d):
     assert e["max_pos_N"] == pytest.approx(np.abs(ts["fullpos_n_m"][k]).max(), rel=1e-12)
     assert e["max_pos_N"] < _errors(d / "rep_full" / "errors.csv")["max_pos_N"]     # the window is not the run
     assert "window from 60.0 s to 90.0 s" in (d / "rep_w" / "errors.md").read_text()
+    t_first = float(np.genfromtxt(d / "truth.csv", delimiter=",", names=True)["time"][0])
+    rc, lines = sins(["compare", "--truth", "truth.csv", "full.csv", "-o", "rep_rel", "-q", "--start",
+                      f"+{60.0 - t_first!r}", "--end", f"+{90.0 - t_first!r}"], cwd=d)
+    assert rc == 0, lines                  # a window relative to the truth's first epoch: the same, said the same
+    assert "window from 60.0 s to 90.0 s" in (d / "rep_rel" / "errors.md").read_text()
+    assert _errors(d / "rep_rel" / "errors.csv") == e
     # a truth on a clock 100 s ahead, with --time-offset -100: the same report
     rows = list(csv.reader((d / "truth.csv").open()))
     with (d / "truth_late.csv").open("w", newline="") as fh:

@@ -177,11 +177,13 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
     truth = _read(truth_path, truth_cfg)
     trajs = [_read(p) for p in navs]
     time_offset = (truth_cfg or {}).get("time_offset", 0.0)
+    if window is not None and window.active:    # absolute, against the truth's first epoch (after its offset)
+        window = window.resolve(float(truth.time[0]) + float(time_offset or 0.0))
     window_note = _apply_window(truth, truth_path, trajs, navs, window, time_offset)
     window_note += _to_flu([truth, *trajs], [truth_path, *navs], conv)
     conv = 0                                    # every attitude is now of the FLU body axes
-    if window is not None and window.active and title is None:        # the caption's "whole run" is the window
-        title = f"{default_title(truth_path, legend)}, window {window.resolve(float(truth.time[0])).text()}"
+    if window is not None and window.active and title is None:        # the maxima are over the window
+        title = f"{default_title(truth_path, legend)}, window {window.text()}"
     gnss = None
     if gnss_path is not None:
         if not isinstance(truth, Trajectory):
