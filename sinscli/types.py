@@ -67,14 +67,6 @@ class BodyVelLog:
 
 
 @dataclass
-class BodyVelLog:
-    time: np.ndarray        # (N,) s
-    vel_b: np.ndarray       # (N, 3) m/s, velocity of the vehicle in body axes (after mounting)
-    std: np.ndarray | None  # (N, 3) m/s 1-sigma
-    source: str = "<memory>"
-
-
-@dataclass
 class NavState:
     """One navigation state: position, ENU velocity and attitude ``Cbn``."""
     time: float            # s

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import SinsError
 from ..nav import strapdown as sd
 from ..nav.earth import gravity, radii_py
-from ..nav.pipeline import BLOCK, NavOptions, concat
+from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
 from ..nav.rotation import conv_to_flu
 from ..sensors import G0, load_sensor
 from ..types import GnssLog, ImuLog, NavState, Trajectory, time_tolerance
@@ -673,14 +673,7 @@ def residuals(traj: Trajectory, gnss: GnssLog, lever, inside) -> tuple[float, fl
 
 def fuse_blocks(blocks, fusion: Fusion, progress=None):
     """Yield forward-filtered trajectory chunks (the initial row first) for an iterable of IMU blocks."""
-    yield fusion.initial_row()
-    for blk in blocks:
-        out = fusion.feed(blk)
-        if progress is not None:
-            progress(len(blk))
-        if out is not None:
-            yield out
-    fusion.finish()
+    yield from stream_blocks(fusion, blocks, progress)
 
 
 def run_fusion(imu: ImuLog, init: NavState, gnss: GnssLog, fopts: FusionOptions | None = None,
