@@ -38,6 +38,17 @@ DEFAULTS = {
         "ignore_columns": [],
         "lever_arm": [0.0, 0.0, 0.0],   # antenna position in body axes, m
         "time_offset": 0.0,             # s added to every GNSS time on reading (e.g. -18: GPS time -> UTC)
+        "frame": "enu",                 # enu | ned: velocity columns (NED: vel_d, std_d, std_vel_d; io/frames.py)
+        "units": {"angle": "deg"},      # lat, lon in deg | rad
+    },
+    "init": {                     # the --init file (init YAML or trajectory)
+        "frame": "enu",           # enu | ned (NED: key/column vel_d, attitude columns body -> NED)
+        "units": {"angle": "deg"},    # lat, lon, roll, pitch, heading in deg | rad
+    },
+    "truth": {                    # the truth trajectory of sins compare --config
+        "frame": "enu",
+        "units": {"angle": "deg"},
+        "time_offset": 0.0,       # s added to every truth time on reading (as gnss.time_offset; --time-offset)
     },
     "odometry": {
         "columns": {},            # FORMATS name (time, vel_x.., std_x..) -> column name in the CSV
@@ -219,10 +230,26 @@ def validate(cfg: dict, src: str) -> None:
                        for x in arm)):
         _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres (at most {MAX_LEVER_ARM:g} "
                                      f"each), got {arm!r}")
-    off = cfg["gnss"]["time_offset"]
-    if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
-        _fail(src, "gnss.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the config's "
-                                       f"limits.time), got {off!r}")
+    for section in ("gnss", "truth"):
+        off = cfg[section]["time_offset"]
+        if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
+            _fail(src, f"{section}.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the "
+                                                 f"config's limits.time), got {off!r}")
+    from .io.frames import validate_section
+    for section in ("gnss", "init", "truth"):
+        validate_section(cfg[section], section, lambda key, msg: _fail(src, key, msg))
+
+
+def mounting_angles(c: np.ndarray) -> dict:
+    """The ``{roll, pitch, yaw}`` (degrees) of ``imu.mounting`` giving the rotation ``c`` (the inverse of
+    :func:`mounting_matrix`: ``c = Rz(yaw) Ry(pitch) Rx(roll)``); pitch in [-90, 90]."""
+    c = np.asarray(c, dtype=float)
+    pitch = math.asin(max(-1.0, min(1.0, -c[2, 0])))
+    if abs(c[2, 0]) < 1.0 - 1e-12:
+        roll, yaw = math.atan2(c[2, 1], c[2, 2]), math.atan2(c[1, 0], c[0, 0])
+    else:                                   # pitch +-90: the roll is folded into the yaw
+        roll, yaw = 0.0, math.atan2(-c[0, 1], c[1, 1])
+    return {k: float(np.round(math.degrees(v), 6)) + 0.0 for k, v in (("roll", roll), ("pitch", pitch), ("yaw", yaw))}
 
 
 def mounting_matrix(mounting, src: str = "config") -> np.ndarray:

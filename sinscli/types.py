@@ -67,14 +67,6 @@ class BodyVelLog:
 
 
 @dataclass
-class BodyVelLog:
-    time: np.ndarray        # (N,) s
-    vel_b: np.ndarray       # (N, 3) m/s, velocity of the vehicle in body axes (after mounting)
-    std: np.ndarray | None  # (N, 3) m/s 1-sigma
-    source: str = "<memory>"
-
-
-@dataclass
 class NavState:
     """One navigation state: position, ENU velocity and attitude ``Cbn``."""
     time: float            # s
@@ -97,6 +89,8 @@ class Trajectory:
     Cbn: np.ndarray        # (N, 3, 3)
     extra: dict = field(default_factory=dict)   # extra columns name -> (N,) array
     source: str = "<memory>"
+    body: int | None = None    # body convention of Cbn (FLU 0, RFU 1, FRD 2) as read from a file; None: not known
+    body_from: str = ""        # how it was known: "marker" (body column, Parquet metadata) or "angles"
 
     def __len__(self) -> int:
         return int(self.time.shape[0])

@@ -191,3 +191,37 @@ def test_bad_inputs(data, tmp_path):
     bad_cfg.write_text("align:\n  sensor:\n    gyro_drift: 1\n")
     _bad(["align", imu, "--config", bad_cfg, "-o", out], out, "align.sensor.gyro_drift: unknown key")
     _bad(["align", "--monte-carlo", 3, "-o", out], out, "--monte-carlo N and --scenario FILE go together")
+
+
+def test_kf_plot_draws_a_supplied_heading_as_a_marker(data, tmp_path):
+    """The kf series ends with the written state; with --heading that is the user's heading, which the
+    figure draws as a separate marker instead of a jump of the line at the last epoch."""
+    import matplotlib.image as mpimg
+
+    from sinscli.align import figures
+
+    seen = {}
+    real = figures.series_figure
+
+    def spy(*args, **kw):
+        seen["fig"] = fig = real(*args, **kw)
+        seen["t"], seen["eul"] = args[0], args[1]
+        return fig
+
+    out, plot = tmp_path / "init.yaml", tmp_path / "kf.png"
+    figures.series_figure = spy
+    try:
+        res = run(["align", data["mems"] / "imu.csv", "--method", "kf", "--position", "30,114,50",
+                   "--heading", "41.5", "--plot", plot, "-q", "-o", out])
+    finally:
+        figures.series_figure = real
+    assert res.exit_code == 0, res.output
+    assert mpimg.imread(plot).shape[0] > 100
+    lines = {ln.get_label(): ln for ln in seen["fig"].axes[2].get_lines()}
+    mark = lines["supplied heading (--heading)"]
+    assert list(mark.get_ydata()) == [pytest.approx(41.5)]
+    assert seen["eul"][-1, 2] == pytest.approx(41.5)      # the series' last epoch is the written state ...
+    est = lines["estimate"]
+    assert len(est.get_xdata()) == len(seen["t"]) - 1     # ... which the line leaves out: no jump
+    np.testing.assert_array_equal(est.get_ydata(), seen["eul"][:-1, 2])
+    assert list(mark.get_xdata()) == [seen["t"][-1]]

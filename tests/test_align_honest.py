@@ -13,6 +13,7 @@ import copy
 import math
 import os
 import shutil
+import sys
 import subprocess
 from dataclasses import replace
 from pathlib import Path
@@ -246,7 +247,7 @@ def _sample_kf_figures(d):
 def test_sample_data_kf_with_gnss_is_within_3_sigma(tmp_path):
     """The issue's case: heading 117.97 deg with sigma 0.045 deg against a true 120.00 (45 sigma).
     Run by the installed console script from a temporary directory, without and with a description."""
-    sins = shutil.which("sins", path=str(Path(os.__file__).parents[2] / "bin") + os.pathsep + os.environ["PATH"])
+    sins = shutil.which("sins", path=str(Path(sys.executable).parent) + os.pathsep + os.environ["PATH"])
     assert sins is not None
     cfg = tmp_path / "mems.yaml"
     cfg.write_text(yaml.safe_dump({"gnss": {"lever_arm": [0.8, 0.0, 1.5]}, "align": {"sensor": "mems"}}))

@@ -151,12 +151,15 @@ def test_monte_carlo_of_200_runs_in_bounded_memory(tmp_path):
             "gnss": {"rate": 1}, "segments": [{"type": "rest", "duration": 30}],
             "align": {"method": "inertial"}, "monte_carlo": {"roll_window": 5, "methods": ["static"]}}
     (tmp_path / "mc.yaml").write_text(yaml.safe_dump(scen))
-    p = subprocess.Popen([SINS, "align", "--monte-carlo", "200", "--scenario", "mc.yaml", "-o", "out", "-q",
-                          "--jobs", "2"], cwd=tmp_path, stderr=subprocess.PIPE, text=True)
-    _, status, usage = os.wait4(p.pid, 0)
-    assert os.waitstatus_to_exitcode(status) == 0, p.stderr.read()
-    p.stderr.close()
-    assert usage.ru_maxrss * 1024 < 1 << 30          # KiB on Linux; the largest of the client and its workers
+    # the issue's bound is on the client (the process that gathers the results); the workers' peaks are
+    # printed (on a cold numba cache each compiles the kernels once, whatever the number of runs)
+    with open(tmp_path / "stderr.txt", "w") as fh:
+        client, workers = _peak_rss(p := subprocess.Popen(
+            [SINS, "align", "--monte-carlo", "200", "--scenario", "mc.yaml", "-o", "out", "-q", "--jobs", "2"],
+            cwd=tmp_path, stderr=fh, text=True))
+    assert p.wait() == 0, (tmp_path / "stderr.txt").read_text()
+    print(f"200-run Monte Carlo: client peak {client / 2**20:.0f} MiB, workers {[round(w / 2**20) for w in workers]} MiB")
+    assert 0 < client < 1 << 30, (client, workers)
     out = tmp_path / "out"
     runs = pd.read_parquet(out / "results.parquet")
     assert len(runs) == 200 * 3 and (runs["status"] == "ok").all()
@@ -170,3 +173,31 @@ def test_monte_carlo_of_200_runs_in_bounded_memory(tmp_path):
         assert np.array_equal(np.sort(y.to_numpy()), np.sort(x.to_numpy()))
     assert (out / "mc_heading.png").exists() and (out / "mc_stats.png").exists()
     assert len(list((out / "jobs").rglob("*.npz"))) == 200
+
+
+def _peak_rss(p) -> tuple[int, list[int]]:
+    """Peak resident memory (bytes, /proc VmHWM) of process ``p`` and of each of its descendants, polled
+    until ``p`` ends."""
+    import time
+
+    import psutil
+
+    def hwm(pid):
+        try:
+            with open(f"/proc/{pid}/status") as fh:
+                return next(int(line.split()[1]) * 1024 for line in fh if line.startswith("VmHWM:"))
+        except (OSError, StopIteration):
+            return 0
+
+    top, peaks = psutil.Process(p.pid), {}
+    while p.poll() is None:
+        try:
+            kids = top.children(recursive=True)
+        except psutil.NoSuchProcess:
+            kids = []
+        peaks[p.pid] = max(peaks.get(p.pid, 0), hwm(p.pid))
+        for k in kids:
+            peaks[k.pid] = max(peaks.get(k.pid, 0), hwm(k.pid))
+        time.sleep(0.05)
+    client = peaks.pop(p.pid, 0)
+    return client, sorted(peaks.values(), reverse=True)

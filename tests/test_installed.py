@@ -44,7 +44,7 @@ def _installed_sins() -> tuple[Path | None, str]:
     if p.returncode != 0:
         return None, f"{script}: its interpreter cannot import sinscli ({p.stderr.strip()[-200:]})"
     file, direct = json.loads(p.stdout)
-    if json.loads(direct).get("dir_info", {}).get("editable") or ROOT in Path(file).resolve().parents:
+    if json.loads(direct).get("dir_info", {}).get("editable") or Path(file).resolve().parent == (ROOT / "sinscli").resolve():
         return None, f"{script} runs an editable install ({file}); these tests need pip install '.[test]'"
     return script, ""
 

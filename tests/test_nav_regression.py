@@ -3,14 +3,16 @@ for bit what it was before the fusion filter shared the strapdown kernel (hashes
 bc07566, before strapdown.py was refactored).  Runs the installed console script from a temporary
 directory."""
 import hashlib
+import os
 import shutil
+import sys
 import subprocess
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SINS = shutil.which("sins") or str(Path(__file__).resolve().parents[1] / ".venv" / "bin" / "sins")
+SINS = shutil.which("sins", path=str(Path(sys.executable).parent) + os.pathsep + os.environ.get("PATH", "")) or "sins"
 
 SAMPLE = "fce5e6774e7f88cecbb2e20e5b5bf7eda9b17dca9f21f46ed736d627156d1985"
 SIM_IMU = "d1da02a8595a4c780115c93517e8a59821f59f323c11505699baf3c667899913"

@@ -164,13 +164,13 @@ def allan_white(inc, dt, max_frac=0.1):
     m_max = int(n * max_frac)
     if m_max < 4:
         return None
-    ms = np.unique(np.round(np.logspace(0, math.log10(m_max), 24)).astype(int))
-    theta = np.concatenate([np.zeros((1, 3)), np.cumsum(inc, axis=0)])
+    ms = np.unique(np.round(np.logspace(0, math.log10(m_max), 24)).astype(np.int64))
+    from ..allan.adev import overlapping_avar          # the project's one Allan variance
+    avar = overlapping_avar(inc, step, ms)
     best = None
     for i in range(3):
         tau = ms * step
-        av = np.array([np.mean((theta[2 * m:, i] - 2.0 * theta[m:-m, i] + theta[:-2 * m, i]) ** 2)
-                       for m in ms]) / (2.0 * tau ** 2)
+        av = avar[:, i]
         neff = np.maximum(n / ms - 1.0, 1.0)
         wsd = av * np.sqrt(2.0 / neff)                        # 1-sigma of each Allan variance
         A = np.stack([1.0 / tau, 3.0 / tau ** 2], axis=-1) / wsd[:, None]

@@ -307,8 +307,8 @@ def _turning(w: Window) -> bool:
     """Does the body turn (its rate change) by more than ``TURN_MIN`` over the window?  Without it the
     gyro scale factor and misalignment act as a constant bias (``E w`` with ``w`` constant), which
     the bias term already carries."""
-    wb, _ = coarse.block_means(w.time, w.dtheta_b, w.dvel_b, w.t0, 1.0)
-    return float(np.linalg.norm(wb - wb.mean(axis=0), axis=1).sum()) > TURN_MIN
+    dw, _ = coarse.block_deviations(w.time, w.dtheta_b, w.dvel_b, w.t0, 1.0)
+    return float(dw.sum()) > TURN_MIN
 
 
 def _level_axes(w: Window) -> np.ndarray:

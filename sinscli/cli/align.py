@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from ..errors import SinsError
-from ..io.atomic import atomic_path
+from ..io.atomic import atomic_path, prepare_output
 from ..io.init_state import write_init_yaml
 from ..nav.rotation import BODY_CONVENTIONS, dcm_to_euler_many
 from .base import log, main, progress, quiet_option
@@ -85,6 +85,9 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
             raise SinsError(f"{opt}: only used with --monte-carlo")
     if imu is None:
         raise SinsError("give an IMU log (or --monte-carlo N --scenario FILE)")
+    for out in (output, series, plot):         # before any work: a directory, no permission, an input
+        if out is not None:
+            prepare_output(out)
     from ..align.options import build_options, load_align_config, parse_position
     from ..align.pipeline import align
     from ..config import merge
@@ -124,8 +127,10 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
         _write_series(series, res, eul, conv)
     if plot is not None:
         from ..align.figures import plot_series
-        plot_series(plot, res.series.time - res.t0, eul, title=f"sins align --method {res.method}",
-                    sigma_deg=np.degrees(res.sigma))
+        final = np.degrees(dcm_to_euler_many(res.state.Cbn[None], conv)[0])
+        plot_series(plot, res.series.time - res.t0, eul,
+                    title=f"Alignment of {Path(imu).name} (--method {res.method}), heading from {res.heading_source}",
+                    sigma_deg=np.degrees(res.sigma), final_deg=final, heading_supplied=res.heading_source == "user")
     r, p, h = np.degrees(dcm_to_euler_many(res.state.Cbn[None], conv)[0])
     s = np.degrees(res.sigma)
     hs = f"{s[2]:.3g}" if np.isfinite(s[2]) else "unknown"

@@ -79,9 +79,35 @@ def _interrupted(exc: BaseException) -> None:
     sys.exit(128 + signum)
 
 
+# parameters of the commands that name outputs; every other path parameter is an input, which no
+# output of the command may overwrite (sinscli/io/atomic.py: check_not_input)
+OUTPUT_PARAMS = frozenset({"output", "outdir", "innovations_path", "series", "plot"})
+
+
+class _Command(click.Command):
+    """A command that notes its input paths (every ``click.Path`` parameter not in :data:`OUTPUT_PARAMS`)
+    before it runs, so that an output naming one of them is refused, whatever the command."""
+
+    def invoke(self, ctx):
+        from ..io.atomic import end_inputs, reset_inputs
+        paths = []
+        for param in self.params:
+            if param.name in OUTPUT_PARAMS or not isinstance(param.type, click.Path):
+                continue
+            value = ctx.params.get(param.name)
+            paths.extend(value if isinstance(value, (tuple, list)) else [value])
+        reset_inputs(p for p in paths if p is not None)
+        try:
+            return super().invoke(ctx)
+        finally:
+            end_inputs()
+
+
 class _Group(click.Group):
     """A click group that loads its commands lazily and turns :class:`SinsError`, click's own usage
     errors and internal failures into one ``sins: ...`` line (exit 2, 2 and 1)."""
+
+    command_class = _Command
 
     def list_commands(self, ctx):
         return sorted(set(COMMANDS) | set(self.commands))

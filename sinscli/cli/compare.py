@@ -46,11 +46,15 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
               help="Epoch (s) of the table rows (default: the last epoch common to all NAV files).")
 @click.option("--interpolate", is_flag=True,
               help="Interpolate the truth at the navigation epochs (default: exact time match only).")
-@click.option("--body", type=click.Choice(sorted(BODY)), default="flu", show_default=True,
-              help="Body axes of the files' attitude, for the roll/pitch/heading error components.")
+@click.option("--body", type=click.Choice(sorted(BODY)), default=None,
+              help="Body axes of a file that does not tell them (no 'body' column or Parquet metadata, and "
+                   "attitude columns that do not match its roll/pitch/heading); default flu (FORMATS.md). "
+                   "Each file's own axes are used otherwise, so files of different conventions compare.")
 @click.option("--timeseries-every", type=click.IntRange(min=1), default=1, show_default=True,
               help="Write every N-th epoch to timeseries.csv (tables and figures use all).")
-@click.option("--title", default=None, help="Report title.")
+@click.option("--title", default=None, help="Report title (default: the files compared, by name).")
+@click.option("--gnss", "gnss_path", type=click.Path(path_type=Path), default=None,
+              help="GNSS fixes (CSV, FORMATS.md) drawn in the plan view, their outages shaded on the time plots.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="Batch: worker processes of the local pool (default: all cores).")
 @click.option("--metrics", "metrics", default=None, metavar="ate,rpe",
@@ -65,11 +69,22 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
 @click.option("--rpe-pairs", type=click.Choice(["ref", "est"]), default="ref", show_default=True,
               help="Take the RPE pairs from the truth path (the same pairs for every method) or from each "
                    "trajectory (evo's default).")
+@click.option("--start", default=None, metavar="T",
+              help="Compare from T on (time of the files' clock, or +S after the truth's first epoch): the "
+                   "tables, maxima and figures cover the window only.")
+@click.option("--end", default=None, metavar="T", help="Compare up to T (time, or +S after the truth's first epoch).")
+@click.option("--time-offset", type=float, default=None,
+              help="Seconds added to every truth time on reading (a truth whose clock differs from the IMU's; "
+                   "config truth.time_offset, as gnss.time_offset for GNSS).")
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
+              help="Config YAML whose truth section says the truth's frame (enu|ned), angle units (deg|rad) "
+                   "and time offset (configs/navigation.yaml).")
 @scheduler_options
 @quiet_option
 @click.pass_context
-def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeseries_every, title, jobs,
-            metrics, align_traj, rpe_delta, rpe_unit, rpe_pairs, scheduler, resume, figures, quiet):
+def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeseries_every, title, gnss_path, jobs,
+            metrics, align_traj, rpe_delta, rpe_unit, rpe_pairs, start, end, time_offset, config_path, scheduler,
+            resume, figures, quiet):
     """Compare navigation results with a truth: error tables, time series, figures, index.html.
 
     \b
@@ -87,9 +102,10 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
         if len(inputs) != 1 or inputs[0].suffix.lower() not in (".yaml", ".yml"):
             raise SinsError("give --truth TRUTH with one or more NAV files, or a single BATCH.yaml")
         for opt, val in (("--label", label), ("--epoch", epoch), ("--interpolate", interpolate),
-                         ("--title", title), ("--metrics", metrics), ("--align-traj", align_traj != "none"),
+                         ("--title", title), ("--gnss", gnss_path), ("--metrics", metrics), ("--align-traj", align_traj != "none"),
                          ("--rpe-delta", rpe_delta != 1.0), ("--rpe-unit", rpe_unit != "s"),
-                         ("--rpe-pairs", rpe_pairs != "ref")):
+                         ("--rpe-pairs", rpe_pairs != "ref"), ("--start", start), ("--end", end),
+                         ("--time-offset", time_offset), ("--config", config_path)):
             if val:
                 raise SinsError(f"{opt}: not used with a batch file; set it in {inputs[0]}")
         _batch(inputs[0], outdir, jobs, scheduler, resume, figures, quiet, ctx)
@@ -108,8 +124,12 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
     elif (align_traj, rpe_delta, rpe_unit, rpe_pairs) != ("none", 1.0, "s", "ref"):
         raise SinsError("--align-traj and --rpe-* set how the trajectory metrics are computed: "
                         "give --metrics ate,rpe too")
-    _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body], timeseries_every, title, quiet,
-            mopts)
+    from ..config import load_config, merge
+    from ..nav.window import make_window
+    window = make_window(start, end, None)
+    truth_cfg = merge(load_config(config_path), "truth", time_offset=time_offset)["truth"]
+    _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body or "flu"], timeseries_every, title,
+            quiet, mopts, gnss_path, window, truth_cfg)
 
 
 def _is_tum(path: Path) -> bool:
@@ -117,24 +137,61 @@ def _is_tum(path: Path) -> bool:
     return path.suffix.lower() in (".tum", ".txt")
 
 
-def _read(path: Path):
-    """A trajectory (CSV/Parquet) or the rows of a TUM file."""
+def _read(path: Path, section=None):
+    """A trajectory (CSV/Parquet) or the rows of a TUM file; ``section`` (the config's ``truth``) its frame and
+    angle units."""
     if _is_tum(path):
         from ..io.tum import read_tum
         from ..report.compare_metrics import TumTrack
         return TumTrack(*read_tum(path), source=str(path))
+    from ..io.frames import convention
     from ..io.trajectory import read_trajectory
-    return read_trajectory(path)
+    return read_trajectory(path, None, *convention(section))
 
 
-def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts):
+def _legend(navs: list[Path], names: list[str], given: tuple[str, ...]) -> dict[str, str]:
+    """How figures and the page name each method: its ``--label``, else its file as given (or the file
+    name when the path is long)."""
+    if given:
+        return dict(zip(names, names))
+    out = {}
+    for name, p in zip(names, navs):
+        text = str(p) if len(str(p)) <= 60 else p.name
+        out[name] = text if text not in out.values() else name
+    return out
+
+
+def default_title(truth_path: Path, legend: dict[str, str]) -> str:
+    """The report title naming the files: ``a.csv, b.csv against the truth truth.csv``."""
+    return f"{', '.join(legend.values())} against the truth {Path(truth_path).name}"
+
+
+def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts, gnss_path=None,
+            window=None, truth_cfg=None):
     from ..report.errors import compare_trajectories
     from ..report.report import write_report
     from ..types import Trajectory
 
     names = _labels(navs, label)
-    truth = _read(truth_path)
+    legend = _legend(navs, names, label)
+    truth = _read(truth_path, truth_cfg)
     trajs = [_read(p) for p in navs]
+    time_offset = (truth_cfg or {}).get("time_offset", 0.0)
+    if window is not None and window.active:    # absolute, against the truth's first epoch (after its offset)
+        window = window.resolve(float(truth.time[0]) + float(time_offset or 0.0))
+    window_note = _apply_window(truth, truth_path, trajs, navs, window, time_offset)
+    window_note += _to_flu([truth, *trajs], [truth_path, *navs], conv)
+    conv = 0                                    # every attitude is now of the FLU body axes
+    if window is not None and window.active and title is None:        # the maxima are over the window
+        title = f"{default_title(truth_path, legend)}, window {window.text()}"
+    gnss = None
+    if gnss_path is not None:
+        if not isinstance(truth, Trajectory):
+            raise SinsError(f"--gnss {gnss_path}: the plan view with GNSS needs a truth with latitude and longitude "
+                            "(not a TUM file)")
+        from ..io.gnss_csv import read_gnss_csv
+        from ..report.compare_page import gnss_overlay
+        gnss = gnss_overlay(read_gnss_csv(gnss_path), truth, gnss_path.name)
     full = all(isinstance(x, Trajectory) for x in (truth, *trajs))    # the seed-000 table needs lat/lon, velocity
     series, results, frame = {}, {}, ""
     with progress(len(navs) + 1, "compare", quiet) as bar:
@@ -148,7 +205,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
             if mopts is not None:
                 results[name] = compute_metrics(ref, poses[k], mopts, interpolate, str(truth_path), str(path))
             bar.update(1)
-        notes = [f"Truth: {truth_path}."] + [f"{n}: {p}" for n, p in zip(names, navs)]
+        notes = [f"{legend[n]}: {p}" for n, p in zip(names, navs) if legend[n] != str(p)] + window_note
         if interpolate:
             notes.append("The truth was interpolated at the navigation epochs.")
         if mopts is not None:
@@ -157,8 +214,9 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         if not full:
             notes.append("TUM inputs hold no latitude, longitude or velocity: the seed-000 rows (DCM elements, "
                          "ENU position and velocity errors) are omitted; the table holds the trajectory metrics.")
-        table = write_report(outdir, series, title or f"sins compare: {Path(truth_path).name}", epoch, every,
-                             notes, metrics=results or None, metric_options=mopts, frame=frame)
+        table = write_report(outdir, series, title or default_title(truth_path, legend), epoch, every,
+                             notes, metrics=results or None, metric_options=mopts, frame=frame, legend=legend,
+                             truth_name=str(truth_path), gnss=gnss)
         bar.update(1)
     at = "" if table.epoch is None else f" at t = {float(table.epoch)!r} s"
     click.echo(f"sins: compare: {len(navs)} method(s){at} -> {outdir}/index.html", err=True)
@@ -166,6 +224,51 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         from ..report.compare_metrics import summary_lines
         for line in summary_lines(results, mopts):
             click.echo(f"sins: compare: {line}", err=True)
+
+
+def _to_flu(tracks, paths, default: int) -> list[str]:
+    """Turn each trajectory's attitude into that of its FLU body axes (the file's own convention: its marker,
+    else its angles, else ``default``), in place, so that files of different conventions compare.  Returns
+    the report's note on the conventions."""
+    from ..io.trajectory import BODY_NAMES
+    from ..nav.rotation import body_flu_in_enu
+    from ..types import Trajectory
+    said = []
+    for tr, path in zip(tracks, paths):
+        if not isinstance(tr, Trajectory):
+            continue                              # TUM attitudes are FLU
+        code = tr.body if tr.body is not None else default
+        how = {"marker": "its marker", "angles": "its attitude columns"}.get(tr.body_from, "--body or FORMATS.md")
+        said.append(f"{Path(path).name} {BODY_NAMES[code].upper()} ({how})")
+        if code != 0:
+            tr.Cbn = body_flu_in_enu(tr.Cbn, code)
+        tr.body, tr.body_from = 0, "converted"
+    return [f"Body axes: {', '.join(said)}; attitudes compared as those of the FLU axes."] if said else []
+
+
+def _apply_window(truth, truth_path, trajs, navs, window, time_offset) -> list[str]:
+    """Shift the truth's times by ``time_offset`` and cut every track to the window, in place; refuse a
+    window or an offset that leaves no common epoch.  Returns the report's notes on them."""
+    from ..errors import num
+    from ..nav.window import Window, check_in_log, cut_track
+    notes = []
+    if time_offset:
+        truth.time = truth.time + float(time_offset)
+        notes.append(f"The truth's times were shifted by {num(float(time_offset))} s (--time-offset).")
+    window = (window or Window()).resolve(float(truth.time[0]))
+    if window.active:
+        check_in_log(window, float(truth.time[0]), float(truth.time[-1]), str(truth_path))
+        cut_track(truth, window, str(truth_path))
+        for nav, path in zip(trajs, navs):
+            cut_track(nav, window, str(path))
+        notes.append(f"Window: {window.text()} (tables, maxima and figures cover it only).")
+    for nav, path in zip(trajs, navs):                  # (without an offset report/errors.py diagnoses it)
+        if time_offset and (nav.time[-1] < truth.time[0] or nav.time[0] > truth.time[-1]):
+            shift = f" after the truth time offset of {num(float(time_offset))} s (--time-offset, truth.time_offset)"
+            raise SinsError(f"{path}: no epoch in common with the truth {truth_path}{shift} (navigation "
+                            f"{num(float(nav.time[0]))} to {num(float(nav.time[-1]))} s, truth "
+                            f"{num(float(truth.time[0]))} to {num(float(truth.time[-1]))} s)")
+    return notes
 
 
 def _batch(batch_path, outdir, jobs, scheduler, resume, figures, quiet, ctx):

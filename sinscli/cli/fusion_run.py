@@ -14,14 +14,18 @@ from ..io.gnss_csv import check_gnss_against_imu
 from ..io.atomic import prepare_output
 from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
-from ..io.readers import read_gnss, read_imu
+from ..io.readers import read_body_velocity, read_gnss, read_imu
 from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
 from ..types import ImuLog
 from .base import log, progress
 
 
+def _span(t) -> str:
+    return f"{float(t[0])!r} to {float(t[-1])!r} s" if len(t) else "no rows"
+
+
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-              opts, output, quiet):
+              opts, output, quiet, window=None, odom_path=None):
     from ..fusion.options import build_fusion_options
     from ..fusion.pipeline import Fusion, fuse_blocks
     from ..nav.pipeline import concat
@@ -41,14 +45,47 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         raise SinsError(f"{imu_path}: no IMU samples")
     gnss = read_gnss(gnss_path, cfg)
     t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
-    check_gnss_against_imu(gnss, t0, float(imu.time[-1]))
+    from ..nav.window import Window, check_in_log, check_init, clip_imu, from_start, trim
+    window = (window or Window()).resolve(t0)
+    check_in_log(window, t0, float(imu.time[-1]), str(imu_path))
+    imu = clip_imu(imu, window.end)
+    if align_method is not None and window.start is not None:     # aligned on the window's first seconds
+        imu = from_start(imu, window.start)
+        t0 = float(imu.t0)
+    try:
+        check_gnss_against_imu(gnss, t0, float(imu.time[-1]))
+    except SinsError as exc:
+        offset = float(cfg["gnss"]["time_offset"])
+        if not offset:
+            raise
+        raise SinsError(f"{exc} (after the GNSS time offset of {offset:g} s, --time-offset or gnss.time_offset)") \
+            from None
+    body_vel = None
+    if odom_path is not None:
+        body_vel = read_body_velocity(odom_path, cfg)
+        if len(body_vel.time) == 0 or body_vel.time[-1] < t0 or body_vel.time[0] > imu.time[-1]:
+            raise SinsError(f"{body_vel.source}: the body velocity ({_span(body_vel.time)}) does not overlap the "
+                            f"IMU log ({t0!r} to {float(imu.time[-1])!r} s)")
+    from ..nav.earth import gravity
+    from ..nav.sanity import mounting_warning
     init_bias = None
-    if align_method is not None:
+    if align_method is not None:             # the attitude comes from the log: check its up axis
+        note = mounting_warning(imu, t0, gravity(np.sin(np.radians(gnss.lat[0])), float(gnss.height[0])), opts.conv,
+                                None, cfg["imu"])
+        if note:
+            log.warning(note)
         init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts.gnss_pos_sigma)
     else:
-        init = read_init(init_path, t0, opts.conv, cfg["limits"])
+        init = read_init(init_path, t0 if window.start is None else window.start, opts.conv, cfg["limits"],
+                         cfg["init"])
+        check_init(init.time, window, str(init_path))
         init_sigma, init_bias = align_estimates(init, init_path, cfg["limits"])
-    fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias)
+        note = mounting_warning(imu, max(t0, init.time), gravity(np.sin(init.lat), init.height), opts.conv,
+                                init.Cbn, cfg["imu"])
+        if note:
+            log.warning(note)
+    fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias,
+                    body_vel=body_vel)
     step = 1 << 16
     blocks = (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],
                      t0=imu.t0 if a == 0 else None, source=imu.source) for a in range(0, len(imu), step))
@@ -56,6 +93,10 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         traj = concat(list(fuse_blocks(blocks, fusion, progress=bar.update)))
     if smooth:
         traj = fusion.smoothed()
+    if window.active:
+        traj = trim(traj, window)
+        if len(traj) == 0:
+            raise SinsError(f"{imu_path}: no navigation epoch in the window {window.text()}")
     summary = fusion.summary(traj)
     records = fusion.innovations()
     for r in records[~records["accepted"]]:

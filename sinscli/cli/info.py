@@ -6,7 +6,6 @@ from pathlib import Path
 
 import click
 
-from ..io.ros import log_summary
 from .base import main
 
 
@@ -38,9 +37,16 @@ def format_summary(s: dict) -> str:
         hint = f"  at rest the up axis is {sign}{'xyz'[axis]}"
         if not 9.0 < m["accel_norm"] < 10.6:
             hint += "; |f| is far from g: moving, or units are not m/s^2"
-        elif not (axis == 2 and sign == "+"):
+        elif not (axis == 2 and sign == ("-" if s.get("body") == "frd" else "+")):
             hint += "; set imu.mounting in the config so that the body axes match imu.body"
         lines.append(hint)
+    if "rest" in s:
+        rest = s["rest"]
+        total = sum(b - a for a, b in rest)
+        shown = ", ".join(f"{a:.3f}-{b:.3f}" for a, b in rest[:8]) + (f", ... ({len(rest) - 8} more)"
+                                                                       if len(rest) > 8 else "")
+        lines.append(f"rest windows (the fusion's standstill detector): {len(rest)}, {total:.1f} s in all"
+                     + (f": {shown} s" if rest else "; the log never rests (align --method static will refuse)"))
     return "\n".join(lines)
 
 
@@ -49,14 +55,25 @@ def format_summary(s: dict) -> str:
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @click.option("--imu-window", type=click.FloatRange(min=0.0), default=1.0, show_default=True,
               help="Seconds at the start of each Imu topic over which the means are taken (at least 10 messages).")
-def info_cmd(log, as_json, imu_window):
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
+              help="IMU CSV: the config that reads it (imu.columns, imu.units, imu.mounting).")
+def info_cmd(log, as_json, imu_window, config_path):
     """Show the topics, message types, counts, rates, time span and gaps of a ROS 1 bag, ROS 2 bag
     (directory or .db3) or MCAP LOG, and for Imu topics the mean specific force and angular rate at
-    the start (a quick look at units and mounting).
+    the start (a quick look at units and mounting).  For an IMU CSV: its rate, gaps, rest windows and
+    the same means (in the axes of the config's mounting, if any).
 
     \b
-    Example:
+    Examples:
       sins info husky_imu_gps.bag
+      sins info imu.csv --config nav.yaml
     """
-    s = log_summary(log, imu_window=imu_window)
+    from ..io.readers import _is_log
+    if _is_log(log):
+        from ..io.ros import log_summary
+        s = log_summary(log, imu_window=imu_window)
+    else:
+        from ..config import load_config
+        from ..io.imu_summary import csv_summary
+        s = csv_summary(log, load_config(config_path), imu_window=imu_window)
     click.echo(json.dumps(s, indent=2) if as_json else format_summary(s))

@@ -46,6 +46,9 @@ def _count_rows(path: Path) -> int:
 @click.option("--smooth", is_flag=True, help="With --gnss: Rauch-Tung-Striebel smoothed trajectory.")
 @click.option("--innovations", "innovations_path", default=None, type=click.Path(path_type=Path),
               help="With --gnss: CSV of every measurement's innovation, sigma, NIS and acceptance.")
+@click.option("--odom", "odom_path", default=None, type=click.Path(path_type=Path),
+              help="With --gnss: body velocity (odometry): a body-velocity CSV, or a bag/MCAP with an Odometry "
+                   "topic (ros.odom_topic, else auto-detected).")
 @click.option("--sensor", default=None,
               help="With --gnss: sensor description (preset mems|tactical|navigation or a sensor YAML).")
 @click.option("--attitude", type=click.Choice(["dcm", "quat", "krylov", "euler"]), default=None,
@@ -75,12 +78,19 @@ def _count_rows(path: Path) -> int:
               help="Navigation frame: local ENU, or the launch-centred inertial frame (WGS-84 J2 "
                    "gravitation; launch point from navigation.launch or the init YAML's launch:).")
 @click.option("--imu-topic", default=None, help="IMU topic in a ROS bag / MCAP log.")
+@click.option("--start", default=None, metavar="T",
+              help="Window start: time in the IMU log's clock, or +S seconds after its first epoch. The init must "
+                   "be at or before it (a trajectory file as --init gives its row at T); rows from T are written.")
+@click.option("--end", default=None, metavar="T", help="Window end (time, or +S after the log's first epoch).")
+@click.option("--duration", type=float, default=None, help="Window length in seconds (instead of --end).")
+@click.option("--time-offset", type=float, default=None,
+              help="With --gnss: seconds added to every GNSS time (config gnss.time_offset).")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("trajectory.csv"),
               show_default=True, help="Trajectory output: .csv, .parquet, .mcap, .tum, .geojson, .kml.")
 @quiet_option
-def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_path, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
+def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_path, odom_path, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
-                 frame, imu_topic, output, quiet):
+                 frame, imu_topic, start, end, duration, time_offset, output, quiet):
     """Navigate IMU increments from an initial state and write the trajectory.
 
     \b
@@ -90,11 +100,13 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     """
     if gnss_path is None:
         for name, value in (("--align", align_method), ("--smooth", smooth or None),
-                            ("--innovations", innovations_path), ("--sensor", sensor)):
+                            ("--innovations", innovations_path), ("--odom", odom_path), ("--sensor", sensor)):
             if value is not None:
                 raise SinsError(f"{name} needs --gnss (fused navigation)")
         if init_path is None:
             raise SinsError("give the initial state: --init FILE (or, with --gnss, --align METHOD)")
+        if time_offset is not None:
+            raise SinsError("--time-offset needs --gnss (it shifts the GNSS times)")
     elif (init_path is None) == (align_method is None):
         raise SinsError("with --gnss give exactly one of --init FILE and --align METHOD")
     from .. import config as config_mod
@@ -105,8 +117,10 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     from ..nav.earth import gravity
     from ..nav.inertial import launch_frame
     from ..nav.pipeline import NavOptions, concat, navigate_blocks
+    from ..nav.window import check_in_log, check_init, clip_blocks, make_window, windowed
 
     check_trajectory_output(output)            # before any work: a directory, no format, no permission
+    window = make_window(start, end, duration)
     cfg = config_mod.load_config(config_path)
     cfg = config_mod.merge(cfg, "navigation", attitude=attitude, dcm_variant=dcm_variant, coning=coning,
                            subsamples=subsamples, every=every, allow_gaps=allow_gaps,
@@ -114,6 +128,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
                            on_singularity=on_singularity, frame=frame)
     cfg = config_mod.merge(cfg, "imu", body=body, static_start=static_start)
     cfg = config_mod.merge(cfg, "ros", imu_topic=imu_topic)
+    cfg = config_mod.merge(cfg, "gnss", time_offset=time_offset)
     nav = cfg["navigation"]
     conv = BODY_CONVENTIONS[cfg["imu"]["body"]]
     opts = NavOptions(attitude=nav["attitude"], dcm_variant=nav["dcm_variant"], coning=nav["coning"],
@@ -125,7 +140,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     if gnss_path is not None:
         from .fusion_run import run_fused
         run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-                  opts, output, quiet)
+                  opts, output, quiet, window, odom_path=odom_path)
         return
     from ..nav.pipeline import first_run_compile
     seconds = first_run_compile(opts)
@@ -137,12 +152,20 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
         raise SinsError(f"{imu}: no IMU samples")
     t_start = first.t0 if first.t0 is not None else float(first.time[0] - (
         first.time[1] - first.time[0] if len(first) > 1 else 0.0))
-    init = read_init(init_path, t_start, conv, cfg["limits"])
+    window = window.resolve(t_start)
+    check_in_log(window, t_start, None, str(imu))
+    init = read_init(init_path, t_start if window.start is None else window.start, conv, cfg["limits"], cfg["init"])
+    check_init(init.time, window, str(init_path))
     if opts.frame == "launch-inertial" and opts.launch is None and "launch" in init.extra:
         launch_frame(init.extra["launch"], init.time, f"{init_path}: launch")   # checked naming the file
         opts.launch = init.extra["launch"]
     if cfg["imu"]["static_start"]:
         check_static_start(first, gravity(math.sin(init.lat), init.height), conv)
+    from ..nav.sanity import mounting_warning
+    note = mounting_warning(first, max(t_start, init.time), gravity(math.sin(init.lat), init.height), conv, init.Cbn,
+                            cfg["imu"])
+    if note:
+        log.warning(note)
 
     def all_blocks():
         yield first
@@ -152,7 +175,9 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     streaming = output.suffix.lower() in (".csv", ".parquet")
     written = [0, None, None]                  # rows, first and last time written
     with progress(total, "navigating", quiet or total < 200_000) as bar:
-        chunks = navigate_blocks(all_blocks(), init, opts, progress=bar.update)
+        chunks = navigate_blocks(clip_blocks(all_blocks(), window.end), init, opts, progress=bar.update)
+        if window.active:
+            chunks = windowed(chunks, window, str(imu))
         if streaming:
             extra = list(_extra_columns(opts))
             with TrajectoryWriter(output, conv, extra_columns=extra) as writer:

@@ -29,6 +29,10 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet):
     from ..sim.run import prepare, write_sim           # here, not at import: `sins simulate --help` is fast
     from ..sim.run import simulate as run_simulation
 
+    from ..io.atomic import prepare_output
+    from ..sim.run import SIM_FILES
+    for name in SIM_FILES:                             # before any work: a folder, permissions, an input
+        prepare_output(outdir / name)
     prepared = prepare(scenario, perfect, duration)   # every check happens before anything is written
     sc = prepared.scenario
     with progress(prepared.n_imu, "simulate", quiet) as bar:

@@ -5,37 +5,21 @@ from numba import njit
 
 
 @njit(cache=True)
-def matmul(a, b):
-    """``a b`` for 2-D arrays."""
-    n, k = a.shape
-    m = b.shape[1]
-    out = np.zeros((n, m))
-    for i in range(n):
-        for p in range(k):
-            x = a[i, p]
-            if x != 0.0:
-                for j in range(m):
-                    out[i, j] += x * b[p, j]
-    return out
+def rows_times(A, m, P, n, out):
+    """``out[:m] = A[:m, :n] P[:n, :n]`` (the zero entries of A skipped: A sparse, e.g. H or Phi)."""
+    for a in range(m):
+        for j in range(n):
+            out[a, j] = 0.0
+        for k in range(n):
+            h = A[a, k]
+            if h != 0.0:
+                for j in range(n):
+                    out[a, j] += h * P[k, j]
 
 
 @njit(cache=True)
-def matvec(a, v):
-    """``a v``."""
-    n, k = a.shape
-    out = np.zeros(n)
-    for i in range(n):
-        s = 0.0
-        for p in range(k):
-            s += a[i, p] * v[p]
-        out[i] = s
-    return out
-
-
-@njit(cache=True)
-def inv_small(S, m):
-    """Inverse of the leading ``m`` x ``m`` block of ``S`` (m = 1, 2, 3) in closed form."""
-    out = np.zeros((m, m))
+def inv_small(S, m, out):
+    """Inverse of the leading ``m`` x ``m`` block of ``S`` (m = 1, 2, 3) in closed form, into ``out``."""
     if m == 1:
         out[0, 0] = 1.0 / S[0, 0]
     elif m == 2:
@@ -61,28 +45,33 @@ def inv_small(S, m):
         out[0, 2] = (b * f - c * e) / det
         out[1, 2] = -(a * f - c * d) / det
         out[2, 2] = (a * e - b * d) / det
-    return out
 
 
 @njit(cache=True)
-def spd_solve(A, B):
-    """``A^-1 B`` for a symmetric positive definite ``A`` (Cholesky); NaN when A is not SPD."""
-    n = A.shape[0]
-    L = np.zeros((n, n))
+def cholesky(A, n, L):
+    """Lower Cholesky factor of the leading ``n`` x ``n`` block of ``A`` into ``L``; False when that
+    block is not (numerically) positive definite.  The one factorization of the filter's health
+    check and of the smoother's gain."""
     for j in range(n):
         s = A[j, j]
         for k in range(j):
             s -= L[j, k] * L[j, k]
         if not s > 0.0:
-            return np.full(B.shape, np.nan)
-        L[j, j] = np.sqrt(s)
+            return False
+        d = np.sqrt(s)
+        L[j, j] = d
         for i in range(j + 1, n):
             t = A[i, j]
             for k in range(j):
                 t -= L[i, k] * L[j, k]
-            L[i, j] = t / L[j, j]
-    m = B.shape[1]
-    X = B.copy()
+            L[i, j] = t / d
+    return True
+
+
+@njit(cache=True)
+def chol_solve_into(L, n, X):
+    """``X <- A^-1 X`` in place for ``A = L L^T`` (``X`` (n, m))."""
+    m = X.shape[1]
     for c in range(m):
         for i in range(n):
             t = X[i, c]
@@ -94,4 +83,3 @@ def spd_solve(A, B):
             for k in range(i + 1, n):
                 t -= L[k, i] * X[k, c]
             X[i, c] = t / L[i, i]
-    return X

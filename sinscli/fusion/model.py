@@ -34,8 +34,10 @@ estimate enter as white noise of density ``(sigma_sf^2 + sigma_mis^2) |w|^2 tau_
 has the same variance; the part under gravity alone is a constant bias and is added to the initial
 accelerometer bias variance instead.
 
-Propagation: ``P <- (I + F T) P (I + F T)^T + Qd``, ``Qd = G Q G^T T``, with ``F P`` formed over
-the non-zero entries of F only (a compressed-row pattern) and P kept exactly symmetric.
+Propagation: ``P <- (I + F T) P (I + F T)^T + Qd``, ``Qd = G Q G^T T``, formed on F's 3x3 blocks
+(:func:`f_blocks`, tuples on the stack) by :func:`propagate`, which skips F's zero entries and keeps P
+exactly symmetric; :func:`add_process_noise` adds Qd in place.  :func:`sparsity` is F's pattern (the
+smoother stores the integral of F over it).
 """
 import numpy as np
 from numba import njit
@@ -46,28 +48,31 @@ R, V, PHI, BG, BA, SG, SA = 0, 3, 6, 9, 12, 15, 18
 NX15, NX21 = 15, 21
 
 
-def sparsity(nx: int):
-    """Compressed-row pattern ``(ptr, col)`` of F's possibly non-zero entries for ``nx`` states."""
-    rows = []
-    for i in range(nx):
-        cols = set()
-        if i < 3:                               # dr
-            cols |= {0, 1, 2, V + i}
-        elif i < 6:                             # dv
-            cols |= set(range(0, 9)) | {BA, BA + 1, BA + 2}
-            if nx == NX21:
-                cols |= {SA, SA + 1, SA + 2}
-        elif i < 9:                             # phi
-            cols |= set(range(0, 9)) | {BG, BG + 1, BG + 2}
-            if nx == NX21:
-                cols |= {SG, SG + 1, SG + 2}
-        elif i < 15:                            # biases: Gauss-Markov
-            cols |= {i}
-        rows.append(sorted(cols))
+def sparsity(nx: int, decay: bool = False):
+    """Compressed-row pattern ``(ptr, col)`` of F's possibly non-zero entries (module docstring).
+
+    Only the entries :func:`build_F` can make non-zero: F_rr (5), F_vr (columns N, U only: ``B_ie`` and
+    ``B_en`` have no east column), F_vv, the skew blocks without their diagonal, A, B, the Cbn blocks,
+    the scale-factor columns of 21 states, and the bias diagonal only with ``decay`` (gm-decay).
+    """
+    rows = [[0, 1, 2, V], [1, 2, V + 1], [V + 2]]
+    skew_cols = ([PHI + 1, PHI + 2], [PHI, PHI + 2], [PHI, PHI + 1])
+    a_cols = ([V + 1], [V], [V])
+    b_cols = ([2], [1, 2], [1, 2])
+    for i in range(3):                          # dv
+        c = [1, 2, V, V + 1, V + 2] + skew_cols[i] + [BA, BA + 1, BA + 2]
+        rows.append(c + ([SA, SA + 1, SA + 2] if nx == NX21 else []))
+    for i in range(3):                          # phi
+        c = b_cols[i] + a_cols[i] + skew_cols[i] + [BG, BG + 1, BG + 2]
+        rows.append(c + ([SG, SG + 1, SG + 2] if nx == NX21 else []))
+    for i in range(BG, BA + 3):                 # biases: Gauss-Markov decay, or none (random walk)
+        rows.append([i] if decay else [])
+    for i in range(15, nx):                     # scale factors: random constants
+        rows.append([])
     ptr = np.zeros(nx + 1, dtype=np.int64)
     for i, c in enumerate(rows):
         ptr[i + 1] = ptr[i] + len(c)
-    col = np.array([c for r in rows for c in r], dtype=np.int64)
+    col = np.array([c for r in rows for c in sorted(r)], dtype=np.int64)
     return ptr, col
 
 
@@ -78,11 +83,12 @@ def dgravity_dh(sin_lat, h):
 
 
 @njit(cache=True)
-def build_F(F, nx, cbn, vel, lat, h, f_n, w_b, f_b, inv_tau_g, inv_tau_a):
-    """Fill the non-zero entries of ``F`` (nx, nx) at the state (module docstring).
+def f_blocks(c, vel, lat, h, f_n, w_b, f_b):
+    """The non-zero 3x3 blocks of F at the state (module docstring), as tuples (no allocation):
+    ``(F_rr, F_vr, F_vv, F_vphi, F_phir, F_phiv, F_phiphi, Cbn, Cbn diag(f^b), -Cbn diag(w^b))``.
 
-    ``cbn`` (3, 3) array, ``vel``/``f_n`` ENU, ``w_b``/``f_b`` body (compensated), ``inv_tau_*``
-    (3,) arrays of 1/tau (0 for a random constant).
+    ``c`` is Cbn and ``vel``/``f_n`` (ENU), ``w_b``/``f_b`` (body, compensated) 3-tuples.  F_rv = I,
+    F_v,ba = Cbn, F_phi,bg = -Cbn; the last two blocks are the scale-factor columns of 21 states.
     """
     sl, cl = np.sin(lat), np.cos(lat)
     rm, rn = radii(sl)
@@ -90,128 +96,255 @@ def build_F(F, nx, cbn, vel, lat, h, f_n, w_b, f_b, inv_tau_g, inv_tau_a):
     tl = sl / cl
     vE, vN, vU = vel[0], vel[1], vel[2]
     wN, wU = OMEGA_IE * cl, OMEGA_IE * sl
-    # w_en and w_in
-    eE, eN, eU = -vN / Rm, vE / Rn, vE * tl / Rn
-    iE, iN, iU = eE, wN + eN, wU + eU
-    # A = d w_en / d dv, B = d w_in / d dr
-    A = np.zeros((3, 3))
-    A[0, 1] = -1.0 / Rm
-    A[1, 0] = 1.0 / Rn
-    A[2, 0] = tl / Rn
-    B = np.zeros((3, 3))
-    B[0, 2] = vN / (Rm * Rm)
-    B[1, 1] = -OMEGA_IE * sl / Rm
-    B[1, 2] = -vE / (Rn * Rn)
-    B[2, 1] = OMEGA_IE * cl / Rm + vE / (cl * cl * Rn * Rm)
-    B[2, 2] = -vE * tl / (Rn * Rn)
-    B2 = B.copy()                               # 2 B_ie + B_en
-    B2[1, 1] = 2.0 * B[1, 1]
-    B2[2, 1] = 2.0 * OMEGA_IE * cl / Rm + vE / (cl * cl * Rn * Rm)
-    # [v x]
-    vx = np.array([[0.0, -vU, vN], [vU, 0.0, -vE], [-vN, vE, 0.0]])
-    # F_rr
-    F[0, 0] = vU / Rn - vN * tl / Rm
-    F[0, 1] = vE * tl / Rm
-    F[0, 2] = -vE / Rn
-    F[1, 1] = vU / Rm
-    F[1, 2] = -vN / Rm
-    for i in range(3):
-        F[i, V + i] = 1.0
-    # F_vv = -[(2 w_ie + w_en) x] + [v x] A
+    eE, eN, eU = -vN / Rm, vE / Rn, vE * tl / Rn         # w_en
+    iN, iU = wN + eN, wU + eU                              # w_in (east: eE)
+    # A = d w_en / d dv: A01 = -1/Rm, A10 = 1/Rn, A20 = tanL/Rn
+    a01, a10, a20 = -1.0 / Rm, 1.0 / Rn, tl / Rn
+    # B = d w_in / d dr: B02, B11, B12, B21, B22; B2 = 2 B_ie + B_en (Coriolis) differs in B11, B21
+    b02 = vN / (Rm * Rm)
+    b11 = -OMEGA_IE * sl / Rm
+    b12 = -vE / (Rn * Rn)
+    ben21 = vE / (cl * cl * Rn * Rm)
+    b21 = OMEGA_IE * cl / Rm + ben21
+    b22 = -vE * tl / (Rn * Rn)
+    c11 = 2.0 * b11
+    c21 = 2.0 * OMEGA_IE * cl / Rm + ben21
+    frr = ((vU / Rn - vN * tl / Rm, vE * tl / Rm, -vE / Rn), (0.0, vU / Rm, -vN / Rm), (0.0, 0.0, 0.0))
+    # F_vr = [v x] B2 (columns N, U) + gravity gradient; [v x] = [[0, -vU, vN], [vU, 0, -vE], [-vN, vE, 0]]
+    fvr = ((0.0, -vU * c11 + vN * c21, -vU * b12 + vN * b22),
+           (0.0, -vE * c21, vU * b02 - vE * b22),
+           (0.0, vE * c11, -vN * b02 + vE * b12 - dgravity_dh(sl, h)))
+    # F_vv = [v x] A - [(2 w_ie + w_en) x]
     cE, cN, cU = eE, 2.0 * wN + eN, 2.0 * wU + eU
+    fvv = ((-vU * a10 + vN * a20, cU, -cN), (-vE * a20 - cU, vU * a01, cE), (vE * a10 + cN, -vN * a01 - cE, 0.0))
+    fvp = ((0.0, -f_n[2], f_n[1]), (f_n[2], 0.0, -f_n[0]), (-f_n[1], f_n[0], 0.0))       # [f^n x]
+    fpr = ((0.0, 0.0, b02), (0.0, b11, b12), (0.0, b21, b22))                            # B
+    fpv = ((0.0, a01, 0.0), (a10, 0.0, 0.0), (a20, 0.0, 0.0))                            # A
+    fpp = ((0.0, iU, -iN), (-iU, 0.0, eE), (iN, -eE, 0.0))                              # -[w_in x]
+    csa = ((c[0][0] * f_b[0], c[0][1] * f_b[1], c[0][2] * f_b[2]), (c[1][0] * f_b[0], c[1][1] * f_b[1],
+           c[1][2] * f_b[2]), (c[2][0] * f_b[0], c[2][1] * f_b[1], c[2][2] * f_b[2]))
+    csg = ((-c[0][0] * w_b[0], -c[0][1] * w_b[1], -c[0][2] * w_b[2]), (-c[1][0] * w_b[0], -c[1][1] * w_b[1],
+           -c[1][2] * w_b[2]), (-c[2][0] * w_b[0], -c[2][1] * w_b[1], -c[2][2] * w_b[2]))
+    return frr, fvr, fvv, fvp, fpr, fpv, fpp, c, csa, csg
+
+
+@njit(cache=True)
+def write_F(F, nx, fb, inv_tau_g, inv_tau_a):
+    """The dense F (nx, nx) from :func:`f_blocks` (entries outside the pattern stay zero); ``inv_tau_*``
+    the bias rows' 1/tau (0: a random walk)."""
+    frr, fvr, fvv, fvp, fpr, fpv, fpp, c, csa, csg = fb
     for i in range(3):
+        F[R + i, V + i] = 1.0
         for j in range(3):
-            s_vv = 0.0
-            s_vr = 0.0
-            for k in range(3):
-                s_vv += vx[i, k] * A[k, j]
-                s_vr += vx[i, k] * B2[k, j]
-            F[V + i, V + j] = s_vv
-            F[V + i, R + j] = s_vr
-            F[PHI + i, V + j] = A[i, j]
-            F[PHI + i, R + j] = B[i, j]
-            F[V + i, BA + j] = cbn[i, j]
-            F[PHI + i, BG + j] = -cbn[i, j]
+            F[R + i, R + j] = frr[i][j]
+            F[V + i, R + j] = fvr[i][j]
+            F[V + i, V + j] = fvv[i][j]
+            F[V + i, PHI + j] = fvp[i][j]
+            F[PHI + i, R + j] = fpr[i][j]
+            F[PHI + i, V + j] = fpv[i][j]
+            F[PHI + i, PHI + j] = fpp[i][j]
+            F[V + i, BA + j] = c[i][j]
+            F[PHI + i, BG + j] = -c[i][j]
             if nx > 15:
-                F[V + i, SA + j] = cbn[i, j] * f_b[j]
-                F[PHI + i, SG + j] = -cbn[i, j] * w_b[j]
-    F[V + 0, V + 1] += cU
-    F[V + 0, V + 2] -= cN
-    F[V + 1, V + 0] -= cU
-    F[V + 1, V + 2] += cE
-    F[V + 2, V + 0] += cN
-    F[V + 2, V + 1] -= cE
-    F[V + 2, R + 2] += -dgravity_dh(sl, h)
-    # F_v,phi = [f^n x]
-    F[V + 0, PHI + 0] = 0.0
-    F[V + 0, PHI + 1] = -f_n[2]
-    F[V + 0, PHI + 2] = f_n[1]
-    F[V + 1, PHI + 0] = f_n[2]
-    F[V + 1, PHI + 1] = 0.0
-    F[V + 1, PHI + 2] = -f_n[0]
-    F[V + 2, PHI + 0] = -f_n[1]
-    F[V + 2, PHI + 1] = f_n[0]
-    F[V + 2, PHI + 2] = 0.0
-    # F_phi,phi = -[w_in x]
-    F[PHI + 0, PHI + 0] = 0.0
-    F[PHI + 0, PHI + 1] = iU
-    F[PHI + 0, PHI + 2] = -iN
-    F[PHI + 1, PHI + 0] = -iU
-    F[PHI + 1, PHI + 1] = 0.0
-    F[PHI + 1, PHI + 2] = iE
-    F[PHI + 2, PHI + 0] = iN
-    F[PHI + 2, PHI + 1] = -iE
-    F[PHI + 2, PHI + 2] = 0.0
-    for i in range(3):
+                F[V + i, SA + j] = csa[i][j]
+                F[PHI + i, SG + j] = csg[i][j]
         F[BG + i, BG + i] = -inv_tau_g[i]
         F[BA + i, BA + i] = -inv_tau_a[i]
 
 
-@njit(cache=True)
-def propagate(P, F, ptr, col, nx, T, qd, M):
-    """``P <- (I + F T) P (I + F T)^T + Qd`` over F's pattern; ``qd`` (nx, nx) is Qd, ``M`` scratch.
+def build_F(F, nx, c, vel, lat, h, f_n, w_b, f_b, inv_tau_g, inv_tau_a):
+    """Dense F at the state (for tests and the docs): :func:`write_F` of :func:`f_blocks`."""
+    write_F(F, nx, f_blocks(c, vel, lat, h, f_n, w_b, f_b), inv_tau_g, inv_tau_a)
 
-    ``M = F P`` costs (non-zeros of F) x nx; the result is formed on the upper triangle and
-    mirrored, so P stays exactly symmetric.
+
+# ---- 3x3 block arithmetic on tuples (rows of 3-tuples) for the propagation ----
+@njit(cache=True, inline="always")
+def _r(a, x):
+    return (a * x[0], a * x[1], a * x[2])
+
+
+@njit(cache=True, inline="always")
+def _r2(a, x, b, y):
+    return (a * x[0] + b * y[0], a * x[1] + b * y[1], a * x[2] + b * y[2])
+
+
+@njit(cache=True, inline="always")
+def _r3(a, x, b, y, c, z):
+    return (a * x[0] + b * y[0] + c * z[0], a * x[1] + b * y[1] + c * z[1], a * x[2] + b * y[2] + c * z[2])
+
+
+@njit(cache=True, inline="always")
+def _dense(f, m):
+    """``f m`` (3x3 blocks)."""
+    return (_r3(f[0][0], m[0], f[0][1], m[1], f[0][2], m[2]), _r3(f[1][0], m[0], f[1][1], m[1], f[1][2], m[2]),
+            _r3(f[2][0], m[0], f[2][1], m[1], f[2][2], m[2]))
+
+
+@njit(cache=True, inline="always")
+def _nocol0(f, m):
+    """``f m`` for an ``f`` whose first column is zero (F_vr, F_phir)."""
+    return (_r2(f[0][1], m[1], f[0][2], m[2]), _r2(f[1][1], m[1], f[1][2], m[2]), _r2(f[2][1], m[1], f[2][2], m[2]))
+
+
+@njit(cache=True, inline="always")
+def _nodiag(f, m):
+    """``f m`` for an ``f`` with a zero diagonal (the skew blocks)."""
+    return (_r2(f[0][1], m[1], f[0][2], m[2]), _r2(f[1][0], m[0], f[1][2], m[2]), _r2(f[2][0], m[0], f[2][1], m[1]))
+
+
+@njit(cache=True, inline="always")
+def _add_row(a, b, c, d, e, s, m):
+    return (m[0] + s * (a[0] + b[0] + c[0] + d[0] + e[0]), m[1] + s * (a[1] + b[1] + c[1] + d[1] + e[1]),
+            m[2] + s * (a[2] + b[2] + c[2] + d[2] + e[2]))
+
+
+@njit(cache=True, inline="always")
+def _add(a, b, c, d, e, s, m):
+    """``m + s (a + b + c + d + e)`` (3x3 blocks)."""
+    return (_add_row(a[0], b[0], c[0], d[0], e[0], s, m[0]), _add_row(a[1], b[1], c[1], d[1], e[1], s, m[1]),
+            _add_row(a[2], b[2], c[2], d[2], e[2], s, m[2]))
+
+
+@njit(cache=True, inline="always")
+def _phi_r(fb, T, mr, mv):
+    """Block row dr of ``Phi M``: ``M_r + T (F_rr M_r + M_v)``."""
+    frr = fb[0]
+    a = (_r3(frr[0][0], mr[0], frr[0][1], mr[1], frr[0][2], mr[2]), _r2(frr[1][1], mr[1], frr[1][2], mr[2]),
+         (0.0, 0.0, 0.0))
+    return (_r2(1.0, mr[0], T, _r2(1.0, a[0], 1.0, mv[0])), _r2(1.0, mr[1], T, _r2(1.0, a[1], 1.0, mv[1])),
+            _r2(1.0, mr[2], T, mv[2]))
+
+
+@njit(cache=True, inline="always")
+def _phi_v(fb, T, mr, mv, mp, ma, msa, sf):
+    """Block row dv of ``Phi M``: ``M_v + T (F_vr M_r + F_vv M_v + [f x] M_phi + Cbn M_ba (+ Cbn f^b M_sa))``."""
+    e = _dense(fb[8], msa) if sf else ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    return _add(_nocol0(fb[1], mr), _dense(fb[2], mv), _nodiag(fb[3], mp), _dense(fb[7], ma), e, T, mv)
+
+
+@njit(cache=True, inline="always")
+def _phi_p(fb, T, mr, mv, mp, mg, msg, sf):
+    """Block row phi of ``Phi M``: ``M_phi + T (F_phir M_r + A M_v - [w_in x] M_phi - Cbn M_bg (- ..))``."""
+    fpv = fb[5]
+    av = (_r(fpv[0][1], mv[1]), _r(fpv[1][0], mv[0]), _r(fpv[2][0], mv[0]))
+    cg = _dense(fb[7], mg)
+    ncg = ((-cg[0][0], -cg[0][1], -cg[0][2]), (-cg[1][0], -cg[1][1], -cg[1][2]), (-cg[2][0], -cg[2][1], -cg[2][2]))
+    e = _dense(fb[9], msg) if sf else ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    return _add(_nocol0(fb[4], mr), av, _nodiag(fb[6], mp), ncg, e, T, mp)
+
+
+@njit(cache=True, inline="always")
+def _blk(P, i0, j0, tr):
+    """The 3x3 block of ``P`` at ``(i0, j0)``, transposed with ``tr``."""
+    if tr:
+        return ((P[i0, j0], P[i0 + 1, j0], P[i0 + 2, j0]), (P[i0, j0 + 1], P[i0 + 1, j0 + 1], P[i0 + 2, j0 + 1]),
+                (P[i0, j0 + 2], P[i0 + 1, j0 + 2], P[i0 + 2, j0 + 2]))
+    return ((P[i0, j0], P[i0, j0 + 1], P[i0, j0 + 2]), (P[i0 + 1, j0], P[i0 + 1, j0 + 1], P[i0 + 1, j0 + 2]),
+            (P[i0 + 2, j0], P[i0 + 2, j0 + 1], P[i0 + 2, j0 + 2]))
+
+
+@njit(cache=True, inline="always")
+def _put(P, i0, j0, b, sym):
+    """Write block ``b`` at ``(i0, j0)``; with ``sym`` also its transpose at ``(j0, i0)`` (a diagonal
+    block is symmetrized)."""
+    for i in range(3):
+        for j in range(3):
+            if sym and i0 == j0:
+                v = 0.5 * (b[i][j] + b[j][i])
+                P[i0 + i, j0 + j] = v
+            else:
+                P[i0 + i, j0 + j] = b[i][j]
+                if sym:
+                    P[j0 + j, i0 + i] = b[i][j]
+
+
+@njit(cache=True, inline="always")
+def _phi_apply(src, X, tr, fb, T, nb, out, sym, first):
+    """The navigation block rows of block column ``X`` of ``Phi M`` into ``out``, with ``M_ZX`` the
+    block (Z, X) of ``src`` or, with ``tr``, the transposed block (X, Z).  Rows ``dr, dv, phi`` are
+    written from ``first, first + 1, first + 2`` on (with ``sym`` only the upper blocks, row <= X,
+    each with its mirror)."""
+    o = 3 * X
+    z = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    sf = nb > 5
+    mr = _blk(src, o, 0, True) if tr else _blk(src, 0, o, False)
+    mv = _blk(src, o, V, True) if tr else _blk(src, V, o, False)
+    mp = _blk(src, o, PHI, True) if tr else _blk(src, PHI, o, False)
+    mg = _blk(src, o, BG, True) if tr else _blk(src, BG, o, False)
+    ma = _blk(src, o, BA, True) if tr else _blk(src, BA, o, False)
+    msg = (_blk(src, o, SG, True) if tr else _blk(src, SG, o, False)) if sf else z
+    msa = (_blk(src, o, SA, True) if tr else _blk(src, SA, o, False)) if sf else z
+    _put(out, R, o, _phi_r(fb, T, mr, mv), sym)
+    if X >= first + 1:
+        _put(out, V, o, _phi_v(fb, T, mr, mv, mp, ma, msa, sf), sym)
+    if X >= first + 2:
+        _put(out, PHI, o, _phi_p(fb, T, mr, mv, mp, mg, msg, sf), sym)
+
+
+@njit(cache=True)
+def propagate(P, W, fb, T, nx, inv_tau_g, inv_tau_a):
+    """``P <- Phi P Phi^T`` with ``Phi = I + F T`` over F's 3x3 blocks (:func:`f_blocks`); ``W`` (nx, nx)
+    scratch.
+
+    The sensor rows of F are zero (random walk, scale factors) or diagonal (gm-decay: ``D = 1 - T/tau``),
+    so only the navigation rows (dr, dv, phi) of ``W = Phi P`` are formed, block column by block
+    column; then ``P = Phi W^T`` (``= W Phi^T``, P being symmetric) for the upper navigation blocks,
+    ``W D`` for the navigation-sensor blocks and ``D P D`` for the sensor blocks, mirrored.  Each block
+    is a few 3x3 products on tuples (the zero entries of F_rr, F_vr, A, B and the skew blocks
+    skipped): about 1,250 multiply-adds for 15 states, and P exactly symmetric.
     """
-    for i in range(nx):
-        for j in range(nx):
-            M[i, j] = 0.0
-        for p in range(ptr[i], ptr[i + 1]):
-            c = col[p]
-            f = F[i, c]
-            if f != 0.0:
-                for j in range(nx):
-                    M[i, j] += f * P[c, j]
-    T2 = T * T
-    for i in range(nx):
-        for j in range(i, nx):
-            # (F P F^T)_ij = sum_c F[i, c] M[j, c]
-            fpf = 0.0
-            for p in range(ptr[i], ptr[i + 1]):
-                c = col[p]
-                fpf += F[i, c] * M[j, c]
-            v = P[i, j] + T * (M[i, j] + M[j, i]) + T2 * fpf + qd[i, j]
+    nb = nx // 3
+    decay = False
+    for i in range(3):
+        if inv_tau_g[i] != 0.0 or inv_tau_a[i] != 0.0:
+            decay = True
+    # the block columns spelled out, so that each inlined copy knows its column (no branches)
+    _phi_apply(P, 0, False, fb, T, nb, W, False, -9)
+    _phi_apply(P, 1, False, fb, T, nb, W, False, -9)
+    _phi_apply(P, 2, False, fb, T, nb, W, False, -9)
+    _phi_apply(P, 3, False, fb, T, nb, W, False, -9)
+    _phi_apply(P, 4, False, fb, T, nb, W, False, -9)
+    if nb > 5:
+        _phi_apply(P, 5, False, fb, T, nb, W, False, -9)
+        _phi_apply(P, 6, False, fb, T, nb, W, False, -9)
+    _phi_apply(W, 0, True, fb, T, nb, P, True, 0)
+    _phi_apply(W, 1, True, fb, T, nb, P, True, 0)
+    _phi_apply(W, 2, True, fb, T, nb, P, True, 0)
+    for j in range(9, nx):
+        d = 1.0
+        if j < BA:
+            d = 1.0 - T * inv_tau_g[j - BG]
+        elif j < SG:
+            d = 1.0 - T * inv_tau_a[j - BA]
+        for i in range(9):
+            v = W[i, j] * d
             P[i, j] = v
             P[j, i] = v
+        if decay:
+            for i in range(9, nx):
+                P[i, j] *= d
+                if i < BA:
+                    P[i, j] *= 1.0 - T * inv_tau_g[i - BG]
+                elif i < SG:
+                    P[i, j] *= 1.0 - T * inv_tau_a[i - BA]
 
 
 @njit(cache=True)
-def process_noise(qd, nx, cbn, T, q_scale, arw2, vrw2, q_bg, q_ba, q_att_extra, q_vel_extra):
-    """Qd = G Q G^T T into ``qd`` (nx, nx): ``Cbn diag(arw^2) Cbn^T`` on phi, ``Cbn diag(vrw^2) Cbn^T``
-    on dv (plus the isotropic scale-factor/misalignment densities ``q_*_extra``), ``q_bg``/``q_ba``
-    (3,) Gauss-Markov densities on the biases; all times ``q_scale``."""
+def add_process_noise(P, nx, c, T, q_scale, arw2, vrw2, q_bg, q_ba, q_att_extra, q_vel_extra):
+    """``P += Qd``, ``Qd = G Q G^T T``: ``Cbn diag(arw^2) Cbn^T`` on phi, ``Cbn diag(vrw^2) Cbn^T`` on dv
+    (plus the isotropic scale-factor/misalignment densities ``q_*_extra``), ``q_bg``/``q_ba`` (3,)
+    bias densities; all times ``q_scale`` (``c`` is Cbn as a 3-tuple of rows)."""
     s = T * q_scale
     for i in range(3):
         for j in range(3):
             a = 0.0
             b = 0.0
             for k in range(3):
-                a += cbn[i, k] * arw2[k] * cbn[j, k]
-                b += cbn[i, k] * vrw2[k] * cbn[j, k]
-            qd[PHI + i, PHI + j] = a * s
-            qd[V + i, V + j] = b * s
-        qd[PHI + i, PHI + i] += q_att_extra * s
-        qd[V + i, V + i] += q_vel_extra * s
-        qd[BG + i, BG + i] = q_bg[i] * s
-        qd[BA + i, BA + i] = q_ba[i] * s
+                a += c[i][k] * arw2[k] * c[j][k]
+                b += c[i][k] * vrw2[k] * c[j][k]
+            P[PHI + i, PHI + j] += a * s
+            P[V + i, V + j] += b * s
+        P[PHI + i, PHI + i] += q_att_extra * s
+        P[V + i, V + i] += q_vel_extra * s
+        P[BG + i, BG + i] += q_bg[i] * s
+        P[BA + i, BA + i] += q_ba[i] * s

@@ -26,6 +26,7 @@ FUSION_DEFAULTS = {
     "states": 15,                    # 15 | 21 (+ gyro and accelerometer scale factors)
     "sensor": None,                  # preset (mems | tactical | navigation) or sensor YAML; null: the
                                      # conservative default (the mems preset), said in the summary
+    "bias_model": "gm-noise",        # gm-noise: F = 0, GM density 2 sigma^2/tau | gm-decay: F = -1/tau too
     "propagation_interval": 0.0,     # s between covariance propagations; 0: every attitude update; <= 0.1
     "gate_probability": 0.9999,      # chi-square innovation gate (of the whole measurement vector)
     "gnss_pos_sigma": [1.5, 1.5, 3.0],   # m E N U, for fixes without std columns
@@ -47,7 +48,7 @@ FUSION_DEFAULTS = {
         "accel_mag": 0.3,            # m/s^2: | |mean f| - g | under this
     },
     "nhc": {"enabled": False, "sigma": [0.1, 0.1], "interval": 0.1},   # m/s lateral, vertical; s
-    "odometry": {"enabled": True, "sigma": None},                 # m/s; null: the log's, else 0.05
+    "odometry": {"enabled": True, "sigma": None, "sigma_floor": 0.1},   # m/s; null: the log's, else the floor
     "heading_init": {
         "max_sigma": 20.0,           # deg: a heading less certain than this is held out of the filter
         "min_speed": 2.0,            # m/s: GNSS speed from which the course gives the heading
@@ -55,7 +56,7 @@ FUSION_DEFAULTS = {
     },
     "rejection_run": 10,             # consecutive rejected fixes that inflate P and re-accept
     "outage": 3.0,                   # a GNSS gap over this many nominal fix intervals is an outage
-    "adapt": {"threshold": 2.0, "window": 30, "max_scale": 1.0e4},   # NIS/dof mean that widens P, Q
+    "adapt": {"enabled": True, "probability": 0.99999, "window": 10, "max_scale": 1.0e4},   # widens P, Q
     "scale_factor_tau": 10.0,        # s: correlation time of unestimated scale-factor/misalignment noise
     "smoother_interval": 1.0,        # s: the smoother stores an epoch at least this often
 }
@@ -65,6 +66,7 @@ FUSION_DEFAULTS = {
 class FusionOptions:
     states: int = 15
     sensor: object = None
+    bias_model: str = "gm-noise"
     propagation_interval: float = 0.0
     gate_probability: float = 0.9999
     gnss_pos_sigma: np.ndarray = field(default_factory=lambda: np.array([1.5, 1.5, 3.0]))
@@ -88,13 +90,15 @@ class FusionOptions:
     nhc_interval: float = 0.1
     odometry: bool = True
     odometry_sigma: float | None = None
+    odometry_sigma_floor: float = 0.1
     heading_max_sigma: float = 20.0 * DEG
     heading_min_speed: float = 2.0
     heading_sigma_floor: float = 2.0 * DEG
     rejection_run: int = 10
     outage: float = 3.0
-    adapt_threshold: float = 2.0
-    adapt_window: int = 30
+    adapt: bool = True
+    adapt_probability: float = 0.99999
+    adapt_window: int = 10
     adapt_max_scale: float = 1.0e4
     scale_factor_tau: float = 10.0
     smoother_interval: float = 1.0
@@ -164,6 +168,9 @@ def build_fusion_options(section, src: str, base_dir=None) -> FusionOptions:
     if d["sensor"] is not None and not isinstance(d["sensor"], (str, dict)):
         _fail(src, "sensor", f"expected a preset name, a sensor YAML path or a mapping, got {d['sensor']!r}")
     o.sensor = d["sensor"]
+    if d["bias_model"] not in ("gm-noise", "gm-decay"):
+        _fail(src, "bias_model", f"expected gm-noise or gm-decay, got {d['bias_model']!r}")
+    o.bias_model = d["bias_model"]
     o.propagation_interval = _num(src, "propagation_interval", d["propagation_interval"], ge=0.0, le=0.1)
     o.gate_probability = _num(src, "gate_probability", d["gate_probability"], gt=0.0, lt=1.0)
     o.gnss_pos_sigma = _vec(src, "gnss_pos_sigma", d["gnss_pos_sigma"], 3, gt=0.0, le=MAX_POS)
@@ -193,6 +200,7 @@ def build_fusion_options(section, src: str, base_dir=None) -> FusionOptions:
     o.odometry = _bool(src, "odometry.enabled", d["odometry"]["enabled"])
     if d["odometry"]["sigma"] is not None:
         o.odometry_sigma = _num(src, "odometry.sigma", d["odometry"]["sigma"], gt=0.0, le=MAX_VEL)
+    o.odometry_sigma_floor = _num(src, "odometry.sigma_floor", d["odometry"]["sigma_floor"], ge=0.0, le=MAX_VEL)
     hi = d["heading_init"]
     o.heading_max_sigma = _num(src, "heading_init.max_sigma", hi["max_sigma"], gt=0.0, le=180.0) * DEG
     o.heading_min_speed = _num(src, "heading_init.min_speed", hi["min_speed"], gt=0.0, le=MAX_VEL)
@@ -203,7 +211,8 @@ def build_fusion_options(section, src: str, base_dir=None) -> FusionOptions:
     o.rejection_run = rr
     o.outage = _num(src, "outage", d["outage"], gt=1.0, le=MAX_TIME)
     ad = d["adapt"]
-    o.adapt_threshold = _num(src, "adapt.threshold", ad["threshold"], ge=0.0)
+    o.adapt = _bool(src, "adapt.enabled", ad["enabled"])
+    o.adapt_probability = _num(src, "adapt.probability", ad["probability"], gt=0.5, lt=1.0)
     w = ad["window"]
     if isinstance(w, bool) or not isinstance(w, int) or not 2 <= w <= MAX_COUNT:
         _fail(src, "adapt.window", f"expected a whole number from 2 to {MAX_COUNT}, got {w!r}")

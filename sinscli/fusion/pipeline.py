@@ -18,8 +18,8 @@ import numpy as np
 from ..errors import SinsError
 from ..nav import strapdown as sd
 from ..nav.earth import gravity, radii_py
-from ..nav.pipeline import BLOCK, NavOptions, concat
-from ..nav.rotation import conv_to_flu, dcm_to_euler
+from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
+from ..nav.rotation import conv_to_flu
 from ..sensors import G0, load_sensor
 from ..types import GnssLog, ImuLog, NavState, Trajectory, time_tolerance
 from . import kernel as kn
@@ -66,9 +66,10 @@ class FilterModel:
     sfmis_a: float
     source: str                 # where it came from (for the summary)
     default: bool = False
+    assumed: list = field(default_factory=list)     # terms taken from the default preset (unknown)
 
 
-def filter_model(spec, base_dir, states: int, src: str) -> FilterModel:
+def filter_model(spec, base_dir, states: int, src: str, bias_model: str = "gm-noise") -> FilterModel:
     """The filter's noise model from a sensor preset/file (None: the stated conservative default)."""
     default = spec is None
     spec = DEFAULT_SENSOR if default else spec
@@ -81,12 +82,15 @@ def filter_model(spec, base_dir, states: int, src: str) -> FilterModel:
                 raise SinsError(f"{where}: {which}.{k}: missing; the fusion filter needs {', '.join(keys)} "
                                 f"of the {which}")
     g, a = sens["gyro"], sens["accel"]
+    assumed = _fill_unknown_terms(sens, src)
 
     def gm(d):
-        # The Gauss-Markov density 2 sigma^2 / tau with F = 0 (a random walk, the GM's own growth for
-        # t << tau): the filter's bias error holds the turn-on part, which does not decay, so F = -1/tau
-        # let its variance shrink unobserved (Monte Carlo attitude NEES 4.1 for 3 dof: overconfident).
-        return 2.0 * d["bias_instability"] ** 2 / d["bias_tau"], np.zeros(3)
+        # bias_model (docs/fusion.md): "gm-noise", the Gauss-Markov density 2 sigma^2 / tau with F = 0 (a
+        # random walk, the GM's own growth for t << tau; the filter's bias error also holds the turn-on
+        # part, which does not decay); "gm-decay", F = -1/tau on the whole bias error as the GM prescribes
+        # (its variance then shrinks unobserved toward sigma_BI^2: overconfident, Monte Carlo NEES).
+        q = 2.0 * d["bias_instability"] ** 2 / d["bias_tau"]
+        return q, (1.0 / d["bias_tau"] if bias_model == "gm-decay" else np.zeros(3))
 
     q_bg, itg = gm(g)
     q_ba, ita = gm(a)
@@ -103,7 +107,27 @@ def filter_model(spec, base_dir, states: int, src: str) -> FilterModel:
     p0_bg = g["bias_sigma"] ** 2 + g["bias_instability"] ** 2
     return FilterModel(g["arw"] ** 2, a["vrw"] ** 2, q_bg, q_ba, itg, ita, p0_bg, p0_ba,
                        np.maximum(sf_g, 1e-6) ** 2, np.maximum(sf_a, 1e-6) ** 2, sfmis_g, sfmis_a,
-                       where + (" (no sensor given: conservative default)" if default else ""), default)
+                       where + (" (no sensor given: conservative default)" if default else ""), default,
+                       assumed)
+
+
+def _fill_unknown_terms(sens: dict, src: str) -> list:
+    """Terms a sensor description leaves unknown take the conservative default preset's values (said in
+    the summary): a missing scale factor or misalignment (a description from ``sins allan`` has none),
+    and a ``bias_sigma`` of 0 (what ``sins allan`` writes: a static log cannot observe the turn-on bias,
+    so 0 means unknown, not perfect).  Returns the notes."""
+    ref = load_sensor(DEFAULT_SENSOR, None, src, Path.cwd())
+    notes = []
+    for which in ("gyro", "accel"):
+        d = sens[which]
+        for k in ("scale_factor_sigma", "misalignment_sigma"):
+            if k not in d:
+                d[k] = ref[which][k]
+                notes.append(f"{which}.{k}")
+        if np.all(d["bias_sigma"] == 0.0):
+            d["bias_sigma"] = ref[which]["bias_sigma"]
+            notes.append(f"{which}.bias_sigma (0: unknown)")
+    return notes
 
 
 def chi2_cdf(x: float, k: int) -> float:
@@ -247,6 +271,38 @@ def outages(time: np.ndarray, factor: float) -> list:
     return [(float(time[i]), float(d[i])) for i in k]
 
 
+class EpochStore:
+    """The smoother's epochs (:func:`sinscli.fusion.kernel._store_epoch`), grown as the filter runs:
+    per epoch the time, P- and P+ (upper triangles), the integral of F over its pattern, the fed-back
+    correction and the reset flag (about 2.6 kB for 15 states)."""
+    EMPTY = (np.empty(0), np.empty((0, 1)), np.empty((0, 1)), np.empty((0, 1)), np.empty((0, 1)), np.empty(0))
+
+    def __init__(self, nx: int, nnz: int):
+        self.nx, self.nnz, self.n = nx, nnz, 0
+        self._a = self._alloc(0)
+
+    def _alloc(self, cap):
+        nu = self.nx * (self.nx + 1) // 2
+        return (np.empty(cap), np.empty((cap, nu)), np.empty((cap, nu)), np.empty((cap, self.nnz)),
+                np.empty((cap, self.nx)), np.empty(cap))
+
+    def reserve(self, more: int) -> None:
+        """Room for ``more`` epochs after the ``n`` stored (grown by half again, copied once)."""
+        cap = len(self._a[0])
+        if self.n + more <= cap:
+            return
+        new = self._alloc(max(self.n + more, int(1.5 * cap)))
+        for a, b in zip(self._a, new):
+            b[:self.n] = a[:self.n]
+        self._a = new
+
+    def arrays(self):
+        return self._a
+
+    def trimmed(self):
+        return tuple(a[:self.n] for a in self._a)
+
+
 class Fusion:
     """Stateful fused navigator: feed IMU blocks in time order, get trajectory chunks back."""
 
@@ -259,7 +315,7 @@ class Fusion:
                             f"not {nav.attitude} / {nav.frame}")
         self.nav, self.fopts, self.gnss, self.init = nav, fopts, gnss, init
         self.smooth = smooth
-        self.model = filter_model(fopts.sensor, fopts.base_dir, fopts.states, src)
+        self.model = filter_model(fopts.sensor, fopts.base_dir, fopts.states, src, fopts.bias_model)
         nx = fopts.states
         self.nx = nx
         c = np.asarray(init.Cbn, dtype=float)
@@ -267,14 +323,14 @@ class Fusion:
         self.st = sd.new_state(init.time, init.lat, init.lon, init.height, np.asarray(init.vel_n, float), c,
                                self.method, nav.conv)
         self.cflu = conv_to_flu(nav.conv)
-        self.ptr, self.col = sparsity(nx)
-        self.FT = np.zeros((nx, nx))
+        self.ptr, self.col = sparsity(nx, bool(np.any(self.model.inv_tau_g > 0) or np.any(self.model.inv_tau_a > 0)))
+        self.ftv = np.zeros(len(self.col))
+        self.mats, self.vecs, self.s3 = kn.workspace(nx)
         lever = fopts.lever_arm if fopts.lever_arm is not None else np.zeros(3)
         self.lever = np.asarray(lever, dtype=float)
         self.cv = self._config_vector()
         self.fs = np.zeros(kn.FS_SIZE)
         self.fs[kn.F_QSCALE] = 1.0
-        self.fs[kn.F_NIS_EWMA] = 1.0
         self.fs[kn.F_TPREV] = init.time
         self.fs[kn.F_T_EPOCH] = init.time
         if init_bias:
@@ -287,8 +343,10 @@ class Fusion:
         t_end = float(gnss.time[-1]) if len(gnss) else init.time
         rows = [gnss_rows(gnss, fopts, init.time + time_tolerance(init.time))]
         if body_vel is not None and fopts.odometry and len(body_vel.time):
-            sv = body_vel.std if body_vel.std is not None else np.full(
-                (len(body_vel.time), 3), fopts.odometry_sigma or 0.05)
+            # the log's sigma (a wheel-odometry controller's covariance is often a placeholder: 1e-3) no
+            # smaller than the floor (wheel slip of a skid-steered vehicle, ~10 % at 1 m/s); or the config's
+            sv = body_vel.std if body_vel.std is not None else np.zeros((len(body_vel.time), 3))
+            sv = np.maximum(sv, fopts.odometry_sigma_floor)
             if fopts.odometry_sigma is not None:
                 sv = np.full_like(sv, fopts.odometry_sigma)
             n = len(body_vel.time)
@@ -298,8 +356,8 @@ class Fusion:
         self._t_nhc = init.time
         self._t_end_gnss = t_end
         self.inn_parts, self.ev_parts = [], []
-        self.epochs = []
-        self.forward_rows = []          # kept for the smoother
+        self.epochs = EpochStore(nx, len(self.col)) if smooth else None
+        self.forward_rows = []          # kept for the smoother: (trajectory, variances, sensor estimates)
         self.applied = 0
         self.heading_known = bool(self.fs[kn.F_HEAD_KNOWN] > 0)
         self._source = "<memory>"
@@ -328,7 +386,9 @@ class Fusion:
         cv[kn.C_SFA] = m.sfmis_a * f.scale_factor_tau
         cv[kn.C_LEVER:kn.C_LEVER + 3] = self.lever
         cv[kn.C_REJ_RUN] = f.rejection_run
-        cv[kn.C_ADAPT_THR] = f.adapt_threshold
+        # the window's mean NIS per dof (3 dof per measurement) above its chi-square quantile
+        m_n = 3 * f.adapt_window
+        cv[kn.C_ADAPT_THR] = chi2_ppf(f.adapt_probability, m_n) / m_n if f.adapt else 0.0
         cv[kn.C_ADAPT_N] = f.adapt_window
         cv[kn.C_SMOOTH_DT] = f.smoother_interval if self.smooth else 0.0
         cv[kn.C_ZUPT_MAXV] = f.zupt_max_speed
@@ -337,6 +397,8 @@ class Fusion:
         cv[kn.C_NHC_AX0], cv[kn.C_NHC_AX1] = lat_axes
         cv[kn.C_HEAD_MINSPEED] = f.heading_min_speed
         cv[kn.C_QMAX] = f.adapt_max_scale
+        cv[kn.C_ZARU_Q] = 1.0 if f.zaru_sigma is None else 0.0
+        cv[kn.C_FWD] = fwd
         return cv
 
     def _initial_covariance(self, s: dict):
@@ -365,19 +427,17 @@ class Fusion:
     # ------------------------------------------------------------------ running
     def initial_row(self) -> Trajectory:
         s = self.init
-        cov = np.zeros((1, 12))
-        cov[0, :3] = np.diag(self.P)[0:3]
-        cov[0, 3:6] = np.diag(self.P)[3:6]
-        cov[0, 6:9] = np.diag(self.P)[6:9]
-        if self.fs[kn.F_HEAD_KNOWN] == 0:
-            cov[0, 8] = -1.0
-        bias = np.zeros((1, 24))
-        bias[0, :12] = self.fs[:12]
+        var = np.zeros((1, kn.NVAR))
+        bias = np.zeros((1, kn.NBIAS))
+        kn.row_variances(var, 0, tuple(tuple(r) for r in np.asarray(s.Cbn, float)), int(self.cv[kn.C_FWD]),
+                         *np.diag(self.P)[:9], self.P[PHI, PHI + 1], self.fs[kn.F_HEAD_KNOWN] > 0)
+        bias[0] = self.fs[:kn.NBIAS]
         traj = Trajectory(np.array([s.time]), np.array([s.lat]), np.array([s.lon]), np.array([s.height]),
                           np.asarray(s.vel_n, float)[None, :].copy(), np.asarray(s.Cbn, float)[None].copy())
-        traj.extra = self._columns(traj, cov, bias)
         if self.smooth:
-            self.forward_rows.append((traj, cov, bias))
+            self.forward_rows.append((traj, var, bias))
+        else:
+            traj.extra = self._columns(var, bias)
         return traj
 
     def _measurement_rows(self, imu_t, dth, dv, t_start):
@@ -440,31 +500,26 @@ class Fusion:
         out_pos = np.empty((cap, 3))
         out_vel = np.empty((cap, 3))
         out_cbn = np.empty((cap, 3, 3))
-        out_cov = np.empty((cap, 12))
-        out_bias = np.empty((cap, 24))
+        out_var = np.empty((cap, kn.NVAR))
+        out_bias = np.empty((cap, kn.NBIAS))
         inn = np.empty((3 * nm + 3, 7))
         evs = np.empty((nm + 8, 4))
-        nx = self.nx
         if self.smooth:
-            n_ep_cap = nm + int((time[-1] - self.fs[kn.F_TPREV]) / self.fopts.smoother_interval) + 4
+            ep = self.epochs
+            ep.reserve(nm + int((time[-1] - self.fs[kn.F_TPREV]) / self.fopts.smoother_interval) + 4)
+            arrays, n0 = ep.arrays(), ep.n
         else:
-            n_ep_cap = 0
-        ep_t = np.empty(n_ep_cap)
-        ep_pm = np.empty((n_ep_cap, nx, nx))
-        ep_pp = np.empty((n_ep_cap, nx, nx))
-        ep_ft = np.empty((n_ep_cap, nx, nx))
-        ep_x = np.empty((n_ep_cap, nx))
-        ep_reset = np.empty(n_ep_cap)
+            arrays, n0 = EpochStore.EMPTY, 0
         n, used, n_inn, n_evs, n_ep = kn.fuse(time, dth, dv, self.st, self.fs, self.cv, self.P, meas, self.ptr,
-                                              self.col, self.FT, self.cflu, out_t, out_pos, out_vel, out_cbn,
-                                              out_cov, out_bias, inn, evs, ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset)
+                                              self.col, self.ftv, self.cflu, self.mats, self.vecs, self.s3,
+                                              out_t, out_pos, out_vel, out_cbn, out_var, out_bias, inn, evs,
+                                              *arrays, n0)
+        if self.smooth:
+            self.epochs.n = n_ep
         if used < nm:                       # rows at the block's very end go with the next block
             self.rows = sort_rows(np.vstack([meas[used:], self.rows]))
         self.inn_parts.append(inn[:n_inn].copy())
         self.ev_parts.append(evs[:n_evs].copy())
-        if self.smooth and n_ep:
-            self.epochs.append((ep_t[:n_ep].copy(), ep_pm[:n_ep].copy(), ep_pp[:n_ep].copy(), ep_ft[:n_ep].copy(),
-                                ep_x[:n_ep].copy(), ep_reset[:n_ep].copy()))
         for e in evs[:n_evs]:
             self._log_event(e)
         if self.fs[kn.F_ERR] != 0:
@@ -472,12 +527,12 @@ class Fusion:
                       else "lost positive definiteness")
             raise SinsError(f"{self._source}: the filter covariance {reason} at t = {self.fs[kn.F_ERR_T]!r} s; "
                             f"stopped there (check the fusion config's sigmas and the sensor description)")
-        traj = Trajectory(out_t[:n].copy(), out_pos[:n, 0].copy(), out_pos[:n, 1].copy(), out_pos[:n, 2].copy(),
-                          out_vel[:n].copy(), out_cbn[:n].copy())
-        cov, bias = out_cov[:n].copy(), out_bias[:n].copy()
-        traj.extra = self._columns(traj, cov, bias)
+        traj = Trajectory(out_t[:n], out_pos[:n, 0], out_pos[:n, 1], out_pos[:n, 2], out_vel[:n], out_cbn[:n])
+        var, bias = out_var[:n], out_bias[:n]
         if self.smooth:
-            self.forward_rows.append((traj, cov, bias))
+            self.forward_rows.append((traj, var, bias))
+        else:
+            traj.extra = self._columns(var, bias)
         return traj
 
     def _log_event(self, e):
@@ -493,24 +548,15 @@ class Fusion:
             log.info("fusion: innovations larger than the covariance claims at %.6f s: P and Q widened x%.3g "
                      "(process noise scale now %.3g)", t, e[2], e[3])
 
-    def _columns(self, traj: Trajectory, cov, bias) -> dict:
-        """FORMATS.md aided-trajectory columns from the covariance and the sensor estimates."""
-        conv = self.nav.conv
-        heading = np.array([dcm_to_euler(np.ascontiguousarray(c), conv)[2] for c in traj.Cbn]) \
-            if len(traj) < 64 else _headings(traj.Cbn, conv)
-        s, c = np.sin(heading), np.cos(heading)
-        pee, pnn, pen = cov[:, 6], cov[:, 7], cov[:, 9]
-        var_roll = s * s * pee + c * c * pnn + 2 * s * c * pen          # forward axis (sin h, cos h)
-        var_pitch = c * c * pee + s * s * pnn - 2 * s * c * pen         # right axis (cos h, -sin h)
-        head = np.where(cov[:, 8] < 0, self.heading_prior ** 2, cov[:, 8])
+    def _columns(self, var, bias) -> dict:
+        """FORMATS.md aided-trajectory columns from the row variances and the sensor estimates (SI)."""
         d = math.degrees(1.0)
         out = {}
         for i, k in enumerate(SIGMA_COLUMNS[:6]):
-            out[k] = np.sqrt(cov[:, i])
-        out["roll_std"] = np.sqrt(var_roll) * d
-        out["pitch_std"] = np.sqrt(var_pitch) * d
-        out["heading_std"] = np.sqrt(head) * d
-        cflu = conv_to_flu(conv)
+            out[k] = np.sqrt(var[:, i])
+        out["roll_std"] = np.sqrt(var[:, 6]) * d
+        out["pitch_std"] = np.sqrt(var[:, 7]) * d
+        out["heading_std"] = np.sqrt(np.where(var[:, 8] < 0, self.heading_prior ** 2, var[:, 8])) * d
         for i, k in enumerate(BIAS_COLUMNS[:3]):
             out[k] = bias[:, i] * d * 3600.0
         for i, k in enumerate(BIAS_COLUMNS[3:]):
@@ -518,7 +564,6 @@ class Fusion:
         if self.nx == 21:
             for i, k in enumerate(SF_COLUMNS):
                 out[k] = bias[:, 6 + i] * 1e6
-        del cflu
         return out
 
     # ------------------------------------------------------------------ end
@@ -537,15 +582,16 @@ class Fusion:
     def events(self) -> np.ndarray:
         return np.vstack(self.ev_parts) if self.ev_parts else np.zeros((0, 4))
 
-    def smoothed(self, every_rows=None) -> Trajectory:
-        """The RTS-smoothed trajectory at the forward output rows."""
-        from .smoother import smooth_trajectory
+    def smoothed(self) -> Trajectory:
+        """The RTS-smoothed trajectory at the forward output rows (the forward rows are consumed)."""
+        from .smoother import smooth_rows
         traj = concat([r[0] for r in self.forward_rows])
-        cov = np.vstack([r[1] for r in self.forward_rows])
-        bias = np.vstack([r[2] for r in self.forward_rows])
-        ep = [np.concatenate([e[i] for e in self.epochs]) for i in range(6)] if self.epochs else None
-        traj, cov, bias = smooth_trajectory(traj, cov, bias, ep, self.nx, self.nav.conv)
-        traj.extra = self._columns(traj, cov, bias)
+        var = np.concatenate([r[1] for r in self.forward_rows])
+        bias = np.concatenate([r[2] for r in self.forward_rows])
+        self.forward_rows = []
+        smooth_rows(traj.time, traj.lat, traj.lon, traj.height, traj.vel_n, traj.Cbn, var, bias,
+                    self.epochs.trimmed(), self.ptr, self.col, self.nx, int(self.cv[kn.C_FWD]))
+        traj.extra = self._columns(var, bias)
         return traj
 
     def summary(self, traj: Trajectory) -> FusionSummary:
@@ -566,29 +612,30 @@ class Fusion:
         s.residual_rms_h, s.residual_rms_u = residuals(traj, self.gnss, self.lever, inside)
         if len(traj):
             s.final_sigma = {k: float(traj.extra[k][-1]) for k in SIGMA_COLUMNS}
-        for e in self.events():
+        ev = self.events()
+        for e in ev:
             if e[1] == kn.EV_HEADING_INIT and s.heading_init_time is None:
                 s.heading_init_time = float(e[0])
             elif e[1] == kn.EV_REJECTION_RUN:
                 s.events.append(f"warning: {int(e[3])} consecutive fixes rejected {e[2]:.6g}-{e[0]:.6g} s "
                                 f"(position covariance widened, fix re-accepted)")
-            elif e[1] == kn.EV_ADAPT:
-                s.events.append(f"innovations inconsistent with the covariance at {e[0]:.6g} s: P and Q widened "
-                                f"x{e[2]:.3g}")
+        ad = ev[ev[:, 1] == kn.EV_ADAPT] if len(ev) else ev
+        if len(ad):
+            s.events.append(f"innovations inconsistent with the covariance (sensor description too optimistic?): "
+                            f"P and Q widened {len(ad)} time(s) from {ad[0, 0]:.6g} s, process-noise scale now "
+                            f"x{ad[-1, 3]:.3g}")
         if self.model.default:
             s.events.append(f"no sensor description given (fusion.sensor / --sensor): the conservative "
                             f"default '{DEFAULT_SENSOR}' preset is assumed")
+        elif self.model.assumed:
+            s.events.append(f"sensor description without {', '.join(self.model.assumed)}: the default "
+                            f"'{DEFAULT_SENSOR}' preset's value assumed")
         return s
 
     def finish(self) -> None:
         if self.applied == 0:
             raise SinsError(f"{self._source}: no IMU sample after the initial time {self.init.time!r}: "
                             f"the init time is outside the log")
-
-
-def _headings(cbn, conv):
-    from ..nav.rotation import dcm_to_euler_many
-    return dcm_to_euler_many(np.ascontiguousarray(cbn), conv)[:, 2]
 
 
 def standstill_intervals(rec, window: float) -> list:
@@ -626,14 +673,7 @@ def residuals(traj: Trajectory, gnss: GnssLog, lever, inside) -> tuple[float, fl
 
 def fuse_blocks(blocks, fusion: Fusion, progress=None):
     """Yield forward-filtered trajectory chunks (the initial row first) for an iterable of IMU blocks."""
-    yield fusion.initial_row()
-    for blk in blocks:
-        out = fusion.feed(blk)
-        if progress is not None:
-            progress(len(blk))
-        if out is not None:
-            yield out
-    fusion.finish()
+    yield from stream_blocks(fusion, blocks, progress)
 
 
 def run_fusion(imu: ImuLog, init: NavState, gnss: GnssLog, fopts: FusionOptions | None = None,

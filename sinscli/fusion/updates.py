@@ -17,76 +17,68 @@ Joseph form ``P = (I - K H) P (I - K H)^T + K R K^T`` (kept symmetric).
 import numpy as np
 from numba import njit
 
-from .linalg import inv_small, matmul
+from .linalg import inv_small, rows_times
 
 
 @njit(cache=True)
-def kalman_update(P, nx, H, z, r, m, gate, x, force):
+def kalman_update(P, nx, H, z, r, m, gate, x, force, HP, KT, A, S, Si):
     """One measurement of ``m`` (<= 3) components with diagonal noise ``r`` (variances).
 
-    Returns ``(nis, accepted, S_diag)``: the normalized innovation squared ``z^T S^-1 z``; when it is
-    under ``gate`` (or ``force``) the error estimate ``x = K z`` is written and P updated in Joseph
-    form; ``S_diag`` (m,) are the innovation variances.
+    ``H`` (3, nx), ``z``/``r`` (3,); scratch ``HP``, ``KT`` (3, nx), ``A`` (nx, nx), ``S``/``Si``
+    (3, 3): no allocation.  Returns ``(nis, accepted)``: the normalized innovation squared
+    ``z^T S^-1 z``; when it is under ``gate`` (or ``force``) the error estimate ``x = K z`` is written
+    and P updated in Joseph form.  ``S`` keeps the innovation covariance ``H P H^T + R``.
     """
-    PHt = np.zeros((nx, 3))
-    for i in range(nx):
-        for a in range(m):
-            s = 0.0
-            for j in range(nx):
-                s += P[i, j] * H[a, j]
-            PHt[i, a] = s
-    S = np.zeros((3, 3))
+    rows_times(H, m, P, nx, HP)                 # HP = H P  (= (P H^T)^T, P symmetric)
     for a in range(m):
         for b in range(m):
             s = 0.0
             for j in range(nx):
-                s += H[a, j] * PHt[j, b]
+                s += HP[a, j] * H[b, j]
             S[a, b] = s
         S[a, a] += r[a]
-    Si = inv_small(S, m)
-    sd = np.empty(3)
-    for a in range(m):
-        sd[a] = S[a, a]
+    inv_small(S, m, Si)
     nis = 0.0
     for a in range(m):
         for b in range(m):
             nis += z[a] * Si[a, b] * z[b]
     if not (nis < gate or force) or not np.isfinite(nis):
-        return nis, False, sd
-    K = matmul(PHt[:, :m].copy(), Si)           # (nx, m)
+        return nis, False
+    for a in range(m):                          # K^T = S^-1 H P
+        for j in range(nx):
+            s = 0.0
+            for b in range(m):
+                s += Si[a, b] * HP[b, j]
+            KT[a, j] = s
     for i in range(nx):
         s = 0.0
         for a in range(m):
-            s += K[i, a] * z[a]
+            s += KT[a, i] * z[a]
         x[i] = s
-    # Joseph form: A = (I - K H) P = P - K PHt^T; P' = A - (A H^T) K^T + K R K^T
-    A = P.copy()
+    # Joseph form: A = (I - K H) P = P - K (H P); P' = A - (A H^T) K^T + K R K^T
     for i in range(nx):
         for j in range(nx):
-            s = 0.0
+            s = P[i, j]
             for a in range(m):
-                s += K[i, a] * PHt[j, a]
-            A[i, j] -= s
-    AHt = np.zeros((nx, 3))
-    for i in range(nx):
-        for a in range(m):
+                s -= KT[a, i] * HP[a, j]
+            A[i, j] = s
+    for a in range(m):                          # HP <- (A H^T)^T, no longer needed as H P
+        for i in range(nx):
             s = 0.0
             for j in range(nx):
                 s += A[i, j] * H[a, j]
-            AHt[i, a] = s
+            HP[a, i] = s
     for i in range(nx):
         for j in range(i, nx):
             s = A[i, j]
+            s2 = A[j, i]
             for a in range(m):
-                s += -AHt[i, a] * K[j, a] + K[i, a] * r[a] * K[j, a]
-            if j != i:
-                s2 = A[j, i]
-                for a in range(m):
-                    s2 += -AHt[j, a] * K[i, a] + K[j, a] * r[a] * K[i, a]
-                s = 0.5 * (s + s2)
-            P[i, j] = s
-            P[j, i] = s
-    return nis, True, sd
+                s += -HP[a, i] * KT[a, j] + KT[a, i] * r[a] * KT[a, j]
+                s2 += -HP[a, j] * KT[a, i] + KT[a, j] * r[a] * KT[a, i]
+            v = 0.5 * (s + s2)
+            P[i, j] = v
+            P[j, i] = v
+    return nis, True
 
 
 @njit(cache=True)

@@ -21,6 +21,66 @@ from ..errors import SinsError, num
 _NO_SPACE = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS)
 
 
+# The inputs of the running command: its path arguments and options (registered by the CLI,
+# ``sinscli/cli/base.py``) and every file a reader opened (``sinscli/io/inputs.input_file``).  Every output
+# (``prepare_output``, and each file ``staged_dir`` moves into place) is checked against them, so that no
+# ``-o`` ever overwrites a log, a config or a truth it reads (issue 10).
+# Only while a command runs (library code that reads a file and writes it back is not refused).
+_INPUTS: dict[str, Path] = {}
+_ACTIVE = [False]
+
+
+def reset_inputs(paths=()) -> None:
+    """Start a command's record of inputs (the CLI calls it as each command starts) with ``paths``."""
+    _INPUTS.clear()
+    _ACTIVE[0] = True
+    for p in paths:
+        note_input(p)
+
+
+def end_inputs() -> None:
+    """End the record (the command is done): no check until the next :func:`reset_inputs`."""
+    _INPUTS.clear()
+    _ACTIVE[0] = False
+
+
+def note_input(path) -> None:
+    """Remember ``path`` as an input of the running command (its real path: symlinks and ``..`` resolved)."""
+    if path is None or not _ACTIVE[0]:
+        return
+    try:
+        key = os.path.realpath(os.fspath(path))
+    except (TypeError, ValueError, OSError):
+        return
+    _INPUTS.setdefault(key, Path(path))
+
+
+def _same_file(a: str, b: str) -> bool:
+    if a == b:
+        return True
+    try:
+        return os.path.samefile(a, b)           # hard links, bind mounts
+    except (OSError, ValueError):
+        return False
+
+
+def check_not_input(path) -> None:
+    """Refuse an output ``path`` that is one of the command's inputs (the same file by its real path or
+    by ``os.path.samefile``), or a file inside an input folder (a ROS 2 bag directory)."""
+    if not _INPUTS:
+        return
+    try:
+        real = os.path.realpath(os.fspath(path))
+    except (TypeError, ValueError, OSError):
+        return
+    for key, given in list(_INPUTS.items()):
+        inside = os.path.isdir(key) and real.startswith(key.rstrip(os.sep) + os.sep) and os.path.exists(real)
+        if inside or _same_file(real, key):
+            what = f"a file of the input {given}" if inside else f"the input {given}"
+            raise SinsError(f"{target_of(Path(path))}: the output would overwrite {what}; "
+                            f"give another output name")
+
+
 class NonFiniteOutput(SinsError):
     """A writer was handed a NaN or infinity: an input slipped past the readers' checks."""
 
@@ -107,6 +167,7 @@ def prepare_output(path, directory: bool = False, create: bool = False) -> Path:
     outputs, not a file), inside a folder that exists or can be made, writable.  Stale temporaries
     of it are removed; ``create`` makes its folder."""
     path = Path(path)
+    check_not_input(path)
     if not directory and path.is_dir():
         raise SinsError(f"{path}: output is a directory; give a file name")
     if directory and path.exists() and not path.is_dir():
@@ -175,6 +236,9 @@ def staged_dir(outdir):
         raise SinsError(f"{outdir}: cannot write the output ({exc.strerror or type(exc).__name__})") from None
     try:
         yield tmp
+        for p in tmp.rglob("*"):                    # all checked before any is moved: all files or none
+            if not p.is_dir():
+                check_not_input(outdir / p.relative_to(tmp))
         outdir.mkdir(parents=True, exist_ok=True)
         for p in sorted(tmp.rglob("*")):
             rel = p.relative_to(tmp)

@@ -271,21 +271,26 @@ class CsvTableWriter:
     ``2 * threads`` slices wait in memory.
     """
 
-    def __init__(self, path, columns: list[str], sigmas=(), threads: int | None = None):
+    def __init__(self, path, columns: list[str], sigmas=(), text_columns: dict[str, str] | None = None,
+                 threads: int | None = None):
         self.columns = list(columns)
         self.path = path
         self.sigmas = tuple(sigmas)
+        self.text_columns = dict(text_columns or {})     # name -> the same text on every row, after the numbers
         self._rows = 0
         self._threads = writer_threads() if threads is None else max(1, int(threads))
         self._pool = ThreadPoolExecutor(self._threads, thread_name_prefix="sins-csv") if self._threads > 1 else None
         self._pending = collections.deque()
         self._fh = open(path, "wb")
-        self._fh.write((",".join(self.columns) + "\n").encode())
+        self._fh.write((",".join(self.columns + list(self.text_columns)) + "\n").encode())
         self._opts = pacsv.WriteOptions(include_header=False, quoting_style="none", batch_size=1 << 14)
 
     def write(self, data: dict[str, np.ndarray]) -> None:
         check_finite(self.path, {c: data[c] for c in self.columns}, data.get("time"), self._rows + 1, self.sigmas)
         table = pa.table({c: np.ascontiguousarray(data[c], dtype=np.float64) for c in self.columns})
+        for name, text in self.text_columns.items():
+            table = table.append_column(name, pa.DictionaryArray.from_arrays(
+                pa.array(np.zeros(table.num_rows, np.int8)), pa.array([text])))
         self._rows += table.num_rows
         if self._pool is None:
             self._fh.write(_format_csv(table, self._opts))

@@ -12,6 +12,7 @@ from ..types import GnssLog
 from .atomic import atomic_path
 from . import limits as limits_mod
 from .csvcore import read_mapped_columns, write_table_csv
+from .frames import NED_NAMES, convention, file_name, to_enu
 from .imu_csv import check_time
 from .timebase import diagnose
 
@@ -25,16 +26,26 @@ GROUPS = {"vel_n": ["vel_e", "vel_n", "vel_u"], "std_pos": ["std_e", "std_n", "s
 def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
     """Read ``gnss.csv``: required time, lat, lon (deg), height (m); optional velocity and sigmas.
 
+    ``cfg`` (the config's ``gnss`` section) may say the file is NED or in radians (:mod:`sinscli.io.frames`).
+
     Values beyond the physical ``limits`` (the config's section; default: the defaults) and sigmas that
     are not positive are refused naming the line and column.
     """
     lim = limits_mod.resolve(limits)
     path = Path(path)
+    section = dict(cfg or {})
+    frame, to_deg = convention(section)
+    if frame == "ned":                 # the vertical columns of a NED file: vel_d, std_d, std_vel_d
+        cols = dict(section.get("columns") or {})
+        for name in NED_NAMES:
+            cols.setdefault(name, file_name(name, frame))
+        section["columns"] = cols
     data, mapping = read_mapped_columns(
-        path, cfg or {}, GNSS_NAMES, REQUIRED, list(GROUPS.values()),
+        path, section, GNSS_NAMES, REQUIRED, list(GROUPS.values()),
         f"expected {', '.join(GNSS_NAMES)} (map other names with the config's gnss.columns)",
         "expected time, lat, lon, height")
     names = {c: mapping.get(c, c) for c in data}
+    data = to_enu(data, frame, to_deg)
     limits_mod.check_time(path, data["time"], lim, names["time"], 2)
     check_time(path, data["time"], allow_gaps=True, what=names["time"])
     limits_mod.check_position(path, data["lat"], data["lon"], data["height"], lim,

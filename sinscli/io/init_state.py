@@ -13,25 +13,29 @@ from ..nav.rotation import dcm_to_euler, euler_to_dcm
 from ..types import NavState, time_tolerance
 from .atomic import atomic_path, check_finite
 from . import limits as limits_mod
+from .frames import convention, file_name, to_enu
 from .inputs import input_file, load_yaml
 
 INIT_KEYS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading"]
 
 
-def read_init(path, t_start: float | None = None, conv: int = 0, limits=None) -> NavState:
+def read_init(path, t_start: float | None = None, conv: int = 0, limits=None, section=None) -> NavState:
     """Read the initial state.
 
     A YAML file must hold every key of FORMATS.md (extra keys from ``sins
     align`` are kept in ``extra``).  A trajectory CSV/Parquet gives the row at
-    the IMU start ``t_start``: the last row at or before it.  Values beyond the
-    physical ``limits`` (the config's section) are refused naming the key or row.
+    the IMU start ``t_start``: the last row at or before it, its attitude turned
+    from the file's body axes (its marker or its angles) into those of ``conv``.  Values beyond the
+    physical ``limits`` (the config's section) are refused naming the key or row.  ``section`` (the
+    config's ``init`` section) may say the file is NED or in radians (:mod:`sinscli.io.frames`).
     """
     path = input_file(path, "init file")
     lim = limits_mod.resolve(limits)
+    frame, to_deg = convention(section)
     if path.suffix.lower() in (".yaml", ".yml"):
-        return _read_init_yaml(path, conv, lim)
+        return _read_init_yaml(path, conv, lim, frame, to_deg)
     from .trajectory import read_trajectory
-    traj = read_trajectory(path, lim)
+    traj = read_trajectory(path, lim, frame, to_deg)
     if t_start is None:
         k = 0
     else:
@@ -41,8 +45,12 @@ def read_init(path, t_start: float | None = None, conv: int = 0, limits=None) ->
                             f"(the trajectory starts at {num(traj.time[0])})")
         k = int(idx[-1])
     _check_lat(path, math.degrees(traj.lat[k]), f"row {k + 1}, column 'lat'")
+    cbn = traj.Cbn[k].copy()
+    if traj.body is not None and traj.body != conv:      # the file's body axes -> those of the run
+        from ..nav.rotation import body_flu_in_enu, cbn_from_flu
+        cbn = cbn_from_flu(body_flu_in_enu(cbn[None], traj.body), conv)[0]
     return NavState(float(traj.time[k]), float(traj.lat[k]), float(traj.lon[k]), float(traj.height[k]),
-                    traj.vel_n[k].copy(), traj.Cbn[k].copy())
+                    traj.vel_n[k].copy(), cbn)
 
 
 def _check_lat(path, lat_deg, where):
@@ -53,23 +61,27 @@ def _check_lat(path, lat_deg, where):
                         f"ENU frame is undefined; use --frame launch-inertial")
 
 
-def _read_init_yaml(path: Path, conv: int, lim: dict) -> NavState:
+def _read_init_yaml(path: Path, conv: int, lim: dict, frame: str = "enu", to_deg: float = 1.0) -> NavState:
     data = load_yaml(path, "init file")
+    keys = [file_name(k, frame) for k in INIT_KEYS]
     if not isinstance(data, dict):
-        raise SinsError(f"{path}: expected a mapping with keys {', '.join(INIT_KEYS)}")
-    missing = [k for k in INIT_KEYS if k not in data]
+        raise SinsError(f"{path}: expected a mapping with keys {', '.join(keys)}")
+    missing = [k for k in keys if k not in data]
     if missing:
-        stray = [str(k) for k in data if k not in INIT_KEYS and
+        stray = [str(k) for k in data if k not in keys and not (k == "vel_d" and frame != "ned") and
                  difflib.get_close_matches(str(k), missing, n=1, cutoff=0.6)]
         hint = f" (found {', '.join(quote(k, 30) for k in stray)}: misspelt?)" if stray else ""
+        frame_hint = " (a NED init has vel_d: config init.frame: ned)" if "vel_d" in data and frame != "ned" \
+            else ""
         raise SinsError(f"{path}: missing key(s) {', '.join(missing)}{hint}; an init file needs "
-                        f"{', '.join(INIT_KEYS)}")
+                        f"{', '.join(keys)}{frame_hint}")
     vals = {}
-    for k in INIT_KEYS:
-        v = data[k]
+    for k, fk in zip(INIT_KEYS, keys):
+        v = data[fk]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise SinsError(f"{path}: {k}: expected a finite number, got {quote(v, 40)}")
+            raise SinsError(f"{path}: {fk}: expected a finite number, got {quote(v, 40)}")
         vals[k] = float(v)
+    vals = to_enu(vals, frame, to_deg)
     row = np.array
     limits_mod.check_time(path, row([vals["time"]]), lim, "time", row="")
     _check_lat(path, vals["lat"], "lat")
@@ -84,7 +96,7 @@ def _read_init_yaml(path: Path, conv: int, lim: dict) -> NavState:
                                " deg", k, row="")
     r = math.radians
     cbn = euler_to_dcm(r(vals["roll"]), r(vals["pitch"]), r(vals["heading"]), conv)
-    extra = {k: v for k, v in data.items() if k not in INIT_KEYS}
+    extra = {k: v for k, v in data.items() if k not in keys}
     return NavState(vals["time"], r(vals["lat"]), r(vals["lon"]), vals["height"],
                     np.array([vals["vel_e"], vals["vel_n"], vals["vel_u"]]), cbn, extra)
 

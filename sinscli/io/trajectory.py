@@ -16,20 +16,28 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
-from ..errors import SinsError
+from ..conventions import BODY_CONVENTIONS, FLU
+from ..errors import SinsError, quote
 from .inputs import input_file
-from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, quat_to_dcm_many
+from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, euler_to_dcm_many, quat_to_dcm_many
 from ..types import Trajectory
 from . import aided_columns
 from . import limits as limits_mod
 from .atomic import atomic_path, check_finite, prepare_output
 from .csvcore import CsvTableWriter, float_column, read_header, read_numeric_columns
+from .frames import cbn_to_enu, file_name, to_enu
 
 BASE_COLUMNS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading",
                 "qw", "qx", "qy", "qz"]
 DCM_COLUMNS = [f"c{i}{j}" for i in range(1, 4) for j in range(1, 4)]
 REQUIRED = BASE_COLUMNS
 ROTATION_TOL = 1e-3          # a read attitude (c11..c33, or the quaternion's norm) is a rotation within this
+# The body convention of the attitude (docs/io_formats.md): the CSV column ``body`` (the same text on every row,
+# after the numbers; written for RFU and FRD, a file without it is FLU as FORMATS.md says) and the Parquet
+# key-value metadata ``sins.body`` (always written).
+BODY_COLUMN = "body"
+BODY_METADATA = b"sins.body"
+BODY_NAMES = {code: name for name, code in BODY_CONVENTIONS.items()}
 
 # suffix -> writer(path, traj, conv); filled by format modules (MCAP, TUM, GeoJSON, KML).
 WRITERS: dict = {}
@@ -80,12 +88,14 @@ class TrajectoryWriter:
         self._rows += len(traj)
         if self.suffix == ".csv":
             if self._writer is None:
-                self._writer = CsvTableWriter(self._tmp, self.columns, self.sigmas)
+                text = {BODY_COLUMN: BODY_NAMES[self.conv]} if self.conv != FLU else {}
+                self._writer = CsvTableWriter(self._tmp, self.columns, self.sigmas, text_columns=text)
             self._writer.write(cols)
         else:
             import pyarrow as pa
             import pyarrow.parquet as pq
             table = pa.table({c: np.ascontiguousarray(cols[c], dtype=np.float64) for c in self.columns})
+            table = table.replace_schema_metadata({BODY_METADATA: BODY_NAMES[self.conv].encode()})
             if self._writer is None:
                 # no dictionary encoding: navigation floats hardly repeat, and it costs 2.4x the write time
                 self._writer = pq.ParquetWriter(self._tmp, table.schema, use_dictionary=False)
@@ -151,11 +161,14 @@ def check_trajectory_output(path) -> Path:
     return prepare_output(path)
 
 
-def read_trajectory(path, limits=None) -> Trajectory:
+def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) -> Trajectory:
     """Read a trajectory CSV or Parquet.  ``c11..c33`` are used when present, else the quaternion.
 
     Rows beyond the physical ``limits`` (the config's section; default: the defaults), Euler angles
-    out of range and an attitude that is not a rotation are refused naming the row and column.
+    out of range and an attitude that is not a rotation are refused naming the row and column.  A file
+    in ``frame`` NED (``vel_d``, attitude body -> NED) or with angles in radians (``to_deg``, the factor to
+    degrees) is read into FORMATS.md's ENU and degrees (:mod:`sinscli.io.frames`, the config's ``init``
+    and ``truth`` sections).
     """
     lim = limits_mod.resolve(limits)
     path = input_file(path, "trajectory file")
@@ -166,7 +179,10 @@ def read_trajectory(path, limits=None) -> Trajectory:
         except Exception as exc:
             raise SinsError(f"{path}: cannot read as Parquet ({type(exc).__name__})") from None
         header = table.column_names
-        _check_columns(path, header)
+        _check_columns(path, header, frame)
+        marker = (table.schema.metadata or {}).get(BODY_METADATA)
+        body = _body_code(path, marker.decode("utf-8", "replace") if marker is not None else None,
+                          f"metadata {BODY_METADATA.decode()}")
         try:
             data = {c: float_column(table.column(c)) for c in header}
         except (TypeError, ValueError, pa.ArrowException) as exc:
@@ -178,9 +194,13 @@ def read_trajectory(path, limits=None) -> Trajectory:
         first, row = 1, "row"
     else:
         header = read_header(path)
-        _check_columns(path, header)
-        data = read_numeric_columns(path, {c: c for c in header})
+        _check_columns(path, header, frame)
+        body = _read_body_column(path) if BODY_COLUMN in header else None
+        data = read_numeric_columns(path, {c: c for c in header if c != BODY_COLUMN})
         first, row = 2, "line"
+    if frame == "ned":
+        data["vel_u"] = data.pop("vel_d")           # (negated by to_enu)
+    data = to_enu(data, frame, to_deg)
     from .imu_csv import check_time
     limits_mod.check_time(path, data["time"], lim, "time", first, row)
     check_time(path, data["time"], allow_gaps=True)
@@ -207,17 +227,69 @@ def read_trajectory(path, limits=None) -> Trajectory:
         limits_mod.check_abs(path, norm - 1.0, ROTATION_TOL, "departure of the quaternion norm from 1", None, "",
                              "qw..qz", first, row)
         cbn = quat_to_dcm_many(q / norm[:, None])
-    extra = {c: data[c] for c in data if c not in BASE_COLUMNS and c not in DCM_COLUMNS}
+    cbn = np.ascontiguousarray(cbn_to_enu(cbn, frame))
+    extra = {c: data[c] for c in data if c not in BASE_COLUMNS and c not in DCM_COLUMNS and c != BODY_COLUMN}
     aided_columns.check_columns(str(path), extra, first, row)
+    body_from = "marker"
+    if body is None:                  # no marker: the physical Euler angles and the attitude tell the axes
+        body, body_from = body_from_angles(cbn, data["roll"], data["pitch"], data["heading"]), "angles"
     return Trajectory(data["time"], data["lat"] * d2r, data["lon"] * d2r, data["height"], vel, cbn, extra,
-                      source=str(path))
+                      source=str(path), body=body, body_from=body_from if body is not None else "")
 
 
-def _check_columns(path, header):
-    missing = [c for c in REQUIRED if c not in header]
+def body_from_angles(cbn, roll_deg, pitch_deg, heading_deg, rows: int = 64) -> int | None:
+    """The body convention under which the file's physical Euler angles (FORMATS.md roll, pitch, heading)
+    give its attitude ``cbn``, from up to ``rows`` rows spread over the file: FLU, RFU or FRD, or None when
+    none fits within 1e-6 (a writer that does not follow FORMATS.md).  The three give different ``Cbn``
+    for the same angles (a quarter turn about z, a half turn about x), so at most one fits."""
+    n = cbn.shape[0]
+    k = np.unique(np.linspace(0, n - 1, min(rows, n)).astype(np.int64))
+    r = np.radians(np.asarray(roll_deg, dtype=np.float64)[k])
+    p = np.radians(np.asarray(pitch_deg, dtype=np.float64)[k])
+    h = np.radians(np.asarray(heading_deg, dtype=np.float64)[k])
+    for code in sorted(BODY_NAMES):
+        if np.abs(euler_to_dcm_many(r, p, h, code) - cbn[k]).max() < 1e-6:
+            return code
+    return None
+
+
+def _body_code(path, text, where) -> int | None:
+    if text is None:
+        return None
+    code = BODY_CONVENTIONS.get(text.strip().lower())
+    if code is None:
+        raise SinsError(f"{path}: {where}: unknown body convention {quote(text, 30)}; expected one of "
+                        f"{', '.join(BODY_CONVENTIONS)}")
+    return code
+
+
+def _read_body_column(path) -> int:
+    """The ``body`` column of a trajectory CSV: one convention name, the same on every line."""
+    import pyarrow.csv as pacsv
+    try:
+        col = pacsv.read_csv(path, convert_options=pacsv.ConvertOptions(
+            include_columns=[BODY_COLUMN], column_types={BODY_COLUMN: pa.string()})).column(BODY_COLUMN)
+    except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as exc:
+        raise SinsError(f"{path}: column '{BODY_COLUMN}': cannot read ({type(exc).__name__})") from None
+    values = [str(v).strip().lower() if v is not None else "" for v in col.to_pylist()]
+    if not values:
+        raise SinsError(f"{path}: no data rows after the header")
+    first = values[0]
+    for k, v in enumerate(values):
+        if v != first or v not in BODY_CONVENTIONS:
+            expect = f"'{first}' as on line 2" if v != first and first in BODY_CONVENTIONS else \
+                f"one of {', '.join(BODY_CONVENTIONS)}"
+            raise SinsError(f"{path}: line {k + 2}, column '{BODY_COLUMN}': {quote(v, 30)}: expected {expect}")
+    return BODY_CONVENTIONS[first]
+
+
+def _check_columns(path, header, frame: str = "enu"):
+    required = [file_name(c, frame) for c in REQUIRED]
+    missing = [c for c in required if c not in header]
     if missing:
+        hint = " (a NED file: config frame: ned)" if frame != "ned" and "vel_d" in header else ""
         raise SinsError(f"{path}: missing trajectory column(s) {', '.join(missing)}; expected "
-                        f"{', '.join(REQUIRED)} (FORMATS.md)")
+                        f"{', '.join(required)} (FORMATS.md){hint}")
 
 
 # Result formats of other modules (MCAP for Foxglove/ROS, TUM for evo, GeoJSON and KML for maps).

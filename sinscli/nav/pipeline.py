@@ -275,17 +275,22 @@ def first_run_compile(opts: NavOptions) -> float | None:
     return None
 
 
-def navigate_blocks(blocks, init: NavState, opts: NavOptions, progress=None):
-    """Yield trajectory chunks (the initial row first) for an iterable of IMU blocks."""
-    nav = Navigator(init, opts)
-    yield nav.initial_row()
+def stream_blocks(engine, blocks, progress=None):
+    """Yield ``engine``'s trajectory chunks (its initial row first) for an iterable of IMU blocks; ``engine``
+    is a :class:`Navigator` or a fusion filter (``initial_row``, ``feed``, ``finish``)."""
+    yield engine.initial_row()
     for blk in blocks:
-        out = nav.feed(blk)
+        out = engine.feed(blk)
         if progress is not None:
             progress(len(blk))
         if out is not None:
             yield out
-    nav.finish()
+    engine.finish()
+
+
+def navigate_blocks(blocks, init: NavState, opts: NavOptions, progress=None):
+    """Yield trajectory chunks (the initial row first) for an iterable of IMU blocks."""
+    yield from stream_blocks(Navigator(init, opts), blocks, progress)
 
 
 def navigate(imu: ImuLog, init: NavState, opts: NavOptions | None = None, progress=None) -> Trajectory:

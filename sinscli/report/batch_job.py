@@ -33,6 +33,7 @@ class Prepared:
     truth: object
     conv: int
     launch: dict | None = None     # launch point of a simulated flight (for frame: launch-inertial)
+    gnss: object = None            # the simulated GNSS fixes (GnssLog), drawn in the report's plan view
 
 
 @dataclass
@@ -66,7 +67,7 @@ def prepare_data(ds, seed: int | None) -> Prepared:
         from ..sim import simulate
         result = simulate(_visible(ds.scenario), seed=seed, perfect=ds.perfect)
         return Prepared(imu=result.imu, init=result.init, truth=result.truth, conv=int(result.conv),
-                        launch=dict(result.launch) or None)
+                        launch=dict(result.launch) or None, gnss=result.gnss)
     from ..config import load_config
     from ..io.imu_csv import read_imu_csv
     from ..io.init_state import read_init
@@ -81,6 +82,14 @@ def prepare_data(ds, seed: int | None) -> Prepared:
     start = imu.t0 if imu.t0 is not None else float(imu.time[0])
     init = read_init(ds.init, start, conv)
     return Prepared(imu=imu, init=init, truth=truth, conv=conv)
+
+
+def gnss_arrays(gnss, truth) -> dict[str, np.ndarray]:
+    """A run's GNSS fixes for the plan view (``gnss.time``, ``gnss.east``, ``gnss.north``: local ENU at the
+    truth's first point; see :func:`sinscli.report.compare_page.gnss_overlay`)."""
+    from .compare_page import gnss_overlay
+    g = gnss_overlay(gnss, truth, "")
+    return {"gnss.time": g.time, "gnss.east": g.east, "gnss.north": g.north}
 
 
 def nav_options(navigation: dict, conv: int, launch: dict | None = None):
@@ -133,6 +142,8 @@ def run_group(ds, seed: int | None, jobs: list[tuple], opts: JobOptions) -> list
             arrays = {"tail.time": tail.time, "tail.columns": tail.columns, "tail.last": np.array(tail.last)}
             if opts.per_run:
                 arrays.update(digest(series, opts.timeseries_every).arrays())
+                if prep.gnss is not None and len(prep.gnss.time):
+                    arrays.update(gnss_arrays(prep.gnss, prep.truth))
             out.append((key, dict(meta, ok=True, error="", seconds=seconds, host=host,
                                   worker_seconds=share + time.perf_counter() - t1), arrays))
         except Exception as exc:  # noqa: BLE001

@@ -20,6 +20,7 @@ And for the batch: ``results.parquet`` (every run, partitioned by method),
 from __future__ import annotations
 
 import csv
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,7 +32,7 @@ from ..errors import SinsError
 from ..io.atomic import atomic_path
 from .digest import SeriesDigest, TailTable, table_from_tails
 from .errors import ROW_UNITS, ROWS, ErrorTable
-from .html import error_table_html, simple_table_html, write_summary_html
+from .compare_page import overlay_from_arrays
 from .report import write_report_files
 from .results import ResultsWriter
 from .stats import pivot, row_statistics
@@ -81,6 +82,7 @@ class BatchResult:
     report_errors: dict      # dataset name -> error text (report could not be built)
     resumed: int = 0
     ran: int = 0
+    job_pages: dict = field(default_factory=dict)    # (dataset, seed, method) -> page path relative to the batch
 
     @property
     def failed(self) -> list:
@@ -103,8 +105,13 @@ def results_schema() -> pa.Schema:
                      + [(r, pa.float64()) for r in ROWS])
 
 
-def _stats_section(stage_ds: Path, frame: pd.DataFrame, title: str, epoch: float) -> tuple[list[str], str]:
-    """``errors_stats.*``, ``errors_mc.*`` and the box plots; returns (files, html)."""
+BOX_QUANTITIES = ["pos_E", "pos_N", "pos_U", *MAX_ROWS]     # the interactive box plots of a dataset page
+
+
+def _stats_section(stage_ds: Path, frame: pd.DataFrame, title: str, epoch: float):
+    """``errors_stats.*``, ``errors_mc.*`` and the box plots; returns (files, a function adding the
+    section to a :class:`~.webpage.Page`)."""
+    from .compare_page import add_box_plots, error_table
     stats = row_statistics(frame, "method", ROWS, ROW_UNITS)
     write_stats_csv(stage_ds / "errors_stats.csv", stats)
     n = int(frame.groupby("method", sort=False).size().max())
@@ -118,14 +125,46 @@ def _stats_section(stage_ds: Path, frame: pd.DataFrame, title: str, epoch: float
     for fname, quantities, what in BOX_FIGURES:
         plot_boxes(stage_ds / fname, frame, "method", quantities, ROW_UNITS, f"{title}: {what}", _LABELS)
         figs.append(fname)
-    body = ("<h2>Monte Carlo over seeds (RMS at the epoch, maximum of the maxima)</h2>\n" + error_table_html(mc)
-            + f"\n<h2>Statistics over {n} seeds</h2>\n" + stats_html(stats, "method", _LABELS)
-            + "\n" + "\n".join(f"<p><img src=\"{f}\" alt=\"{f}\"></p>" for f in figs))
-    return ["errors_stats.csv", "errors_stats.md", "errors_mc.csv", "errors_mc.md"] + figs, body
+
+    def add(page) -> None:
+        page.h(f"Statistics across {n} seeds and {len(mc.methods)} method(s)")
+        page.p("Box: 25th to 75th percentile over the seeds; line: median; whiskers: 5th to 95th percentile; "
+               "points: minimum and maximum.", "note")
+        add_box_plots(page, stats, "method", BOX_QUANTITIES, _LABELS, ROW_UNITS, "box")
+        page.h("Monte Carlo over seeds (RMS at the epoch, maximum of the maxima)")
+        page.raw(error_table(mc, {}))
+        page.h(f"Statistics over {n} seeds")
+        page.raw(stats_html(stats, "method", _LABELS))
+
+    return ["errors_stats.csv", "errors_stats.md", "errors_mc.csv", "errors_mc.md"] + figs, add
+
+
+def _page_name(label: str) -> str:
+    """A run's page file name: its label with every character but letters, digits, '.', '-' and '_' as '_'."""
+    return "runs/" + re.sub(r"[^A-Za-z0-9._-]", "_", label) + ".html"
+
+
+def _job_pages(stage_ds: Path, ok: list[JobRef], digests: dict, table: ErrorTable, title: str, notes: list[str],
+               ds, gnss_of: dict) -> dict[str, str]:
+    """One self-contained page per run (its plan view, errors against time, table column), written into
+    ``stage_ds/runs/``; returns label -> path relative to the dataset's directory."""
+    from .compare_page import compare_page
+    pages = {}
+    (stage_ds / "runs").mkdir(exist_ok=True)
+    for k, r in enumerate(ok):
+        one = ErrorTable(epoch=table.epoch, methods=[r.label], values=table.values[:, k:k + 1], rows=table.rows)
+        name = _page_name(r.label)
+        page = compare_page(f"{title}: {r.method}" + ("" if r.seed is None else f", seed {r.seed}"),
+                            {r.label: digests[r.label]}, one, notes=notes[:2],
+                            truth_name=str(ds.truth.name) if ds.scenario is None else None, gnss=gnss_of.get(r.key))
+        page.links("The dataset's report:", ["../index.html"])
+        page.write(stage_ds / name)
+        pages[r.label] = name
+    return pages
 
 
 def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, failed: dict,
-                    per_run: bool) -> ErrorTable | None:
+                    per_run: bool, job_pages: dict | None = None, gnss_of: dict | None = None) -> ErrorTable | None:
     """Write one dataset's report into ``stage_ds``; returns its table (None when every job failed)."""
     ok = [r for r in refs if r.key in loaded]
     if not ok:
@@ -142,34 +181,57 @@ def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, 
     notes += [f"FAILED {r.label}: {failed[r.key]}" for r in refs if r.key in failed]
     title = f"{ds.name}: {spec.title}"
     stage_ds.mkdir(parents=True, exist_ok=True)
-    extra_files, extra_html = [], ""
+    extra_files, add_stats = [], None
     if len(seeds) > 1:
         frame = pd.DataFrame({"method": [r.method for r in ok], "seed": [r.seed for r in ok],
                               **{row: table.values[i] for i, row in enumerate(ROWS)}})
-        extra_files, extra_html = _stats_section(stage_ds, frame, title, table.epoch)
+        extra_files, add_stats = _stats_section(stage_ds, frame, title, table.epoch)
     if per_run:
         digests = {r.label: loaded[r.key][1] for r in ok}
-        write_report_files(stage_ds, digests, table, title, notes, extra_files, extra_html)
+        gnss_of = gnss_of or {}
+        pages = _job_pages(stage_ds, ok, digests, table, title, notes, ds, gnss_of)
+
+        def hook(page):
+            if add_stats is not None:
+                add_stats(page)
+            page.h("One page per run")
+            page.links("Each run alone (self-contained pages):", list(pages.values()))
+
+        seeds_ok = {r.seed for r in ok}          # the GNSS of one seed: every run of a single-seed dataset shares it
+        write_report_files(stage_ds, digests, table, title, notes, extra_files, page_hook=hook,
+                           truth_name=str(ds.truth.name) if ds.scenario is None else None,
+                           gnss=gnss_of.get(ok[0].key) if len(seeds_ok) == 1 else None)
+        if job_pages is not None:
+            job_pages.update({(r.dataset, r.seed, r.method): f"{ds.name}/{pages[r.label]}" for r in ok})
         return table
-    body = [f"<p class=\"note\">Errors truth minus navigation at t = {float(table.epoch)!r} s. "
-            f"{len(seeds)} seeds: no figure per run (sins compare --figures all draws them); every run's "
-            "table row is in ../results.parquet.</p>", extra_html,
-            "<p>Files: " + ", ".join(f"<a href=\"{f}\">{f}</a>" for f in extra_files)
-            + ", <a href=\"../results.parquet\">../results.parquet</a></p>"]
-    write_summary_html(stage_ds / "index.html", title, [("Errors over the seeds", "\n".join(body))], notes)
+    from .compare_page import files_section
+    from .webpage import Page
+    page = Page(title)
+    page.h("Summary")
+    page.items([f"{len(ok)} runs of {len({r.method for r in ok})} method(s) over {len(seeds)} seeds; errors truth "
+                f"minus navigation at t = {float(table.epoch)!r} s, maxima over each run.",
+                "No figure per run at this number of seeds (sins compare --figures all draws them); every run's "
+                "table row is in ../results.parquet."])
+    for n in notes:
+        page.p(n, "note")
+    if add_stats is not None:
+        add_stats(page)
+    files_section(page, [f for f in extra_files if not f.endswith(".png")] + ["../results.parquet"],
+                  [f for f in extra_files if f.endswith(".png")])
+    page.write(stage_ds / "index.html")
     return table
 
 
 def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: dict, figures: str,
                         tick=lambda n: None, err=lambda msg: None) -> BatchResult:
     """Every report of the batch, written into ``stage`` (moved into place by the caller)."""
-    results, reports, report_errors = [], {}, {}
+    results, reports, report_errors, job_pages = [], {}, {}, {}
     with ResultsWriter(stage / "results.parquet", results_schema()) as parquet:
         for ds in spec.datasets:
             mine = [r for r in refs if r.dataset == ds.name]
             n_seeds = len({r.seed for r in mine})
             per_run = figures == "all" or n_seeds <= PER_RUN_MAX
-            loaded, metas = {}, {}
+            loaded, metas, gnss_of = {}, {}, {}
             for r in mine:
                 if r.key in failed or not store.done(r.key):
                     continue
@@ -177,9 +239,11 @@ def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: di
                 metas[r.key] = meta
                 tail = TailTable(arrays["tail.time"], arrays["tail.columns"], int(arrays["tail.last"]))
                 loaded[r.key] = (tail, SeriesDigest.from_arrays(arrays) if per_run else None)
+                if per_run and r.key not in gnss_of:
+                    gnss_of[r.key] = overlay_from_arrays(arrays, f"simulated, seed {r.seed}")
             table = None
             try:
-                table = _dataset_report(stage / ds.name, ds, spec, mine, loaded, failed, per_run)
+                table = _dataset_report(stage / ds.name, ds, spec, mine, loaded, failed, per_run, job_pages, gnss_of)
                 if table is not None:
                     reports[ds.name] = stage / ds.name
             except SinsError as exc:
@@ -204,7 +268,7 @@ def write_batch_reports(stage: Path, spec, refs: list[JobRef], store, failed: di
                              **{row: (None if v is None else float(v)) for row, v in zip(ROWS, values)}})
             loaded.clear()
             tick(1)
-    result = BatchResult(results, reports, report_errors)
+    result = BatchResult(results, reports, report_errors, job_pages=job_pages)
     write_summary(stage, spec, result)
     tick(1)
     return result
@@ -269,15 +333,54 @@ def write_summary(outdir: Path, spec, result: BatchResult) -> None:
                     tables_md.append(p.read_text(encoding="utf-8"))
     with atomic_path(outdir / "summary.md") as tmp:
         tmp.write_text("\n".join(md) + "\n" + "\n".join(tables_md), encoding="utf-8")
+    _summary_page(outdir, spec, result, rows, listed, failed_flags, head, note)
+
+
+def _summary_page(outdir: Path, spec, result: BatchResult, rows, listed, failed_flags, head: str, note: str) -> None:
+    """The batch's ``index.html``: summary in words, box plots of each run's maxima by dataset and method,
+    links to every dataset's report, and the sortable table of jobs (each linked to its report)."""
+    from .compare_page import add_box_plots
+    from .webpage import Page, table
+    page = Page(spec.title)
+    ok = [j for j in result.jobs if j.ok]
+    page.h("Summary")
+    lines = [head, "Errors are truth minus navigation; maxima over the whole run (position m, velocity m/s, "
+             "attitude error angle deg)."] + ([note] if note else [])
+    if ok:
+        frame = pd.DataFrame({"group": [f"{j.dataset} / {j.method}" for j in ok],
+                              **{k: [float(j.maxima[MAX_ROWS.index(k)]) for j in ok] for k in _MAX_ORDER}})
+        stats = row_statistics(frame, "group", _MAX_ORDER, ROW_UNITS)
+        for q, what, unit in (("max_att_deg", "largest attitude error angle", "deg"),
+                              ("max_pos_E", "largest east position error", "m")):
+            sub = stats[stats["quantity"] == q]
+            best = sub.loc[sub["p50"].idxmin()]
+            ties = sub[sub["p50"] <= best["p50"] * (1 + 1e-3) + 1e-300]["group"].tolist()
+            lines.append(f"Lowest median {what}: {best['group']} ({best['p50']:.3g} {unit} over {int(best['n'])} "
+                         "run(s))." if len(ties) == 1 else
+                         f"Equal lowest median {what} (within 0.1 %): {', '.join(ties)} ({best['p50']:.3g} {unit}).")
+    page.items(lines)
     links = [[(ds.name, f"{ds.name}/index.html") if ds.name in result.reports else ds.name,
               "written" if ds.name in result.reports else f"not written: {result.report_errors.get(ds.name, 'every job failed')}"]
              for ds in spec.datasets]
-    jobs_html = simple_table_html(SUMMARY_COLUMNS, listed, failed=failed_flags)
-    notes = [head, "Errors are truth minus navigation; maxima over the whole run "
-             "(position m, velocity m/s, attitude error angle deg)."] + ([note] if note else [])
-    files = ("<p>Every run: <a href=\"results.parquet\">results.parquet</a> (partitioned by method), "
+    page.h("Reports")
+    page.raw(table(["dataset", "report"], links))
+    page.raw("<p>Every run: <a href=\"results.parquet\">results.parquet</a> (partitioned by method), "
              "<a href=\"summary.csv\">summary.csv</a>; navigation times and hosts: "
              "<a href=\"timing.csv\">timing.csv</a>.</p>")
-    write_summary_html(outdir / "index.html", spec.title,
-                       [("Reports", simple_table_html(["dataset", "report"], links) + files), ("Jobs", jobs_html)],
-                       notes=notes)
+    if ok:
+        page.h("Maxima over each run, by dataset and method")
+        page.p("Box: 25th to 75th percentile over the runs; line: median; whiskers: 5th to 95th percentile; "
+               "points: minimum and maximum.", "note")
+        add_box_plots(page, stats, "group", _MAX_ORDER, _LABELS, ROW_UNITS, "box")
+    page.h("Jobs")
+    page.p("Click a column header to sort; a dataset name links to its report, a page to the run's own page.",
+           "note")
+    reported = set(result.reports)
+    keys = {(j.dataset, "" if j.seed is None else j.seed, j.method): j.seed for j in result.jobs}
+    linked = []
+    for r in listed:
+        page_path = result.job_pages.get((r[0], keys.get((r[0], r[1], r[2])), r[2]))
+        linked.append([(r[0], f"{r[0]}/index.html") if r[0] in reported else r[0], *r[1:],
+                       ("page", page_path) if page_path else None])
+    page.raw(table(SUMMARY_COLUMNS + ["run page"], linked, sortable=True, failed=failed_flags))
+    page.write(outdir / "index.html")

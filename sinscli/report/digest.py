@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SinsError
-from .errors import ErrorSeries, ErrorTable, common_epoch, consistency_column, error_column
+from .errors import ErrorSeries, ErrorTable, common_epoch, consistency_column, error_column, headline_errors
 from .figures import series_lines
 from .tables import timeseries_columns
 
@@ -42,12 +42,15 @@ class SeriesDigest:
     lines: dict
     timeseries: tuple
     consistency: np.ndarray | None = None
+    headline: np.ndarray | None = None      # :func:`sinscli.report.errors.headline_errors`
 
     def arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         """Flat named arrays (for a job file)."""
         out = {f"{prefix}ts.time": self.timeseries[0]}
         if self.consistency is not None:
             out[f"{prefix}consistency"] = self.consistency
+        if self.headline is not None:
+            out[f"{prefix}headline"] = self.headline
         out.update({f"{prefix}ts.{k}": v for k, v in self.timeseries[1].items()})
         for k, (t, y) in self.lines.items():
             out[f"{prefix}line.{k}.t"] = t
@@ -65,13 +68,13 @@ class SeriesDigest:
         ts_order = [q[0] for q in TIMESERIES_QUANTITIES + TIMESERIES_SIGMAS]
         return cls(lines={n: lines[n] for n in LINE_NAMES if n in lines},
                    timeseries=(arrays[f"{prefix}ts.time"], {k: ts_cols[k] for k in ts_order if k in ts_cols}),
-                   consistency=arrays.get(f"{prefix}consistency"))
+                   consistency=arrays.get(f"{prefix}consistency"), headline=arrays.get(f"{prefix}headline"))
 
 
 def digest(s: ErrorSeries, timeseries_every: int = 1) -> SeriesDigest:
     """The figure envelopes, ``timeseries.csv`` rows and consistency column of one run."""
     return SeriesDigest(lines=series_lines(s), timeseries=timeseries_columns(s, timeseries_every),
-                        consistency=consistency_column(s) if s.has_sigma else None)
+                        consistency=consistency_column(s) if s.has_sigma else None, headline=headline_errors(s))
 
 
 @dataclass

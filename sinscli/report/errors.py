@@ -31,7 +31,7 @@ from numba import njit
 from ..errors import SinsError
 from ..io import aided_columns
 from ..io.timebase import describe as describe_time_base
-from ..nav.earth import radii_py
+from ..nav.earth import lla_to_local_enu, radii_py
 from ..nav.rotation import (attitude_error_many, dcm_to_euler_many, dcm_to_rotvec, level_heading_frame, mm3,
                             rotvec_to_dcm)
 from ..types import Trajectory
@@ -69,6 +69,8 @@ class ErrorSeries:
     pos_std_m: np.ndarray | None = None     # (N, 3) E, N, U, m
     vel_std_mps: np.ndarray | None = None   # (N, 3) E, N, U, m/s
     att_std_rad: np.ndarray | None = None   # (N, 3) roll, pitch, heading, rad
+    # the truth's position E, N, U (m) in the fixed local frame at the truth file's first point (plan view)
+    track_enu_m: np.ndarray | None = None   # (N, 3)
 
     def __len__(self) -> int:
         return int(self.time.shape[0])
@@ -228,7 +230,26 @@ def compare_trajectories(truth: Trajectory, nav: Trajectory, conv: int = 0, inte
     else:
         i_truth, i_nav = match_epochs(truth.time, nav.time, truth_name, nav_name)
         truth_m = _subset(truth, i_truth)
-    return error_series(truth_m, _subset(nav, i_nav), conv)
+    out = error_series(truth_m, _subset(nav, i_nav), conv)
+    out.track_enu_m = lla_to_local_enu(truth_m.lat, truth_m.lon, truth_m.height,
+                                       float(truth.lat[0]), float(truth.lon[0]), float(truth.height[0]))
+    return out
+
+
+# --------------------------------------------------------------------------- headline figures
+
+#: The quantities of a report's summary in words: key -> (what, unit).
+HEADLINE = {"att": ("attitude error angle", "deg"), "hor": ("horizontal position error", "m"),
+            "ver": ("vertical position error", "m"), "vel": ("velocity error", "m/s")}
+
+
+def headline_errors(s: ErrorSeries) -> np.ndarray:
+    """Max and RMS over the run of each :data:`HEADLINE` magnitude: ``[max_att, rms_att, max_hor, rms_hor,
+    max_ver, rms_ver, max_vel, rms_vel]`` (attitude angle in deg; horizontal ``hypot(E, N)``; vertical
+    ``|U|``; velocity the 3-D norm)."""
+    mags = [np.degrees(s.angle_rad), np.hypot(s.pos_enu_m[:, 0], s.pos_enu_m[:, 1]), np.abs(s.pos_enu_m[:, 2]),
+            np.sqrt(np.sum(s.vel_enu_mps ** 2, axis=1))]
+    return np.array([f(m) for m in mags for f in (np.max, lambda x: np.sqrt(np.mean(x * x)))], dtype=float)
 
 
 # --------------------------------------------------------------------------- the table

@@ -61,8 +61,23 @@ SIGMA_QUANTITIES = {
     "pos_e": ("pos_std_m", 0), "pos_n": ("pos_std_m", 1), "pos_u": ("pos_std_m", 2),
     "vel_e": ("vel_std_mps", 0), "vel_n": ("vel_std_mps", 1), "vel_u": ("vel_std_mps", 2),
 }
+#: The plan view of a run (every ``stride``-th matched epoch, at most :data:`MAX_POINTS`): the truth's east
+#: and north in the fixed local frame at its first point, and the navigation's (truth minus the error).
+TRACK_NAMES = ["track_e", "track_n", "track_nav_e", "track_nav_n"]
 #: Every line a run may have, in their order.
-LINE_NAMES = list(LINE_QUANTITIES) + [f"{n}_std" for n in SIGMA_QUANTITIES]
+LINE_NAMES = list(LINE_QUANTITIES) + [f"{n}_std" for n in SIGMA_QUANTITIES] + TRACK_NAMES
+
+
+def track_lines(s: ErrorSeries, max_points: int = MAX_POINTS) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The :data:`TRACK_NAMES` lines of one run (empty without ``s.track_enu_m``).  The navigation's
+    plan position is the truth's minus the ENU position error (exact to ``|d|^2/R`` and the turn of the
+    level frame over the track, far below a plotted pixel)."""
+    if s.track_enu_m is None or not len(s):
+        return {}
+    idx = np.arange(0, len(s), max(1, int(np.ceil(len(s) / max_points))))
+    t, trk, err = s.time[idx], s.track_enu_m[idx], s.pos_enu_m[idx]
+    return {"track_e": (t, trk[:, 0]), "track_n": (t, trk[:, 1]),
+            "track_nav_e": (t, trk[:, 0] - err[:, 0]), "track_nav_n": (t, trk[:, 1] - err[:, 1])}
 
 
 def series_lines(s: ErrorSeries, max_points: int = MAX_POINTS) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -78,6 +93,7 @@ def series_lines(s: ErrorSeries, max_points: int = MAX_POINTS) -> dict[str, tupl
         arr = getattr(s, attr)
         if arr is not None and len(s):
             out[f"{name}_std"] = envelope(s.time, arr[:, col], max_points)
+    out.update(track_lines(s, max_points))
     return out
 
 
@@ -97,10 +113,15 @@ def _save(fig: Figure, path) -> None:
 _STYLES = ["-", "--", "-.", ":"]
 
 
+def wrap_title(text: str, width: int = 90) -> str:
+    """A long title broken into lines of at most ``width`` characters (never cut)."""
+    import textwrap
+    return "\n".join(textwrap.wrap(text, width, break_long_words=True, break_on_hyphens=False)) or text
+
+
 def _title(ax, title: str, what: str) -> None:
-    """The quantity as the axes title, the report title (shortened) above it."""
-    short = title if len(title) <= 80 else title[:77] + "..."
-    ax.set_title(f"{short}\n{what}" if short else what, fontsize=9)
+    """The quantity as the axes title, the report title (wrapped, never cut) above it."""
+    ax.set_title(f"{wrap_title(title)}\n{what}" if title else what, fontsize=9)
 
 
 MAX_LEGEND = 20            # lines labelled in a legend; more are told apart in timeseries.csv

@@ -39,7 +39,6 @@ from ..io.atomic import atomic_path
 from ..io.csvcore import write_table_csv
 from .batch_job import describe
 from .exec import where
-from .html import simple_table_html, write_summary_html
 from .jobs import JobStore, file_digest, run_study
 from .results import ResultsWriter
 from .stats import row_statistics
@@ -256,13 +255,80 @@ def write_mc_report(outdir: Path, plan, store: JobStore, failed: dict, keep: int
     figs = ["mc_stats.png"] + [Path(p).name for p in plot_monte_carlo(outdir, mc)]
     notes = [f"{mc.runs} runs of {Path(plan.path).name} (seeds {mc.seeds[0]}..{mc.seeds[-1]})"
              + (f"; {len(failed)} failed (summary.md)" if failed else "") + "."]
-    summary_html = simple_table_html(cols, [[r[c] for c in cols] for r in summary])
-    write_summary_html(outdir / "index.html", f"Monte Carlo: {mc.scenario}",
-                       [("End errors (deg) against the static-base theory", summary_html),
-                        ("The reported 1-sigma against the errors (deg)",
-                         simple_table_html(SIGMA_COLUMNS, [[r[c] for c in SIGMA_COLUMNS] for r in sigma_rows])),
-                        ("Statistics over the runs", stats_html(stats, "variant", labels)),
-                        ("Figures", "\n".join(f"<p><img src=\"{f}\" alt=\"{f}\"></p>" for f in figs)),
-                        ("Files", "<p>" + ", ".join(f"<a href=\"{f}\">{f}</a>" for f in files) + "</p>")],
-                       notes=notes)
+    mc_page(mc, summary, cols, sigma_rows, stats, labels, units, quantities, notes, files, figs).write(
+        outdir / "index.html")
     return McStudy(mc=mc, failed=failed, files=files + figs + ["index.html"])
+
+
+MC_LINE_BINS = 300         # min/max bins per run line on the page
+
+
+def mc_page(mc, summary, cols, sigma_rows, stats, labels, units, quantities, notes, files, figs):
+    """The study's interactive, self-contained ``index.html``: summary in words, each run's error against
+    time (seed 001 Figs. 1-3) with a robust y-range, box plots of the end errors, the tables."""
+    from ..align.figures import ANGLES as ANG, robust_range
+    from .compare_page import add_box_plots, files_section
+    from .figures import envelope
+    from .webpage import Page, table
+    page = Page(f"Alignment Monte Carlo: {mc.scenario}, {mc.runs} runs")
+    lines = [f"{mc.runs} seeded runs of scenario {mc.scenario} (seeds {mc.seeds[0]}..{mc.seeds[-1]}), "
+             f"variants: {', '.join(mc.variants)}. Errors are estimate minus truth, in degrees."]
+    for r in summary:
+        if r["attitude"] != "current":
+            continue
+        th = "" if r["theory_deg"] is None else f" (static-base theory {r['theory_deg']:.3g} deg)"
+        lines.append(f"{r['variant']}: {r['angle']} error at the end RMS {r['rms_deg']:.3g} deg, "
+                     f"mean {r['mean_deg']:.3g} deg{th}.")
+    for r in sigma_rows:
+        lines.append(f"{r['variant']}, {r['angle']}: {r['inside_1sigma']:.3f} of the runs inside the reported "
+                     f"1 sigma and {r['inside_3sigma']:.4f} inside 3 sigma (0.683 and 0.9973 when honest).")
+    page.h("Summary")
+    page.items(lines)
+    for n in notes:
+        page.p(n, "note")
+    page.h("Errors against alignment time (seed 001 Figs. 1-3)")
+    page.p("Each run's error; a start-up transient is outside the initial y-range (zoom in to see it); "
+           "dashed: the static-base 1-sigma limit.", "note")
+    for i, ang in enumerate(ANG):
+        for name, v in mc.variants.items():
+            for which, label in (("current", "current attitude Cbn(t)"), ("start", "start attitude Cbn(0)")):
+                arr = getattr(v, which)
+                if arr is None:
+                    continue
+                series = []
+                band = v.band.get(which) if v.band else None
+                if band is not None:
+                    series.append({"name": f"mean +- 1 sigma of all {mc.runs} runs", "style": "band",
+                                   "x": v.time, "lo": band[0][:, i] - band[1][:, i],
+                                   "hi": band[0][:, i] + band[1][:, i], "color": "#888", "opacity": 0.3})
+                for k, run in enumerate(arr):
+                    t, y = envelope(v.time, run[:, i], MC_LINE_BINS)
+                    series.append({"name": f"run {k + 1}", "x": t, "y": y, "ci": k, "nolegend": True, "width": 0.8})
+                lim = mc.theory.get(name)
+                keep = []
+                if lim is not None:
+                    s_ = lim["heading" if i == 2 else "tilt"]
+                    keep = [-s_, s_]
+                    for sign in (1, -1):
+                        series.append({"name": "static-base 1-sigma limit", "x": [v.time[0], v.time[-1]],
+                                       "y": [sign * s_, sign * s_], "color": "#000", "dash": "5 4",
+                                       "nolegend": sign < 0})
+                yr = robust_range(v.time, [arr[:, :, i]], keep)
+                page.plot({"id": f"mc-{ang}-{name}-{which}", "kind": "line", "group": "time",
+                           "title": f"{ang.capitalize()} error, {name}: {label} ({arr.shape[0]} of {mc.runs} runs)",
+                           "xlabel": "alignment time (s)", "ylabel": f"{ang} error (deg)", "series": series,
+                           "robust": list(yr) if yr is not None else None})
+    page.h("End errors over the runs")
+    page.p("Box: 25th to 75th percentile; line: median; whiskers: 5th to 95th percentile; points: minimum and "
+           "maximum.", "note")
+    add_box_plots(page, stats, "variant", quantities, labels, units, "box")
+    page.h("End errors (deg) against the static-base theory")
+    page.raw(table(cols, [[r[c] for c in cols] for r in summary], sortable=True, num_format="{:.4g}"))
+    if sigma_rows:
+        page.h("The reported 1-sigma against the errors (deg)")
+        page.raw(table(SIGMA_COLUMNS, [[r[c] for c in SIGMA_COLUMNS] for r in sigma_rows], sortable=True,
+                       num_format="{:.4g}"))
+    page.h("Statistics over the runs")
+    page.raw(stats_html(stats, "variant", labels))
+    files_section(page, files, figs)
+    return page

@@ -14,6 +14,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..io.atomic import atomic_path
+from .figures import wrap_title
 from .stats import PERCENTILES, STATISTICS
 
 _LOW, _HIGH = PERCENTILES[0], PERCENTILES[-1]
@@ -66,12 +67,13 @@ def stats_html(stats, group: str, labels: dict | None = None) -> str:
     out = []
     for g in dict.fromkeys(stats[group]):
         sub = stats[stats[group] == g]
-        out.append(f"<h3>{html.escape(str(g))}</h3>\n<table>\n<tr><th>Quantity</th><th>Unit</th>"
+        out.append(f"<h3>{html.escape(str(g))}</h3>\n<table class=\"sortable\">\n<tr><th>Quantity</th><th>Unit</th>"
                    + "".join(f"<th>{s}</th>" for s in STATISTICS) + "</tr>")
         for row in sub.itertuples(index=False):
             r = row._asdict()
             name = html.escape(str((labels or {}).get(r["quantity"], r["quantity"])).replace("\\|", "|"))
-            out.append(f"<tr><td>{name}</td><td>{html.escape(r['unit'])}</td>"
+            unit = "" if r["unit"] == "1" else r["unit"]
+            out.append(f"<tr><td>{name}</td><td>{html.escape(unit)}</td>"
                        + "".join(f"<td class=\"num\">{_fmt(r[s])}</td>" for s in STATISTICS) + "</tr>")
         out.append("</table>")
     return "\n".join(out)
@@ -95,13 +97,15 @@ def plot_boxes(path, frame, group: str, quantities: list[str], units: dict, titl
         ax.boxplot(data, whis=(_LOW, _HIGH), showmeans=True, flierprops={"markersize": 2, "alpha": 0.4},
                    medianprops={"color": "C1"})
         ax.set_xticks(range(1, len(groups) + 1), groups, rotation=30, ha="right", fontsize=8)
-        ax.set_ylabel(f"{(labels or {}).get(q, q)} ({units.get(q, '')})", fontsize=8)
+        unit = units.get(q, "")
+        ax.set_ylabel((labels or {}).get(q, q).replace("\\|", "|") + (f" ({unit})" if unit not in ("", "1") else ""),
+                      fontsize=8)
         ax.grid(True, axis="y", alpha=0.3)
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
     for ax in axes[len(quantities):]:
         ax.set_axis_off()
     n = max((int((frame[group] == g).sum()) for g in groups), default=0)
-    fig.suptitle(f"{title}\n{n} runs per {group}: box 25-75 %, whiskers {_LOW}-{_HIGH} %, "
+    fig.suptitle(f"{wrap_title(title)}\n{n} runs per {group}: box 25-75 %, whiskers {_LOW}-{_HIGH} %, "
                  "triangle = mean", fontsize=9)
     fig.tight_layout()
     FigureCanvasAgg(fig)

@@ -82,7 +82,7 @@ def table_caption(table: ErrorTable) -> str:
     """What the table's values are (the epoch of the seed-000 rows, or trajectory metrics alone)."""
     if table.epoch is None:
         return "Trajectory metrics: statistics over the matched epochs."
-    text = f"Errors truth minus navigation at t = {float(table.epoch)!r} s; maxima over the whole run."
+    text = f"Errors truth minus navigation at t = {float(table.epoch)!r} s; maxima over the time span compared."
     if any(k.startswith(("ate_", "rpe_")) for k in table.rows):
         text += " ATE and RPE rows: statistics over the matched epochs (pairs)."
     return text

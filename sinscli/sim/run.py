@@ -115,6 +115,9 @@ def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: d
                      perfect=perfect, launch=launch, sensor=realized, scenario=sc)
 
 
+SIM_FILES = ("imu.csv", "gnss.csv", "truth.csv", "init.yaml")
+
+
 def write_sim(result: SimResult, outdir) -> list[Path]:
     """Write ``imu.csv``, ``gnss.csv``, ``truth.csv``, ``init.yaml`` into ``outdir`` (FORMATS.md).
 
@@ -125,9 +128,12 @@ def write_sim(result: SimResult, outdir) -> list[Path]:
     from ..io.init_state import write_init_yaml
     from ..io.trajectory import write_trajectory
 
+    from ..io.atomic import prepare_output
     out = Path(outdir)
+    paths = [out / name for name in SIM_FILES]
+    for p in paths:                             # all checked before any is written (e.g. not an input)
+        prepare_output(p)
     out.mkdir(parents=True, exist_ok=True)
-    paths = [out / "imu.csv", out / "gnss.csv", out / "truth.csv", out / "init.yaml"]
     write_imu_csv(paths[0], result.imu)
     write_gnss_csv(paths[1], result.gnss)
     write_trajectory(paths[2], result.truth, conv=result.conv)

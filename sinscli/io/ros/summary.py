@@ -5,24 +5,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..imu_summary import time_stats
 from .containers import open_log
 from .decode import ACCEL, GYRO, IMU_TYPE, imu_from_message, stamp_seconds
 
 
 def _topic_stats(t_ns: np.ndarray) -> dict:
-    out = {"start": None, "end": None, "rate_hz": None, "median_dt": None, "max_gap": None, "gaps": 0}
-    if t_ns.size == 0:
-        return out
-    t = stamp_seconds(t_ns // 1_000_000_000, t_ns % 1_000_000_000)
-    out["start"], out["end"] = float(t[0]), float(t[-1])
-    if t.size > 1:
-        dt = np.diff(t)
-        med = float(np.median(dt))
-        out["median_dt"] = med
-        out["rate_hz"] = (t.size - 1) / (t[-1] - t[0]) if t[-1] > t[0] else None
-        out["max_gap"] = float(dt.max())
-        out["gaps"] = int((dt > 5.0 * med).sum()) if med > 0 else 0
-    return out
+    return time_stats(stamp_seconds(t_ns // 1_000_000_000, t_ns % 1_000_000_000) if t_ns.size else
+                      np.empty(0))
 
 
 def log_summary(path, imu_window: float = 1.0) -> dict:
