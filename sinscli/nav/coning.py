@@ -57,7 +57,7 @@ def save_memory(st, i_dth, i_dv, prev_dth, prev_dv):
             st[i_dv + 3 * j + i] = prev_dv[j, i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def push_sample(prev_dth, prev_dv, dth, dv, n_prev):
     """Shift the memory back by one sample, put (dth, dv) first; returns the new count of valid samples."""
     for j in range(MAX_ORDER - 2, 0, -1):
@@ -70,7 +70,7 @@ def push_sample(prev_dth, prev_dv, dth, dv, n_prev):
     return min(n_prev + 1, MAX_ORDER - 1)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def fast_step(alpha, upsilon, beta, scul, dth, dv, prev_dth, prev_dv, n_prev, coeffs):
     """One fast-rate update of the interval sums; returns new (alpha, upsilon, beta, scul).
 

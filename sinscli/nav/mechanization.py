@@ -29,7 +29,7 @@ from .earth import OMEGA_IE, gravity, radii
 from .rotation import rotvec_coeffs, v_add, v_cross, v_scale, v_sub
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rotate_delta(phi, x):
     """``exp([phi x]) x - x`` (Rodrigues, Savage eq 26 applied to a vector, without x)."""
     a, b = rotvec_coeffs(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
@@ -37,14 +37,14 @@ def rotate_delta(phi, x):
     return v_add(v_scale(px, a), v_scale(v_cross(phi, px), b))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gamma_delta(zeta, x):
     """``Gamma(zeta) x - x = -1/2 zeta x x + 1/6 zeta x (zeta x x)`` (|zeta| ~ 1e-6 rad)."""
     zx = v_cross(zeta, x)
     return v_add(v_scale(zx, -0.5), v_scale(v_cross(zeta, zx), 1.0 / 6.0))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def midpoint(lat, h, dR):
     """Latitude and height at the middle of the interval from the displacement ``dR`` (ENU, m)."""
     rm, _ = radii(np.sin(lat))
@@ -52,7 +52,7 @@ def midpoint(lat, h, dR):
     return lat_mid, h + 0.5 * dR[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def frame_rotation(lat_mid, h_mid, dR, T):
     """``zeta = w_ie^n T + int w_en^n dt`` with the transport rate integrated as ``dR / R`` (eqs 53-56)."""
     rm, rn = radii(np.sin(lat_mid))
@@ -62,7 +62,7 @@ def frame_rotation(lat_mid, h_mid, dR, T):
             OMEGA_IE * s * T + dR[0] * (s / c) / (rn + h_mid))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def velocity_update(vel, dv_sf_n0, zeta, lat_mid, h_mid, dR, T):
     """Velocity change ``v_m - v_{m-1}`` from the specific-force increment in n0, gravity, Coriolis.
 
@@ -78,7 +78,7 @@ def velocity_update(vel, dv_sf_n0, zeta, lat_mid, h_mid, dR, T):
     return v_add(v_add(dv_sf_n0, gc), small)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _lagrange_weight(xi, xa, xb, xc, h):
     """``int_0^h L(x) dx`` for the cubic Lagrange basis of node ``xi`` with other nodes xa, xb, xc."""
     s1 = xa + xb + xc
@@ -88,7 +88,7 @@ def _lagrange_weight(xi, xa, xb, xc, h):
     return num / ((xi - xa) * (xi - xb) * (xi - xc))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def displacement(v3, v2, v1, v0, h2, h1, T, nhist):
     """``int v dt`` over (t_{m-1}, t_m] from the velocities at t_{m-3}, t_{m-2}, t_{m-1}, t_m.
 
@@ -113,7 +113,7 @@ def displacement(v3, v2, v1, v0, h2, h1, T, nhist):
     return v_add(v_add(v_scale(v3, w3), v_scale(v2, w2)), v_add(v_scale(v1, w1), v_scale(v0, w0)))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def position_update(lat, h, dR):
     """Increments (dlat, dlon, dh) from the displacement with midpoint radii (rates of Savage eqs 21-22)."""
     lat_mid, h_mid = midpoint(lat, h, dR)
@@ -126,7 +126,7 @@ def position_update(lat, h, dR):
     return dlat, dlon, dR[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def first_guess_displacement(vel, dv_sf_n0, lat, h, T):
     """A first displacement estimate to place the midpoint before the velocity is known."""
     g = gravity(np.sin(lat), h)

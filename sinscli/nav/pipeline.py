@@ -240,11 +240,11 @@ def concat(parts: list[Trajectory]) -> Trajectory:
                       source=next((p.source for p in parts if p.source != "<memory>"), parts[0].source))
 
 
-# First-run compile time of `sins navigate` (all of its kernels, cold numba cache), seconds: the CPU time of
-# the first run measured on the shared 2-core machine (load 5-9; numba compiles on one thread, so this is
-# about the wall time of an idle machine): quat 9.5-11.6, dcm 13.6, krylov 23.8, euler 12.8,
-# launch-inertial 12.8.  The estimate of the first-run message.
-FIRST_RUN_SECONDS = {"quat": 10, "dcm": 12, "krylov": 22, "euler": 12, "launch-inertial": 12}
+# First-run time of `sins navigate` (cold numba cache: start-up, compile of all of its kernels, the 180 s
+# sample drive), seconds, wall time measured on the idle 2-core machine (load 0.7-0.9; numba compiles on
+# one thread, so the CPU time is about the same): quat 9.3, dcm 9.3, krylov 17.0, euler 10.4,
+# launch-inertial 10.1.  The estimate of the first-run message.
+FIRST_RUN_SECONDS = {"quat": 9, "dcm": 9, "krylov": 17, "euler": 10, "launch-inertial": 10}
 
 
 def first_run_compile(opts: NavOptions) -> float | None:

@@ -63,7 +63,7 @@ def v_cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def m_vec(m, v):
     """``M v``."""
     return (m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
@@ -71,7 +71,7 @@ def m_vec(m, v):
             m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def m_tvec(m, v):
     """``M^T v``."""
     return (m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2],
@@ -79,13 +79,13 @@ def m_tvec(m, v):
             m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def m_mul(a, b):
     """``A B``."""
     return (m_tvec(b, a[0]), m_tvec(b, a[1]), m_tvec(b, a[2]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def m_trans(a):
     return ((a[0][0], a[1][0], a[2][0]), (a[0][1], a[1][1], a[2][1]), (a[0][2], a[1][2], a[2][2]))
 
@@ -201,12 +201,12 @@ def orthonormalize_t(c):
     return c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def m_from_array(a):
     return ((a[0, 0], a[0, 1], a[0, 2]), (a[1, 0], a[1, 1], a[1, 2]), (a[2, 0], a[2, 1], a[2, 2]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def m_to_array(m):
     out = np.empty((3, 3))
     for i in range(3):
@@ -337,20 +337,23 @@ def orthonormalize(c):
 
 @njit(cache=True)
 def _rx(a):
+    """Rotation about x by ``a`` radians (tuple matrix)."""
     ca, sa = np.cos(a), np.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]])
+    return ((1.0, 0.0, 0.0), (0.0, ca, -sa), (0.0, sa, ca))
 
 
 @njit(cache=True)
 def _ry(a):
+    """Rotation about y by ``a`` radians (tuple matrix)."""
     ca, sa = np.cos(a), np.sin(a)
-    return np.array([[ca, 0.0, sa], [0.0, 1.0, 0.0], [-sa, 0.0, ca]])
+    return ((ca, 0.0, sa), (0.0, 1.0, 0.0), (-sa, 0.0, ca))
 
 
 @njit(cache=True)
 def _rz(a):
+    """Rotation about z by ``a`` radians (tuple matrix)."""
     ca, sa = np.cos(a), np.sin(a)
-    return np.array([[ca, -sa, 0.0], [sa, ca, 0.0], [0.0, 0.0, 1.0]])
+    return ((ca, -sa, 0.0), (sa, ca, 0.0), (0.0, 0.0, 1.0))
 
 
 @njit(cache=True)
@@ -360,9 +363,10 @@ def euler_to_dcm(roll, pitch, heading, conv):
     For RFU axes ``Cbn = Rz(-heading) Rx(pitch) Ry(roll)``; other conventions
     follow through ``C_{conv}^{RFU}``.
     """
-    c_rfu = mm3(mm3(_rz(-heading), _rx(pitch)), _ry(roll))
+    c_rfu = m_mul(m_mul(_rz(-heading), _rx(pitch)), _ry(roll))
     # C_conv^RFU = C_FLU^RFU C_conv^FLU, and C_FLU^RFU = (C_RFU^FLU)^T.
-    return mm3(c_rfu, mm3(_CONV_TO_FLU[RFU].T.copy(), _CONV_TO_FLU[conv]))
+    c_conv_rfu = m_mul(m_trans(m_from_array(_CONV_TO_FLU[RFU])), m_from_array(_CONV_TO_FLU[conv]))
+    return m_to_array(m_mul(c_rfu, c_conv_rfu))
 
 
 @njit(cache=True)
@@ -373,7 +377,8 @@ def dcm_to_euler(cbn, conv):
     pitch +-90 deg (gimbal lock) roll is set to 0 and heading takes the whole
     rotation about the vertical.
     """
-    c = mm3(cbn, mm3(_CONV_TO_FLU[conv].T.copy(), _CONV_TO_FLU[RFU]))  # C_RFU^n
+    c_rfu_conv = m_mul(m_trans(m_from_array(_CONV_TO_FLU[conv])), m_from_array(_CONV_TO_FLU[RFU]))
+    c = m_to_array(m_mul(m_from_array(cbn), c_rfu_conv))  # C_RFU^n
     s_pitch = c[2, 1]
     if s_pitch > 1.0:
         s_pitch = 1.0

@@ -125,7 +125,7 @@ def _set_cbn(st, c):
             st[S_CBN + 3 * i + j] = c[i][j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def load_fast(st):
     """The fast-rate state of a block's start: sample memory, its count, the interval sums, samples so far."""
     prev_dth, prev_dv = load_memory(st, S_PDTH, S_PDV)
@@ -133,7 +133,7 @@ def load_fast(st):
     return prev_dth, prev_dv, int(st[S_NPREV]), sums, int(st[S_NSUB])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def fast_sample(dtheta_b, dvel_b, k, sums, prev_dth, prev_dv, n_prev, order):
     """Sample k at the fast rate: coning/sculling sums (eqs 41-47), then the sample memory."""
     dth = (dtheta_b[k, 0], dtheta_b[k, 1], dtheta_b[k, 2])
@@ -143,7 +143,7 @@ def fast_sample(dtheta_b, dvel_b, k, sums, prev_dth, prev_dv, n_prev, order):
     return sums, push_sample(prev_dth, prev_dv, dth, dv, n_prev)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def close_interval(st, sums, order):
     """Body rotation vector and velocity increment of the closing attitude interval (eq 35 and
     :func:`sinscli.nav.coning.body_increments`); keeps its sums for the next interval's rate model.
@@ -163,7 +163,7 @@ def close_interval(st, sums, order):
     return phi, dv_b, alpha_prev
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now):
     """Store the fast-rate state for the next block (inverse of :func:`load_fast`)."""
     save_memory(st, S_PDTH, S_PDV, prev_dth, prev_dv)
@@ -214,14 +214,14 @@ def _acc(st, i, lo, x):
     st[i] = s
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _m_add(a, b):
     return ((a[0][0] + b[0][0], a[0][1] + b[0][1], a[0][2] + b[0][2]),
             (a[1][0] + b[1][0], a[1][1] + b[1][1], a[1][2] + b[1][2]),
             (a[2][0] + b[2][0], a[2][1] + b[2][1], a[2][2] + b[2][2]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _q_add(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3])
 
@@ -371,25 +371,12 @@ def interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_
     bookkeeping (``S_T = S_TSTART = t_end``).  The one mechanization step shared by :func:`run` and
     the fusion kernel (:mod:`sinscli.fusion.kernel`); returns the event count ``n_ev``.
     """
-    phi, alpha_prev, zeta, dvel, dR = _mechanize(st, sums, order, t_end)
-    if method == ATT_KRYLOV or method == ATT_EULER:
-        n_ev = _angle_update(st, method, sums[0], alpha_prev, zeta, cflu, integrator, st[S_TSTART], events, n_ev)
-    else:
-        _attitude_update(st, method, phi, zeta)
-    _store(st, dvel, dR, t_end)
-    return n_ev
-
-
-@njit(cache=True)
-def _mechanize(st, sums, order, t_end):
-    """Body increments, displacement, velocity change and midpoint frame rotation of the interval closing
-    at ``t_end`` (first half of :func:`interval_update`); returns ``(phi, alpha_prev, zeta, dvel, dR)``."""
     T = t_end - st[S_TSTART]
     phi, dv_b, alpha_prev = close_interval(st, sums, order)
     cbn = _cbn(st)
     dv_n0 = m_vec(cbn, dv_b)
     vel = _vec(st, S_VEL)
-    lat, h = st[S_LAT], st[S_H]
+    lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
     v_mm2 = _vec(st, S_VMM2)
     v_mm3 = _vec(st, S_VMM3)
     nhist = int(st[S_HAVE_MM2])
@@ -404,18 +391,12 @@ def _mechanize(st, sums, order, t_end):
         dR = displacement(v_mm3, v_mm2, vel, v_new, h2, h1, T, nhist)
     lat_mid, h_mid = midpoint(lat, h, dR)
     zeta = frame_rotation(lat_mid, h_mid, dR, T)
-    return phi, alpha_prev, zeta, dvel, dR
-
-
-@njit(cache=True)
-def _store(st, dvel, dR, t_end):
-    """Position update and the compensated accumulation of every integrated state, with the interval's
-    bookkeeping (second half of :func:`interval_update`, after the attitude)."""
-    vel = _vec(st, S_VEL)
-    lat, h = st[S_LAT], st[S_H]
-    v_mm2 = _vec(st, S_VMM2)
-    nhist = int(st[S_HAVE_MM2])
+    if method == ATT_KRYLOV or method == ATT_EULER:
+        n_ev = _angle_update(st, method, sums[0], alpha_prev, zeta, cflu, integrator, st[S_TSTART], events, n_ev)
+    else:
+        _attitude_update(st, method, phi, zeta)
     dlat, dlon, dh = position_update(lat, h, dR)
+    # ---- store (compensated accumulation of every integrated state) ----
     _set_vec(st, S_VMM3, v_mm2)
     st[S_TMM3] = st[S_TMM2]
     _set_vec(st, S_VMM2, vel)
@@ -428,48 +409,7 @@ def _store(st, dvel, dR, t_end):
     _acc(st, S_H, S_PLO + 2, dh)
     st[S_T] = t_end
     st[S_TSTART] = t_end
-
-
-@njit(cache=True, inline="always")
-def _run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integrator, cos_stop,
-         out_t, out_pos, out_vel, out_cbn, out_ang, events):
-    """The loop of :func:`run`, inlined into one entry point per attitude method (``method`` a constant)."""
-    cflu = ((cflu_arr[0, 0], cflu_arr[0, 1], cflu_arr[0, 2]), (cflu_arr[1, 0], cflu_arr[1, 1], cflu_arr[1, 2]),
-            (cflu_arr[2, 0], cflu_arr[2, 1], cflu_arr[2, 2]))
-    n_ev = 0
-    n_out = 0
-    prev_dth, prev_dv, n_prev, sums, nsub_now = load_fast(st)
-    for k in range(time.shape[0]):
-        sums, n_prev = fast_sample(dtheta_b, dvel_b, k, sums, prev_dth, prev_dv, n_prev, order)
-        nsub_now += 1
-        if nsub_now < nsub:
-            continue
-        # ---- attitude interval closes: moderate-rate update ----
-        t_end = time[k]
-        n_ev = interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_ev)
-        lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
-        v_new = _vec(st, S_VEL)
-        z = (0.0, 0.0, 0.0)
-        sums = (z, z, z, z)
-        nsub_now = 0
-        st[S_NOUT] += 1.0
-        if st[S_NOUT] >= every:
-            st[S_NOUT] = 0.0
-            out_t[n_out] = t_end
-            out_pos[n_out, 0], out_pos[n_out, 1], out_pos[n_out, 2] = lat, lon, h
-            out_vel[n_out, 0], out_vel[n_out, 1], out_vel[n_out, 2] = v_new[0], v_new[1], v_new[2]
-            for i in range(3):
-                for j in range(3):
-                    out_cbn[n_out, i, j] = st[S_CBN + 3 * i + j]
-            for i in range(4):
-                out_ang[n_out, i] = st[S_ANG + i]
-            out_ang[n_out, 4] = st[S_KSET]
-            n_out += 1
-        if method == ATT_EULER and st[S_COSMIN] < cos_stop:
-            st[S_STOPPED] = 1.0
-            break
-    save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now)
-    return n_out, n_ev
+    return n_ev
 
 
 def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integrator, cos_stop,
@@ -484,20 +424,59 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integr
     (pass 0 to carry on).  Writes states into the ``out_*`` arrays (capacity
     ``len(time) // (nsub*every) + 1``; ``out_ang`` gets the raw angles and set),
     transfer events into ``events``; returns ``(rows written, events seen)``.
+    Runs the compiled entry point of the attitude method, :data:`RUN` ``[method]``.
     """
     return RUN[method](time, dtheta_b, dvel_b, st, order, nsub, every, cflu_arr, integrator, cos_stop,
                        out_t, out_pos, out_vel, out_cbn, out_ang, events)
 
 
 def _entry(method):
-    """The compiled entry point of one attitude method: ``method`` is a constant (a closure cell) inside it,
-    so numba prunes the other methods' branches before typing, and a quat run does not compile the Krylov
-    or 3-angle updates (nor their error-message code)."""
+    """The compiled loop of :func:`run` for one attitude method.
+
+    ``method`` is a constant (a closure cell) inside it, so numba prunes the other methods' branches
+    before typing: a quat run compiles neither the Krylov nor the 3-angle update.  The loop is written
+    here, not inlined from a shared function: numba's inliner copies a callee's IR at a cost that grows
+    with its size squared, and the whole loop was the largest callee (docs/engine.md, first run).
+    """
     @njit(cache=True)
     def entry(time, dtheta_b, dvel_b, st, order, nsub, every, cflu_arr, integrator, cos_stop,
               out_t, out_pos, out_vel, out_cbn, out_ang, events):
-        return _run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integrator, cos_stop,
-                    out_t, out_pos, out_vel, out_cbn, out_ang, events)
+        cflu = ((cflu_arr[0, 0], cflu_arr[0, 1], cflu_arr[0, 2]), (cflu_arr[1, 0], cflu_arr[1, 1], cflu_arr[1, 2]),
+                (cflu_arr[2, 0], cflu_arr[2, 1], cflu_arr[2, 2]))
+        n_ev = 0
+        n_out = 0
+        prev_dth, prev_dv, n_prev, sums, nsub_now = load_fast(st)
+        for k in range(time.shape[0]):
+            sums, n_prev = fast_sample(dtheta_b, dvel_b, k, sums, prev_dth, prev_dv, n_prev, order)
+            nsub_now += 1
+            if nsub_now < nsub:
+                continue
+            # ---- attitude interval closes: moderate-rate update ----
+            t_end = time[k]
+            n_ev = interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_ev)
+            lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
+            v_new = _vec(st, S_VEL)
+            z = (0.0, 0.0, 0.0)
+            sums = (z, z, z, z)
+            nsub_now = 0
+            st[S_NOUT] += 1.0
+            if st[S_NOUT] >= every:
+                st[S_NOUT] = 0.0
+                out_t[n_out] = t_end
+                out_pos[n_out, 0], out_pos[n_out, 1], out_pos[n_out, 2] = lat, lon, h
+                out_vel[n_out, 0], out_vel[n_out, 1], out_vel[n_out, 2] = v_new[0], v_new[1], v_new[2]
+                for i in range(3):
+                    for j in range(3):
+                        out_cbn[n_out, i, j] = st[S_CBN + 3 * i + j]
+                for i in range(4):
+                    out_ang[n_out, i] = st[S_ANG + i]
+                out_ang[n_out, 4] = st[S_KSET]
+                n_out += 1
+            if method == ATT_EULER and st[S_COSMIN] < cos_stop:
+                st[S_STOPPED] = 1.0
+                break
+        save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now)
+        return n_out, n_ev
     return entry
 
 
