@@ -11,6 +11,7 @@ Other formats register a writer in :data:`WRITERS` by suffix
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ from ..types import Trajectory
 from . import aided_columns
 from . import limits as limits_mod
 from .atomic import atomic_path, check_finite, prepare_output
-from .csvcore import CsvTableWriter, float_column, read_header, read_numeric_columns
+from .csvcore import CsvTableWriter, float64_table, float_column, read_header, read_numeric_columns
 from .frames import cbn_to_enu, file_name, to_enu
 
 BASE_COLUMNS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading",
@@ -80,6 +81,8 @@ class TrajectoryWriter:
         self._tmp = self._ctx.__enter__()
         self._writer = None
         self._rows = 0
+        self._pool = None          # Parquet: one thread writes row groups while the caller computes the next
+        self._pending = None
 
     def write(self, traj: Trajectory) -> None:
         cols = trajectory_columns(traj, self.conv)
@@ -94,19 +97,42 @@ class TrajectoryWriter:
         else:
             import pyarrow as pa
             import pyarrow.parquet as pq
-            table = pa.table({c: np.ascontiguousarray(cols[c], dtype=np.float64) for c in self.columns})
+            table = float64_table({c: cols[c] for c in self.columns})
             table = table.replace_schema_metadata({BODY_METADATA: BODY_NAMES[self.conv].encode()})
             if self._writer is None:
                 # no dictionary encoding: navigation floats hardly repeat, and it costs 2.4x the write time
                 self._writer = pq.ParquetWriter(self._tmp, table.schema, use_dictionary=False)
-            self._writer.write_table(table)
+                self._pool = ThreadPoolExecutor(1, thread_name_prefix="sins-parquet")
+            self._wait()                      # in order; an error of the previous row group surfaces here
+            self._pending = self._pool.submit(self._writer.write_table, table)   # pyarrow releases the GIL
+
+    def _wait(self) -> None:
+        if self._pending is not None:
+            pending, self._pending = self._pending, None
+            pending.result()
+
+    def _shutdown(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
 
     def close(self) -> None:
+        try:
+            self._wait()
+        except BaseException as exc:       # the last row group failed: no output, as for any error
+            self.abort(exc)
+            raise
+        self._shutdown()
         if self._writer is not None:
             self._writer.close()
         self._ctx.__exit__(None, None, None)
 
     def abort(self, exc=None) -> None:
+        try:
+            self._wait()
+        except Exception:
+            pass
+        self._shutdown()
         if self._writer is not None:
             try:
                 self._writer.close()

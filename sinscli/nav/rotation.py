@@ -281,35 +281,28 @@ def quat_to_dcm(q):
 
 
 @njit(cache=True)
-def dcm_to_quat(c):
-    """``q_b^n`` from ``Cbn`` (Shepperd's method, largest pivot), ``q0 >= 0``."""
-    tr = c[0, 0] + c[1, 1] + c[2, 2]
-    q = np.empty(4)
-    if tr >= c[0, 0] and tr >= c[1, 1] and tr >= c[2, 2]:
+def dcm_to_quat_t(c):
+    """``q_b^n`` from a tuple ``Cbn`` (Shepperd's method, largest pivot), ``q0 >= 0``."""
+    tr = c[0][0] + c[1][1] + c[2][2]
+    if tr >= c[0][0] and tr >= c[1][1] and tr >= c[2][2]:
         s = 2.0 * np.sqrt(1.0 + tr)
-        q[0] = 0.25 * s
-        q[1] = (c[2, 1] - c[1, 2]) / s
-        q[2] = (c[0, 2] - c[2, 0]) / s
-        q[3] = (c[1, 0] - c[0, 1]) / s
-    elif c[0, 0] >= c[1, 1] and c[0, 0] >= c[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + c[0, 0] - c[1, 1] - c[2, 2])
-        q[0] = (c[2, 1] - c[1, 2]) / s
-        q[1] = 0.25 * s
-        q[2] = (c[0, 1] + c[1, 0]) / s
-        q[3] = (c[0, 2] + c[2, 0]) / s
-    elif c[1, 1] >= c[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + c[1, 1] - c[0, 0] - c[2, 2])
-        q[0] = (c[0, 2] - c[2, 0]) / s
-        q[1] = (c[0, 1] + c[1, 0]) / s
-        q[2] = 0.25 * s
-        q[3] = (c[1, 2] + c[2, 1]) / s
+        q = (0.25 * s, (c[2][1] - c[1][2]) / s, (c[0][2] - c[2][0]) / s, (c[1][0] - c[0][1]) / s)
+    elif c[0][0] >= c[1][1] and c[0][0] >= c[2][2]:
+        s = 2.0 * np.sqrt(1.0 + c[0][0] - c[1][1] - c[2][2])
+        q = ((c[2][1] - c[1][2]) / s, 0.25 * s, (c[0][1] + c[1][0]) / s, (c[0][2] + c[2][0]) / s)
+    elif c[1][1] >= c[2][2]:
+        s = 2.0 * np.sqrt(1.0 + c[1][1] - c[0][0] - c[2][2])
+        q = ((c[0][2] - c[2][0]) / s, (c[0][1] + c[1][0]) / s, 0.25 * s, (c[1][2] + c[2][1]) / s)
     else:
-        s = 2.0 * np.sqrt(1.0 + c[2, 2] - c[0, 0] - c[1, 1])
-        q[0] = (c[1, 0] - c[0, 1]) / s
-        q[1] = (c[0, 2] + c[2, 0]) / s
-        q[2] = (c[1, 2] + c[2, 1]) / s
-        q[3] = 0.25 * s
-    return quat_normalize(q)
+        s = 2.0 * np.sqrt(1.0 + c[2][2] - c[0][0] - c[1][1])
+        q = ((c[1][0] - c[0][1]) / s, (c[0][2] + c[2][0]) / s, (c[1][2] + c[2][1]) / s, 0.25 * s)
+    return quat_normalize_t(q)
+
+
+@njit(cache=True)
+def dcm_to_quat(c):
+    """Array form of :func:`dcm_to_quat_t`."""
+    return np.array(dcm_to_quat_t(m_from_array(c)))
 
 
 @njit(cache=True)
@@ -370,28 +363,28 @@ def euler_to_dcm(roll, pitch, heading, conv):
 
 
 @njit(cache=True)
-def dcm_to_euler(cbn, conv):
-    """Physical ``(roll, pitch, heading)`` in radians from ``Cbn``.
+def dcm_to_euler_t(cbn, conv):
+    """Physical ``(roll, pitch, heading)`` in radians from a tuple ``Cbn``.
 
     heading in [0, 2 pi), pitch in [-pi/2, pi/2], roll in (-pi, pi].  At
     pitch +-90 deg (gimbal lock) roll is set to 0 and heading takes the whole
     rotation about the vertical.
     """
     c_rfu_conv = m_mul(m_trans(m_from_array(_CONV_TO_FLU[conv])), m_from_array(_CONV_TO_FLU[RFU]))
-    c = m_to_array(m_mul(m_from_array(cbn), c_rfu_conv))  # C_RFU^n
-    s_pitch = c[2, 1]
+    c = m_mul(cbn, c_rfu_conv)  # C_RFU^n
+    s_pitch = c[2][1]
     if s_pitch > 1.0:
         s_pitch = 1.0
     elif s_pitch < -1.0:
         s_pitch = -1.0
-    horiz = np.sqrt(c[0, 1] * c[0, 1] + c[1, 1] * c[1, 1])
+    horiz = np.sqrt(c[0][1] * c[0][1] + c[1][1] * c[1][1])
     pitch = np.arctan2(s_pitch, horiz)
     if horiz > 1e-12:
-        roll = np.arctan2(-c[2, 0], c[2, 2])
-        yaw = np.arctan2(-c[0, 1], c[1, 1])
+        roll = np.arctan2(-c[2][0], c[2][2])
+        yaw = np.arctan2(-c[0][1], c[1][1])
     else:
         roll = 0.0
-        yaw = np.arctan2(c[1, 0], c[0, 0])
+        yaw = np.arctan2(c[1][0], c[0][0])
     if roll <= -np.pi:
         roll += 2.0 * np.pi
     heading = -yaw
@@ -400,6 +393,12 @@ def dcm_to_euler(cbn, conv):
     if heading >= 2.0 * np.pi:
         heading -= 2.0 * np.pi
     return roll, pitch, heading
+
+
+@njit(cache=True)
+def dcm_to_euler(cbn, conv):
+    """Array form of :func:`dcm_to_euler_t`."""
+    return dcm_to_euler_t(m_from_array(cbn), conv)
 
 
 @njit(cache=True)
@@ -431,7 +430,7 @@ def dcm_to_euler_many(cbn, conv):
     n = cbn.shape[0]
     out = np.empty((n, 3))
     for k in range(n):
-        r, p, h = dcm_to_euler(cbn[k], conv)
+        r, p, h = dcm_to_euler_t(m_from_array(cbn[k]), conv)
         out[k, 0] = r
         out[k, 1] = p
         out[k, 2] = h
@@ -444,7 +443,9 @@ def dcm_to_quat_many(cbn):
     n = cbn.shape[0]
     out = np.empty((n, 4))
     for k in range(n):
-        put_row(out, k, dcm_to_quat(cbn[k]))
+        q = dcm_to_quat_t(m_from_array(cbn[k]))
+        for i in range(4):
+            out[k, i] = q[i]
     return out
 
 
