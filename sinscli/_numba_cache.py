@@ -8,6 +8,7 @@ the CLI says so once.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import tempfile
@@ -88,3 +89,36 @@ def will_compile(dispatcher, *args) -> bool:
         return key not in cache._cache_file._load_index()
     except Exception:                                  # pragma: no cover - numba internals moved
         return False
+
+
+_announced = False
+
+
+def mark_announced() -> None:
+    """A first-run compile message was shown (``sins navigate`` says its own, with an estimate)."""
+    global _announced
+    _announced = True
+
+
+@contextlib.contextmanager
+def announce_compiles(echo):
+    """While active, the first numba compile of this process (a kernel missing from the on-disk cache)
+    calls ``echo()`` once, before the compiler runs: the command that triggers it says why it pauses.
+
+    Listens to numba's ``numba:compile`` event, which fires only when a kernel is compiled, never when
+    it is loaded from the cache; a message already shown (:func:`mark_announced`) is not repeated.
+    """
+    from numba.core import event
+
+    class _FirstCompile(event.Listener):
+        def on_start(self, ev):
+            global _announced
+            if not _announced:
+                _announced = True
+                echo()
+
+        def on_end(self, ev):
+            pass
+
+    with event.install_listener("numba:compile", _FirstCompile()):
+        yield

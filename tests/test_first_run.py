@@ -53,6 +53,7 @@ def test_first_navigate_compiles_within_target_and_says_so(tmp_path):
     assert import_check.stdout.strip().startswith(str(pkg))          # the copy ran, not the source tree
     lines = r.stderr.strip().splitlines()
     assert lines[0].startswith("sins: compiling navigation kernels (first run only, about "), r.stderr
+    assert sum("compiling" in ln for ln in lines) == 1, r.stderr     # the generic note is not added to it
     assert lines[-1].startswith("sins: navigated ") and "wrote 18,001 rows" in lines[-1], r.stderr
     assert any(cache.rglob("*.nbi"))                                   # compiled into the empty cache
     figure = (f"first sins navigate (fresh copy, empty cache): {cpu:.1f} s CPU, {wall:.1f} s wall, "

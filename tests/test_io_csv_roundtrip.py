@@ -113,3 +113,27 @@ def test_navigate_reader_does_not_import_pandas(tmp_path):
             f"list(iter_imu({str(p)!r}, config.load_config(None))); print('pandas' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize("bad_line", [3, 700, 1999])
+def test_streamed_blocks_read_ahead_keep_order_and_name_a_late_bad_cell(tmp_path, bad_line):
+    """The IMU reader parses the next block on a thread: blocks come in order and complete, and a bad
+    cell in any block is refused with its line and column (not an exception from the thread)."""
+    from sinscli.errors import SinsError
+    from sinscli.io.imu_csv import iter_imu_csv
+    n = 2000
+    t = 0.01 * np.arange(1, n + 1)
+    rows = ["time,dtheta_x,dtheta_y,dtheta_z,dvel_x,dvel_y,dvel_z"]
+    rows += [f"{float(t[k])!r},1e-5,2e-5,3e-5,0.001,0.002,{0.098 + 1e-6 * k!r}" for k in range(n)]
+    path = tmp_path / "imu.csv"
+    path.write_text("\n".join(rows) + "\n")
+    blocks = list(iter_imu_csv(path, block_bytes=4096))          # ~60 rows per block
+    assert len(blocks) > 20
+    assert np.array_equal(np.concatenate([b.time for b in blocks]), t)
+    bad = rows.copy()
+    bad[bad_line - 1] = bad[bad_line - 1].replace(",0.002,", ",0.0o2,")
+    path.write_text("\n".join(bad) + "\n")
+    with pytest.raises(SinsError) as err:
+        list(iter_imu_csv(path, block_bytes=4096))
+    msg = str(err.value)
+    assert f"line {bad_line}" in msg and "dvel_y" in msg and "0.0o2" in msg, msg

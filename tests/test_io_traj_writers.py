@@ -183,3 +183,36 @@ def test_bad_trajectory_leaves_no_file(tmp_path, suffix):
     with pytest.raises(SinsError, match="empty"):
         write_trajectory(path, empty)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("failing_call", [1, 3])
+def test_parquet_row_group_failing_on_the_writer_thread_leaves_no_file(tmp_path, monkeypatch, failing_call):
+    """Parquet row groups are written on a thread; a failure there (here the disk filling up on the 1st
+    or the last row group) surfaces in the caller, and no output or temporary file is left."""
+    import pyarrow.parquet as pq
+    from sinscli.io.trajectory import TrajectoryWriter, read_trajectory
+    calls = []
+    real = pq.ParquetWriter.write_table
+
+    def write_table(self, table, *a, **k):
+        calls.append(table.num_rows)
+        if len(calls) == failing_call:
+            raise OSError(28, "No space left on device")
+        return real(self, table, *a, **k)
+
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", write_table)
+    tr = _traj(n=30)
+    parts = [Trajectory(tr.time[a:a + 10], tr.lat[a:a + 10], tr.lon[a:a + 10], tr.height[a:a + 10],
+                        tr.vel_n[a:a + 10], tr.Cbn[a:a + 10], source="test") for a in (0, 10, 20)]
+    path = tmp_path / "out.parquet"
+    with pytest.raises(OSError, match="No space"):
+        with TrajectoryWriter(path) as w:
+            for p in parts:
+                w.write(p)
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(pq.ParquetWriter, "write_table", real)
+    with TrajectoryWriter(path) as w:                     # and without the failure: all three, in order
+        for p in parts:
+            w.write(p)
+    back = read_trajectory(path)
+    assert np.array_equal(back.time, tr.time) and np.array_equal(back.lat, tr.lat)

@@ -19,6 +19,9 @@ log = logging.getLogger("sins")
 COMMANDS = {"navigate": "navigate", "align": "align", "simulate": "simulate", "compare": "compare",
             "info": "info", "convert": "convert", "allan": "allan"}
 
+# commands that run numba kernels: the first compile in a process says so (sinscli/_numba_cache.py)
+COMPILING_COMMANDS = frozenset({"navigate", "align", "simulate", "compare", "allan"})
+
 # The first paragraph of each command's help, for the listing of `sins --help`: with it the
 # listing imports no command module (numpy, numba, the simulator, the ROS readers), so it takes
 # ~0.1 s instead of ~0.6 s.  click shortens it exactly as it would the command's own help;
@@ -98,7 +101,13 @@ class _Command(click.Command):
             paths.extend(value if isinstance(value, (tuple, list)) else [value])
         reset_inputs(p for p in paths if p is not None)
         try:
-            return super().invoke(ctx)
+            if self.name not in COMPILING_COMMANDS:
+                return super().invoke(ctx)
+            from .._numba_cache import announce_compiles
+            name = self.name
+            with announce_compiles(lambda: click.echo(f"sins: compiling the kernels of sins {name} "
+                                                      f"(first run only; later runs load them)", err=True)):
+                return super().invoke(ctx)
         finally:
             end_inputs()
 
@@ -202,4 +211,4 @@ def finish_progress(bar) -> None:
         bar.render_progress()
 
 
-quiet_option = click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+quiet_option = click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")

@@ -145,7 +145,9 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     from ..nav.pipeline import first_run_compile
     seconds = first_run_compile(opts)
     if seconds is not None:          # before the first kernel (the initial state's conversions) is compiled
+        from .._numba_cache import mark_announced
         click.echo(f"sins: compiling navigation kernels (first run only, about {seconds:.0f} s)", err=True)
+        mark_announced()
     blocks = iter_imu(imu, cfg, allow_gaps=nav["allow_gaps"])
     first = next(blocks, None)
     if first is None or len(first) == 0:
@@ -189,6 +191,8 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
             write_trajectory(output, traj, conv)
             _count(written, traj)
         finish_progress(bar)
+    if quiet:
+        return
     rows, t0, t1 = written[0], written[1] or 0.0, written[2] or 0.0
     click.echo(f"sins: navigated {os.fspath(imu)}: wrote {rows:,} rows, t = {t0:.3f} .. {t1:.3f} s "
                f"({t1 - t0:.3f} s), to {os.fspath(output)}", err=True)

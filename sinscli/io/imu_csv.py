@@ -18,7 +18,7 @@ from ..errors import SinsError
 from ..types import ImuLog
 from . import limits as limits_mod
 from .atomic import atomic_path
-from .csvcore import iter_numeric_columns, name_list, read_header, write_table_csv
+from .csvcore import STREAM_BLOCK, iter_numeric_columns, name_list, read_header, write_table_csv
 
 log = logging.getLogger("sins")
 
@@ -113,7 +113,7 @@ def check_time(path, time, allow_gaps=False, what="time"):
     TimeChecker(path, allow_gaps, f"column '{what}'").check(np.asarray(time, dtype=float), 2)
 
 
-def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=1 << 24, limits=None):
+def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=STREAM_BLOCK, limits=None):
     """Stream an IMU CSV (either form) as :class:`ImuLog` blocks of increments, SI units, body axes.
 
     ``cfg`` is the config's ``imu`` section (column mapping, units, mounting), ``limits`` its

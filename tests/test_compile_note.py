@@ -1,0 +1,70 @@
+"""The first-run compile note (issue 14): said once, before a kernel compiles, never for a cached one; and
+the one-line summary of a successful `sins navigate` (rows, span, output), silenced by --quiet."""
+from pathlib import Path
+
+import numpy as np
+from click.testing import CliRunner
+from numba import njit
+
+from sinscli import _numba_cache
+from sinscli.cli import main
+from sinscli.io.trajectory import read_trajectory
+
+SAMPLE = Path(__file__).resolve().parent.parent / "sample_data"
+
+
+def test_first_compile_is_announced_once_and_a_compiled_kernel_never(monkeypatch):
+    monkeypatch.setattr(_numba_cache, "_announced", False)
+    said = []
+
+    @njit                                   # no cache: compiles at its first call with new types
+    def twice(x):
+        return 2.0 * x
+
+    @njit
+    def thrice(x):
+        return 3.0 * x
+
+    with _numba_cache.announce_compiles(lambda: said.append("compiling")):
+        assert twice(1.5) == 3.0            # compiles: the note, before the result
+        assert said == ["compiling"]
+        assert thrice(1.0) == 3.0           # another compile in the same process: not repeated
+    assert said == ["compiling"]
+
+    monkeypatch.setattr(_numba_cache, "_announced", False)
+    with _numba_cache.announce_compiles(lambda: said.append("again")):
+        assert twice(2.0) == 4.0            # compiled already for float64: no compile, no note
+        assert thrice(np.float64(4.0)) == 12.0
+    assert said == ["compiling"]
+    with _numba_cache.announce_compiles(lambda: said.append("int")):
+        assert twice(3) == 6.0              # new argument type: a compile
+    assert said == ["compiling", "int"]
+
+
+def test_a_shown_note_is_not_repeated(monkeypatch):
+    monkeypatch.setattr(_numba_cache, "_announced", False)
+    _numba_cache.mark_announced()           # sins navigate said its own, with the estimate
+    said = []
+
+    @njit
+    def once(x):
+        return x + 1.0
+
+    with _numba_cache.announce_compiles(lambda: said.append("compiling")):
+        assert once(1.0) == 2.0
+    assert said == []
+
+
+def test_summary_line_names_rows_span_and_output_and_quiet_silences_it(tmp_path):
+    out = tmp_path / "nav.csv"
+    args = ["navigate", str(SAMPLE / "imu.csv"), "--init", str(SAMPLE / "init.yaml"), "-o", str(out)]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0, r.output
+    traj = read_trajectory(out)
+    last = [ln for ln in r.output.splitlines() if ln.strip()][-1]
+    n = len(traj.time)
+    assert last == (f"sins: navigated {SAMPLE / 'imu.csv'}: wrote {n:,} rows, t = {traj.time[0]:.3f} .. "
+                    f"{traj.time[-1]:.3f} s ({traj.time[-1] - traj.time[0]:.3f} s), to {out}"), last
+    r = CliRunner().invoke(main, args + ["-q"])
+    assert r.exit_code == 0
+    assert "navigated" not in r.output and "compiling" not in r.output
