@@ -158,54 +158,54 @@ def build_F(F, nx, c, vel, lat, h, f_n, w_b, f_b, inv_tau_g, inv_tau_a):
 
 
 # ---- 3x3 block arithmetic on tuples (rows of 3-tuples) for the propagation ----
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _r(a, x):
     return (a * x[0], a * x[1], a * x[2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _r2(a, x, b, y):
     return (a * x[0] + b * y[0], a * x[1] + b * y[1], a * x[2] + b * y[2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _r3(a, x, b, y, c, z):
     return (a * x[0] + b * y[0] + c * z[0], a * x[1] + b * y[1] + c * z[1], a * x[2] + b * y[2] + c * z[2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _dense(f, m):
     """``f m`` (3x3 blocks)."""
     return (_r3(f[0][0], m[0], f[0][1], m[1], f[0][2], m[2]), _r3(f[1][0], m[0], f[1][1], m[1], f[1][2], m[2]),
             _r3(f[2][0], m[0], f[2][1], m[1], f[2][2], m[2]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _nocol0(f, m):
     """``f m`` for an ``f`` whose first column is zero (F_vr, F_phir)."""
     return (_r2(f[0][1], m[1], f[0][2], m[2]), _r2(f[1][1], m[1], f[1][2], m[2]), _r2(f[2][1], m[1], f[2][2], m[2]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _nodiag(f, m):
     """``f m`` for an ``f`` with a zero diagonal (the skew blocks)."""
     return (_r2(f[0][1], m[1], f[0][2], m[2]), _r2(f[1][0], m[0], f[1][2], m[2]), _r2(f[2][0], m[0], f[2][1], m[1]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _add_row(a, b, c, d, e, s, m):
     return (m[0] + s * (a[0] + b[0] + c[0] + d[0] + e[0]), m[1] + s * (a[1] + b[1] + c[1] + d[1] + e[1]),
             m[2] + s * (a[2] + b[2] + c[2] + d[2] + e[2]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _add(a, b, c, d, e, s, m):
     """``m + s (a + b + c + d + e)`` (3x3 blocks)."""
     return (_add_row(a[0], b[0], c[0], d[0], e[0], s, m[0]), _add_row(a[1], b[1], c[1], d[1], e[1], s, m[1]),
             _add_row(a[2], b[2], c[2], d[2], e[2], s, m[2]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _phi_r(fb, T, mr, mv):
     """Block row dr of ``Phi M``: ``M_r + T (F_rr M_r + M_v)``."""
     frr = fb[0]
@@ -215,14 +215,14 @@ def _phi_r(fb, T, mr, mv):
             _r2(1.0, mr[2], T, mv[2]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _phi_v(fb, T, mr, mv, mp, ma, msa, sf):
     """Block row dv of ``Phi M``: ``M_v + T (F_vr M_r + F_vv M_v + [f x] M_phi + Cbn M_ba (+ Cbn f^b M_sa))``."""
     e = _dense(fb[8], msa) if sf else ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     return _add(_nocol0(fb[1], mr), _dense(fb[2], mv), _nodiag(fb[3], mp), _dense(fb[7], ma), e, T, mv)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _phi_p(fb, T, mr, mv, mp, mg, msg, sf):
     """Block row phi of ``Phi M``: ``M_phi + T (F_phir M_r + A M_v - [w_in x] M_phi - Cbn M_bg (- ..))``."""
     fpv = fb[5]
@@ -233,7 +233,7 @@ def _phi_p(fb, T, mr, mv, mp, mg, msg, sf):
     return _add(_nocol0(fb[4], mr), av, _nodiag(fb[6], mp), ncg, e, T, mp)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _blk(P, i0, j0, tr):
     """The 3x3 block of ``P`` at ``(i0, j0)``, transposed with ``tr``."""
     if tr:
@@ -243,7 +243,7 @@ def _blk(P, i0, j0, tr):
             (P[i0 + 2, j0], P[i0 + 2, j0 + 1], P[i0 + 2, j0 + 2]))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _put(P, i0, j0, b, sym):
     """Write block ``b`` at ``(i0, j0)``; with ``sym`` also its transpose at ``(j0, i0)`` (a diagonal
     block is symmetrized)."""
@@ -258,7 +258,7 @@ def _put(P, i0, j0, b, sym):
                     P[j0 + j, i0 + i] = b[i][j]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _phi_apply(src, X, tr, fb, T, nb, out, sym, first):
     """The navigation block rows of block column ``X`` of ``Phi M`` into ``out``, with ``M_ZX`` the
     block (Z, X) of ``src`` or, with ``tr``, the transposed block (X, Z).  Rows ``dr, dv, phi`` are
@@ -298,18 +298,12 @@ def propagate(P, W, fb, T, nx, inv_tau_g, inv_tau_a):
     for i in range(3):
         if inv_tau_g[i] != 0.0 or inv_tau_a[i] != 0.0:
             decay = True
-    # the block columns spelled out, so that each inlined copy knows its column (no branches)
-    _phi_apply(P, 0, False, fb, T, nb, W, False, -9)
-    _phi_apply(P, 1, False, fb, T, nb, W, False, -9)
-    _phi_apply(P, 2, False, fb, T, nb, W, False, -9)
-    _phi_apply(P, 3, False, fb, T, nb, W, False, -9)
-    _phi_apply(P, 4, False, fb, T, nb, W, False, -9)
-    if nb > 5:
-        _phi_apply(P, 5, False, fb, T, nb, W, False, -9)
-        _phi_apply(P, 6, False, fb, T, nb, W, False, -9)
-    _phi_apply(W, 0, True, fb, T, nb, P, True, 0)
-    _phi_apply(W, 1, True, fb, T, nb, P, True, 0)
-    _phi_apply(W, 2, True, fb, T, nb, P, True, 0)
+    # one compiled _phi_apply for the block columns (a loop index, not a literal per call: numba would
+    # compile one specialization per literal column, 10 of them, for ~8 s of a first run)
+    for X in range(nb):
+        _phi_apply(P, X, False, fb, T, nb, W, False, -9)
+    for X in range(3):
+        _phi_apply(W, X, True, fb, T, nb, P, True, 0)
     for j in range(9, nx):
         d = 1.0
         if j < BA:
