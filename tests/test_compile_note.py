@@ -68,3 +68,19 @@ def test_summary_line_names_rows_span_and_output_and_quiet_silences_it(tmp_path)
     r = CliRunner().invoke(main, args + ["-q"])
     assert r.exit_code == 0
     assert "navigated" not in r.output and "compiling" not in r.output
+
+
+def test_fused_run_ends_with_the_summary_line_too(tmp_path):
+    out = tmp_path / "fused.csv"
+    args = ["navigate", str(SAMPLE / "imu.csv"), "--gnss", str(SAMPLE / "gnss.csv"), "--init",
+            str(SAMPLE / "init.yaml"), "-o", str(out)]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0, r.output
+    traj = read_trajectory(out)
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert lines[-2].startswith("sins: fusion: ")
+    assert lines[-1] == (f"sins: navigated {SAMPLE / 'imu.csv'}: wrote {len(traj.time):,} rows, t = "
+                         f"{traj.time[0]:.3f} .. {traj.time[-1]:.3f} s ({traj.time[-1] - traj.time[0]:.3f} s), "
+                         f"to {out}"), lines[-1]
+    r = CliRunner().invoke(main, args + ["-q"])
+    assert r.exit_code == 0 and "navigated" not in r.output

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import signal
 import sys
 import threading
@@ -101,7 +102,7 @@ class _Command(click.Command):
             paths.extend(value if isinstance(value, (tuple, list)) else [value])
         reset_inputs(p for p in paths if p is not None)
         try:
-            if self.name not in COMPILING_COMMANDS:
+            if self.name not in COMPILING_COMMANDS or ctx.params.get("quiet"):
                 return super().invoke(ctx)
             from .._numba_cache import announce_compiles
             name = self.name
@@ -211,4 +212,11 @@ def finish_progress(bar) -> None:
         bar.render_progress()
 
 
-quiet_option = click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line.")
+def summary_line(imu, rows: int, t0: float, t1: float, output) -> None:
+    """The last line of a successful ``sins navigate``: what was read, the rows written, their span, where."""
+    click.echo(f"sins: navigated {os.fspath(imu)}: wrote {rows:,} rows, t = {t0:.3f} .. {t1:.3f} s "
+               f"({t1 - t0:.3f} s), to {os.fspath(output)}", err=True)
+
+
+quiet_option = click.option("-q", "--quiet", is_flag=True,
+                            help="No progress bar, no first-run compile note, no summary line.")

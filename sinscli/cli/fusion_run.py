@@ -17,7 +17,7 @@ from ..io.innovations import write_innovations
 from ..io.readers import read_body_velocity, read_gnss, read_imu
 from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
 from ..types import ImuLog
-from .base import log, progress
+from .base import log, progress, summary_line
 
 
 def _span(t) -> str:
@@ -112,7 +112,8 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
             Path(innovations_path).unlink(missing_ok=True)
         raise
     click.echo(f"sins: {summary.text()}", err=True)
-    log.info("wrote %s", output)
+    if not quiet:
+        summary_line(imu_path, len(traj), float(traj.time[0]), float(traj.time[-1]), output)
 
 
 def _align(imu, gnss, method, cfg, config_path, conv, gnss_pos_sigma):

@@ -2,14 +2,13 @@
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 
 import click
 
 from ..conventions import BODY_CONVENTIONS
 from ..errors import SinsError
-from .base import finish_progress, log, main, progress, quiet_option
+from .base import finish_progress, log, main, progress, quiet_option, summary_line
 
 # the readers, the kernels (numpy, numba) and the writers are imported when the command runs, so
 # that `sins navigate --help` does not load them
@@ -143,7 +142,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
                   opts, output, quiet, window, odom_path=odom_path)
         return
     from ..nav.pipeline import first_run_compile
-    seconds = first_run_compile(opts)
+    seconds = None if quiet else first_run_compile(opts)
     if seconds is not None:          # before the first kernel (the initial state's conversions) is compiled
         from .._numba_cache import mark_announced
         click.echo(f"sins: compiling navigation kernels (first run only, about {seconds:.0f} s)", err=True)
@@ -193,9 +192,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
         finish_progress(bar)
     if quiet:
         return
-    rows, t0, t1 = written[0], written[1] or 0.0, written[2] or 0.0
-    click.echo(f"sins: navigated {os.fspath(imu)}: wrote {rows:,} rows, t = {t0:.3f} .. {t1:.3f} s "
-               f"({t1 - t0:.3f} s), to {os.fspath(output)}", err=True)
+    summary_line(imu, written[0], written[1] or 0.0, written[2] or 0.0, output)
 
 
 def _count(written: list, chunk) -> None:
