@@ -69,45 +69,27 @@ def ensure_cache_dir() -> str | None:
             f"compiled kernels are cached in {d}")
 
 
-def will_compile(dispatcher, *args) -> bool:
-    """True when calling the numba ``dispatcher`` with ``args`` will compile it (a cold cache).
-
-    Neither compiled in this process for these argument types, nor in numba's on-disk cache: the
-    function's index file (``<module>.<name>-<line>.py<ver>.nbi``) must hold the signature with this
-    machine's codegen and the function's bytecode hash, and its source stamp must match the file
-    (else numba treats the index as stale).  Reads the index only; loads and compiles nothing.
-    When it cannot tell (numba's internals changed), it answers False: no message rather than a wrong one.
-    """
-    try:
-        sig = tuple(dispatcher.typeof_pyval(a) for a in args)
-        if sig in dispatcher.overloads:
-            return False
-        cache = dispatcher._cache
-        if not hasattr(cache, "_index_key"):          # NullCache: cache=False, compiles every process
-            return True
-        key = cache._index_key(sig, dispatcher.targetctx.codegen())
-        return key not in cache._cache_file._load_index()
-    except Exception:                                  # pragma: no cover - numba internals moved
-        return False
+_announced = False          # a first-compile note was shown in this process
+_note = None               # the running command's own text for it (set_compile_note), else the generic one
 
 
-_announced = False
-
-
-def mark_announced() -> None:
-    """A first-run compile message was shown (``sins navigate`` says its own, with an estimate)."""
-    global _announced
-    _announced = True
+def set_compile_note(text: str) -> None:
+    """The text of the first-compile note for the rest of the running command (``sins navigate`` names its
+    kernels and the estimate of its first run) instead of the generic one of :func:`announce_compiles`."""
+    global _note
+    _note = text
 
 
 @contextlib.contextmanager
-def announce_compiles(echo):
-    """While active, the first numba compile of this process (a kernel missing from the on-disk cache)
-    calls ``echo()`` once, before the compiler runs: the command that triggers it says why it pauses.
+def announce_compiles(echo, text: str):
+    """While active (one command), the first numba compile of this process (a kernel missing from the
+    on-disk cache) calls ``echo(note)`` once, before the compiler runs: the command says why it pauses.
+    ``note`` is ``text``, or what the command gave :func:`set_compile_note`.
 
     Listens to numba's ``numba:compile`` event, which fires only when a kernel is compiled, never when
-    it is loaded from the cache; a message already shown (:func:`mark_announced`) is not repeated.
+    it is loaded from the cache; once a note was shown, no later compile of the process repeats it.
     """
+    global _note
     from numba.core import event
 
     class _FirstCompile(event.Listener):
@@ -115,10 +97,14 @@ def announce_compiles(echo):
             global _announced
             if not _announced:
                 _announced = True
-                echo()
+                echo(_note or text)
 
         def on_end(self, ev):
             pass
 
-    with event.install_listener("numba:compile", _FirstCompile()):
-        yield
+    _note = None
+    try:
+        with event.install_listener("numba:compile", _FirstCompile()):
+            yield
+    finally:
+        _note = None

@@ -25,34 +25,45 @@ def test_first_compile_is_announced_once_and_a_compiled_kernel_never(monkeypatch
     def thrice(x):
         return 3.0 * x
 
-    with _numba_cache.announce_compiles(lambda: said.append("compiling")):
+    with _numba_cache.announce_compiles(said.append, "compiling"):
         assert twice(1.5) == 3.0            # compiles: the note, before the result
         assert said == ["compiling"]
         assert thrice(1.0) == 3.0           # another compile in the same process: not repeated
     assert said == ["compiling"]
 
     monkeypatch.setattr(_numba_cache, "_announced", False)
-    with _numba_cache.announce_compiles(lambda: said.append("again")):
+    with _numba_cache.announce_compiles(said.append, "again"):
         assert twice(2.0) == 4.0            # compiled already for float64: no compile, no note
         assert thrice(np.float64(4.0)) == 12.0
     assert said == ["compiling"]
-    with _numba_cache.announce_compiles(lambda: said.append("int")):
+    with _numba_cache.announce_compiles(said.append, "int"):
         assert twice(3) == 6.0              # new argument type: a compile
     assert said == ["compiling", "int"]
 
 
-def test_a_shown_note_is_not_repeated(monkeypatch):
+def test_the_command_s_own_note_replaces_the_generic_one_for_that_command_only(monkeypatch):
+    """sins navigate names its kernels and the estimate: one note, its own, never the generic one too; the
+    text does not outlive the command."""
     monkeypatch.setattr(_numba_cache, "_announced", False)
-    _numba_cache.mark_announced()           # sins navigate said its own, with the estimate
     said = []
 
     @njit
     def once(x):
         return x + 1.0
 
-    with _numba_cache.announce_compiles(lambda: said.append("compiling")):
+    @njit
+    def later(x):
+        return x + 2.0
+
+    with _numba_cache.announce_compiles(said.append, "generic"):
+        _numba_cache.set_compile_note("navigation kernels, about 9 s")
         assert once(1.0) == 2.0
-    assert said == []
+        assert later(1.0) == 3.0
+    assert said == ["navigation kernels, about 9 s"]
+    monkeypatch.setattr(_numba_cache, "_announced", False)
+    with _numba_cache.announce_compiles(said.append, "next command"):
+        assert later(1) == 3
+    assert said == ["navigation kernels, about 9 s", "next command"]
 
 
 def test_summary_line_names_rows_span_and_output_and_quiet_silences_it(tmp_path):

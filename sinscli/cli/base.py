@@ -105,9 +105,8 @@ class _Command(click.Command):
             if self.name not in COMPILING_COMMANDS or ctx.params.get("quiet"):
                 return super().invoke(ctx)
             from .._numba_cache import announce_compiles
-            name = self.name
-            with announce_compiles(lambda: click.echo(f"sins: compiling the kernels of sins {name} "
-                                                      f"(first run only; later runs load them)", err=True)):
+            note = f"sins: compiling the kernels of sins {self.name} (first run only; later runs load them)"
+            with announce_compiles(lambda text: click.echo(text, err=True), note):
                 return super().invoke(ctx)
         finally:
             end_inputs()

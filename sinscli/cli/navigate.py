@@ -141,12 +141,9 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
         run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
                   opts, output, quiet, window, odom_path=odom_path)
         return
-    from ..nav.pipeline import first_run_compile
-    seconds = None if quiet else first_run_compile(opts)
-    if seconds is not None:          # before the first kernel (the initial state's conversions) is compiled
-        from .._numba_cache import mark_announced
-        click.echo(f"sins: compiling navigation kernels (first run only, about {seconds:.0f} s)", err=True)
-        mark_announced()
+    from .._numba_cache import set_compile_note
+    from ..nav.pipeline import first_run_seconds
+    set_compile_note(f"sins: compiling navigation kernels (first run only, about {first_run_seconds(opts)} s)")
     blocks = iter_imu(imu, cfg, allow_gaps=nav["allow_gaps"])
     first = next(blocks, None)
     if first is None or len(first) == 0:

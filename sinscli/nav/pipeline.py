@@ -243,36 +243,13 @@ def concat(parts: list[Trajectory]) -> Trajectory:
 # First-run time of `sins navigate` (cold numba cache: start-up, compile of all of its kernels, the 180 s
 # sample drive), seconds, wall time measured on the idle 2-core machine (load 0.7-0.9; numba compiles on
 # one thread, so the CPU time is about the same): quat 9.3, dcm 9.3, krylov 17.0, euler 10.4,
-# launch-inertial 10.1.  The estimate of the first-run message.
+# launch-inertial 10.1.  The estimate of the first-run note (sinscli/_numba_cache.py: set_compile_note).
 FIRST_RUN_SECONDS = {"quat": 9, "dcm": 9, "krylov": 17, "euler": 10, "launch-inertial": 10}
 
 
-def first_run_compile(opts: NavOptions) -> float | None:
-    """Seconds the kernels of a navigation with ``opts`` will spend compiling in this process (the
-    estimate of :data:`FIRST_RUN_SECONDS`), or None when numba's cache holds them all (a warm cache).
-
-    Checks, without loading anything, the entry point of the attitude method (or of the launch-inertial
-    frame) for the argument types the navigator passes, and the conversions of the initial state and of
-    the writers (:func:`sinscli._numba_cache.will_compile`).
-    """
-    from .._numba_cache import will_compile
-    from . import rotation as rot
-    f1, f2, f3, i1 = np.empty(1), np.empty((1, 3)), np.empty((1, 3, 3)), 1
-    c = np.eye(3)
-    checks = [(rot.euler_to_dcm, 0.0, 0.0, 0.0, i1), (rot.dcm_to_quat, c), (rot.conv_to_flu, i1),
-              (rot.dcm_to_euler_many, f3, i1), (rot.dcm_to_quat_many, f3)]
-    if opts.frame == "launch-inertial":
-        from . import inertial
-        checks.append((inertial.run, f1, f2, f2, f1, i1, i1, i1, i1, f1, f2, f2, f3))
-        key = "launch-inertial"
-    else:
-        method = opts.method_code()
-        checks.append((sd.RUN[method], f1, f2, f2, f1, i1, i1, i1, c, i1, 0.0, f1, f2, f2,
-                       f3, np.empty((1, 5)), np.empty((1, sd.N_EVENT))))
-        key = opts.attitude
-    if any(will_compile(*chk) for chk in checks):
-        return FIRST_RUN_SECONDS[key]
-    return None
+def first_run_seconds(opts: NavOptions) -> int:
+    """The first-run estimate of :data:`FIRST_RUN_SECONDS` for a navigation with ``opts``."""
+    return FIRST_RUN_SECONDS["launch-inertial" if opts.frame == "launch-inertial" else opts.attitude]
 
 
 def stream_blocks(engine, blocks, progress=None):

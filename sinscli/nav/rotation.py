@@ -269,12 +269,6 @@ def quat_mul(p, q):
 
 
 @njit(cache=True)
-def quat_normalize(q):
-    """Array form of :func:`quat_normalize_t`."""
-    return np.array(quat_normalize_t((q[0], q[1], q[2], q[3])))
-
-
-@njit(cache=True)
 def quat_to_dcm(q):
     """Array form of :func:`quat_to_dcm_t` (seed 000 eq 1)."""
     return m_to_array(quat_to_dcm_t((q[0], q[1], q[2], q[3])))
