@@ -25,18 +25,21 @@ def _span(t) -> str:
 
 
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-              opts, output, quiet, window=None, odom_path=None):
+              opts, output, quiet, window=None, odom_path=None, vehicle=None):
+    from dataclasses import replace
+
+    from ..allan.rest import noise_from_rest
     from ..fusion.options import build_fusion_options
     from ..fusion.pipeline import Fusion, fuse_blocks
     from ..nav.pipeline import concat
 
     src = str(config_path) if config_path else "config"
     base = Path(config_path).parent if config_path else Path.cwd()
-    fopts = build_fusion_options(cfg.get("fusion"), src, base_dir=base)
+    fopts = build_fusion_options(cfg.get("fusion"), src, base_dir=base, vehicle=vehicle)
     if sensor is not None:
-        fopts.sensor, fopts.base_dir = sensor, Path.cwd()
+        fopts = replace(fopts, sensor=sensor, base_dir=Path.cwd())
     if fopts.lever_arm is None:
-        fopts.lever_arm = np.asarray(cfg["gnss"]["lever_arm"], dtype=float)
+        fopts = replace(fopts, lever_arm=np.asarray(cfg["gnss"]["lever_arm"], dtype=float))
     check_trajectory_output(output)
     if innovations_path is not None:
         prepare_output(innovations_path)
@@ -84,8 +87,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
                                 init.Cbn, cfg["imu"])
         if note:
             log.warning(note)
+    data_noise = noise_from_rest(imu, fopts, gnss) if fopts.noise_from_data else None
     fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias,
-                    body_vel=body_vel)
+                    body_vel=body_vel, data_noise=data_noise, t_log0=t0)
     step = 1 << 16
     blocks = (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],
                      t0=imu.t0 if a == 0 else None, source=imu.source) for a in range(0, len(imu), step))
@@ -111,7 +115,10 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         if innovations_path is not None:
             Path(innovations_path).unlink(missing_ok=True)
         raise
-    click.echo(f"sins: {summary.text()}", err=True)
+    for line in summary.lines():
+        click.echo(f"sins: {line}", err=True)
+    for w in summary.warnings:
+        log.warning("fusion: %s", w)
     if not quiet:
         summary_line(imu_path, len(traj), float(traj.time[0]), float(traj.time[-1]), output)
 

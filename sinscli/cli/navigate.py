@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ..conventions import BODY_CONVENTIONS
+from ..conventions import BODY_CONVENTIONS, VEHICLES
 from ..errors import SinsError
 from .base import finish_progress, log, main, progress, quiet_option, summary_line
 
@@ -48,6 +48,10 @@ def _count_rows(path: Path) -> int:
 @click.option("--odom", "odom_path", default=None, type=click.Path(path_type=Path),
               help="With --gnss: body velocity (odometry): a body-velocity CSV, or a bag/MCAP with an Odometry "
                    "topic (ros.odom_topic, else auto-detected).")
+@click.option("--vehicle", default=None, type=click.Choice(VEHICLES),
+              help="With --gnss: the platform, for its constraints: car and robot NHC + ZUPT/ZARU at rest, pedestrian "
+                   "ZUPT/ZARU at rest and heading from motion, aircraft and none (default) no constraint "
+                   "(config fusion.vehicle).")
 @click.option("--sensor", default=None,
               help="With --gnss: sensor description (preset mems|tactical|navigation or a sensor YAML).")
 @click.option("--attitude", type=click.Choice(["dcm", "quat", "krylov", "euler"]), default=None,
@@ -87,7 +91,7 @@ def _count_rows(path: Path) -> int:
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("trajectory.csv"),
               show_default=True, help="Trajectory output: .csv, .parquet, .mcap, .tum, .geojson, .kml.")
 @quiet_option
-def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_path, odom_path, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
+def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_path, odom_path, vehicle, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
                  frame, imu_topic, start, end, duration, time_offset, output, quiet):
     """Navigate IMU increments from an initial state and write the trajectory.
@@ -99,7 +103,8 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     """
     if gnss_path is None:
         for name, value in (("--align", align_method), ("--smooth", smooth or None),
-                            ("--innovations", innovations_path), ("--odom", odom_path), ("--sensor", sensor)):
+                            ("--innovations", innovations_path), ("--odom", odom_path), ("--sensor", sensor),
+                            ("--vehicle", vehicle)):
             if value is not None:
                 raise SinsError(f"{name} needs --gnss (fused navigation)")
         if init_path is None:
@@ -139,7 +144,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     if gnss_path is not None:
         from .fusion_run import run_fused
         run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-                  opts, output, quiet, window, odom_path=odom_path)
+                  opts, output, quiet, window, odom_path=odom_path, vehicle=vehicle)
         return
     from .._numba_cache import set_compile_note
     from ..nav.pipeline import first_run_seconds

@@ -83,3 +83,102 @@ def chol_solve_into(L, n, X):
             for k in range(i + 1, n):
                 t -= L[k, i] * X[k, c]
             X[i, c] = t / L[i, i]
+
+
+@njit(cache=True)
+def ldl_psd(A, n, L, D, tol):
+    """``A ~ L diag(D) L^T`` (unit lower ``L``) of the symmetric leading ``n`` x ``n`` block of ``A``, with
+    every pivot ``D_j >= 0``: the nearest factored positive semi-definite matrix, no pivoting.
+
+    A pivot at or under ``tol * A_jj`` (relative to its own diagonal: rounding of a semi-definite
+    matrix, e.g. a zero row, or a state the chain does not reach) is set to 0 and its column of ``L``
+    dropped.  Returns ``(clipped, worst)``: the number of pivots that were negative beyond the
+    tolerance (a matrix that is not PSD) and the most negative pivot relative to its diagonal (0 when
+    none): the guard's measure (docs/fusion.md)."""
+    clipped = 0
+    worst = 0.0
+    for j in range(n):
+        s = A[j, j]
+        for k in range(j):
+            s -= L[j, k] * L[j, k] * D[k]
+        a = abs(A[j, j])
+        for i in range(j):
+            L[i, j] = 0.0
+        L[j, j] = 1.0
+        if s <= tol * a:
+            if s < -tol * a:
+                clipped += 1
+                r = s / a if a > 0.0 else -1.0
+                if r < worst:
+                    worst = r
+            D[j] = 0.0
+            for i in range(j + 1, n):
+                L[i, j] = 0.0
+            continue
+        D[j] = s
+        for i in range(j + 1, n):
+            t = A[i, j]
+            for k in range(j):
+                t -= L[i, k] * L[j, k] * D[k]
+            L[i, j] = t / s
+    return clipped, worst
+
+
+@njit(cache=True)
+def gram_add(G, D, n, out, init):
+    """``out (+)= G diag(D) G^T`` (``init``: overwrite), upper triangle computed and mirrored: with every
+    ``D_k >= 0`` each diagonal entry is a sum of non-negative terms, exactly, in floating point."""
+    for i in range(n):
+        for j in range(i, n):
+            s = 0.0
+            for k in range(n):
+                d = D[k]
+                if d != 0.0:
+                    s += G[i, k] * d * G[j, k]
+            v = s if init else out[i, j] + s
+            out[i, j] = v
+            out[j, i] = v
+
+
+@njit(cache=True)
+def times_lower(A, L, n, out):
+    """``out = A L`` for a unit lower-triangular ``L`` (the zero upper part skipped)."""
+    for i in range(n):
+        for j in range(n):
+            s = A[i, j]
+            for k in range(j + 1, n):
+                s += A[i, k] * L[k, j]
+            out[i, j] = s
+
+
+@njit(cache=True)
+def scaled_solve(A, n, X, M, L, s):
+    """``X <- A^+ X`` for a symmetric PSD ``A`` whose zero-variance states (``A_jj = 0``: a state held
+    out of the filter) are excluded (their rows of the result are 0), through the Cholesky factor of the
+    Jacobi-scaled ``M = S A S`` (``S = diag(A)^-1/2``, unit diagonal: its condition number is that of
+    the correlations, not of the units).  If ``M`` is not numerically positive definite, a ridge of
+    1e-12, 1e-10 ... 1e-6 is added.  Returns the ridge used (0: none).  ``M``, ``L`` (n, n), ``s`` (n,)
+    scratch."""
+    for j in range(n):
+        s[j] = 1.0 / np.sqrt(A[j, j]) if A[j, j] > 0.0 else 0.0
+    for i in range(n):
+        for j in range(n):
+            M[i, j] = A[i, j] * s[i] * s[j]
+        if s[i] == 0.0:
+            M[i, i] = 1.0
+    ridge = 0.0
+    while not cholesky(M, n, L):
+        ridge = 1e-12 if ridge == 0.0 else ridge * 100.0
+        if ridge > 1e-6:
+            return -1.0
+        for i in range(n):
+            M[i, i] = 1.0 + ridge
+    m = X.shape[1]
+    for i in range(n):
+        for c in range(m):
+            X[i, c] *= s[i]
+    chol_solve_into(L, n, X)
+    for i in range(n):
+        for c in range(m):
+            X[i, c] *= s[i]
+    return ridge
