@@ -48,7 +48,7 @@ START_KEYS = {"time", "lat", "lon", "height", "heading", "pitch", "roll", "speed
 IMU_KEYS = {"rate", "sensor", "gyro", "accel", "output", "stamp_jitter", "time_offset", "mounting"}
 GNSS_KEYS = {"rate", "pos_noise", "vel_noise", "lever_arm", "outages", "velocity", "pos_tau", "vel_tau",
              "reported_pos_sigma", "reported_vel_sigma", "time_offset"}
-VIBRATION_KEYS = {"gyro_rms", "accel_rms", "band", "lines", "seed"}
+VIBRATION_KEYS = {"gyro_rms", "accel_rms", "band", "lines", "seed", "ramp"}
 GAIT_KEYS = {"speed", "step_freq", "bob", "surge", "sway", "wobble"}
 ODOMETRY_KEYS = {"rate", "scale_factor", "noise", "reported_sigma"}
 IMU_OUTPUTS = ("increments", "rates")
@@ -256,7 +256,8 @@ def _vibration(src, v, imu_rate):
         _fail(src, "vibration.seed", f"expected a non-negative integer; got {seed!r}")
     return {"gyro_rms": _vector(src, "vibration.gyro_rms", v.get("gyro_rms", 0.0), ge=0.0) * deg,
             "accel_rms": _vector(src, "vibration.accel_rms", v.get("accel_rms", 0.0), ge=0.0),
-            "band": (lo, hi), "lines": lines, "seed": seed}
+            "band": (lo, hi), "lines": lines, "seed": seed,
+            "ramp": _number(src, "vibration.ramp", v.get("ramp", 1.0), ge=0.0)}
 
 
 def _gait(src, g):

@@ -159,7 +159,8 @@ def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: 
     subdiv = max(1, int(np.ceil(wmax / rate)))          # omega * sub-interval <= 1 rad
     if vibration is not None:
         subdiv = max(subdiv, int(np.ceil(vibration.max_frequency() / (VIB_STEP * rate))))
-    b, imu_idx = boundaries(tau_imu, np.concatenate([np.asarray(extra_times, float), joints]), subdiv)
+    vib_end = [vibration.ramp] if vibration is not None and vibration.ramp > 0 else []   # its envelope's joint
+    b, imu_idx = boundaries(tau_imu, np.concatenate([np.asarray(extra_times, float), joints, vib_end]), subdiv)
     x, w, A = gauss_legendre(nodes)
     M = b.size - 1
     owner = np.searchsorted(tau_imu, b[1:], side="left") - 1      # IMU interval of each sub-interval

@@ -8,7 +8,11 @@ frequencies in the band and random phases:
     theta_i(t) = sum_j (a_ij / w_ij) sin(w_ij t + p_ij)        theta_i' = sum_j a_ij cos(w_ij t + p_ij)
     d_i(t)     = -sum_j (b_ij / v_ij^2) sin(v_ij t + q_ij)     d_i''    = sum_j b_ij sin(v_ij t + q_ij)
 
-with equal amplitudes ``a_ij = rms_i sqrt(2/K)`` (rate RMS per axis ``rms_i``) and likewise ``b_ij``.
+with equal amplitudes ``a_ij = rms_i sqrt(2/K)`` (rate RMS per axis ``rms_i``) and likewise ``b_ij``,
+all multiplied by a smooth start ``m(t) = S(t / ramp)`` (the septic step of :mod:`.segments`, 1 after
+``ramp`` s: the engine starting), so that the mount sits exactly on the body at the start (``theta``,
+``d`` and their rates 0: the initial state of ``init.yaml`` is the sensor's too) and the derivatives
+carry the envelope's (``theta' = m' A + m A'``, ``d'' = m'' D + 2 m' D' + m D''``).
 The vibrating frame ``v`` has ``C_v^n = C_b^n R``, ``R = exp([theta x])``, and its position is
 ``r_b + C_b^n d``; the sensor measures exactly (strapdown kinematics of a point on a turning body):
 
@@ -43,6 +47,7 @@ class Vibration:
     lin_w: np.ndarray          # rad/s
     lin_b: np.ndarray          # m/s^2: amplitude of d''
     lin_p: np.ndarray          # rad
+    ramp: float = 0.0          # s: the amplitudes rise smoothly from 0 over this time (0: full from the start)
 
     def max_frequency(self) -> float:
         """Largest angular frequency (rad/s) of a line with a non-zero amplitude (0 when none)."""
@@ -83,20 +88,32 @@ def draw_vibration(cfg: dict) -> Vibration:
     lin_p = rng_lp.uniform(0.0, two_pi, (3, k))
     amp = np.sqrt(2.0 / k)
     return Vibration(rot_w, np.repeat(cfg["gyro_rms"][:, None] * amp, k, axis=1), rot_p,
-                     lin_w, np.repeat(cfg["accel_rms"][:, None] * amp, k, axis=1), lin_p)
+                     lin_w, np.repeat(cfg["accel_rms"][:, None] * amp, k, axis=1), lin_p, float(cfg["ramp"]))
+
+
+def envelope(tau: np.ndarray, ramp: float):
+    """``(m, m', m'')`` (n,) of the smooth start ``m = S(tau / ramp)`` (1 after ``ramp``; 1 for ramp 0)."""
+    tau = np.asarray(tau, dtype=float)
+    if ramp <= 0.0:
+        return np.ones_like(tau), np.zeros_like(tau), np.zeros_like(tau)
+    u = np.clip(tau / ramp, 0.0, 1.0)
+    v = 1.0 - u
+    m = u ** 4 * (35.0 - 84.0 * u + 70.0 * u * u - 20.0 * u ** 3)
+    return m, 140.0 * (u * v) ** 3 / ramp, 420.0 * (u * v) ** 2 * (v - u) / ramp ** 2
 
 
 def mount_motion(vib: Vibration, tau: np.ndarray):
     """``(theta, theta', d, d', d'')`` (n, 3) each at times ``tau`` (s since the start)."""
+    m, m1, m2 = (x[:, None] for x in envelope(tau, vib.ramp))
     tau = np.asarray(tau, dtype=float)[:, None, None]
     ph = vib.rot_w[None] * tau + vib.rot_p[None]
-    theta = np.sum(vib.rot_a / vib.rot_w * np.sin(ph), axis=-1)
-    dtheta = np.sum(vib.rot_a * np.cos(ph), axis=-1)
+    a0 = np.sum(vib.rot_a / vib.rot_w * np.sin(ph), axis=-1)
+    a1 = np.sum(vib.rot_a * np.cos(ph), axis=-1)
     pl = vib.lin_w[None] * tau + vib.lin_p[None]
-    d = -np.sum(vib.lin_b / vib.lin_w ** 2 * np.sin(pl), axis=-1)
-    dd = -np.sum(vib.lin_b / vib.lin_w * np.cos(pl), axis=-1)
-    ddd = np.sum(vib.lin_b * np.sin(pl), axis=-1)
-    return theta, dtheta, d, dd, ddd
+    d0 = -np.sum(vib.lin_b / vib.lin_w ** 2 * np.sin(pl), axis=-1)
+    d1 = -np.sum(vib.lin_b / vib.lin_w * np.cos(pl), axis=-1)
+    d2 = np.sum(vib.lin_b * np.sin(pl), axis=-1)
+    return m * a0, m1 * a0 + m * a1, m * d0, m1 * d0 + m * d1, m2 * d0 + 2.0 * m1 * d1 + m * d2
 
 
 def vibrate(vib: Vibration | None, tau: np.ndarray, w_ib: np.ndarray, f_b: np.ndarray):
