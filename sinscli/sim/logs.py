@@ -54,13 +54,16 @@ def imu_rates(sc, td, c_out: np.ndarray, sensor: dict, seed: int) -> ImuRates:
 
 def imu_stamps(sc, tau: np.ndarray, seed: int, perfect: bool) -> np.ndarray | None:
     """Written stamps of the IMU instants 0..N: ``t0 + tau_k + e_k + offset``, ``e_k`` uniform in
-    ``[-stamp_jitter, stamp_jitter]`` (strictly increasing since the jitter is under half an interval);
+    ``[-stamp_jitter, stamp_jitter]`` (strictly increasing since the jitter is under half an interval; the
+    start's ``e_0`` taken <= 0, so that ``init.yaml``'s time lies within a rate log without offset);
     None when they are the true instants (no jitter, no offset, or a perfect run)."""
     if perfect or (sc.stamp_jitter == 0.0 and sc.imu_time_offset == 0.0):
         return None
     t = sc.t0 + tau
     if sc.stamp_jitter > 0.0:
-        t = t + _stream(seed, JITTER_STREAM).uniform(-sc.stamp_jitter, sc.stamp_jitter, tau.shape[0])
+        e = _stream(seed, JITTER_STREAM).uniform(-sc.stamp_jitter, sc.stamp_jitter, tau.shape[0])
+        e[0] = -abs(e[0])           # the start's stamp never late: an init at the true start lies in a rate log
+        t = t + e
     return t + sc.imu_time_offset
 
 

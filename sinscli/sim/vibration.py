@@ -104,16 +104,42 @@ def envelope(tau: np.ndarray, ramp: float):
 
 def mount_motion(vib: Vibration, tau: np.ndarray):
     """``(theta, theta', d, d', d'')`` (n, 3) each at times ``tau`` (s since the start)."""
-    m, m1, m2 = (x[:, None] for x in envelope(tau, vib.ramp))
-    tau = np.asarray(tau, dtype=float)[:, None, None]
-    ph = vib.rot_w[None] * tau + vib.rot_p[None]
-    a0 = np.sum(vib.rot_a / vib.rot_w * np.sin(ph), axis=-1)
-    a1 = np.sum(vib.rot_a * np.cos(ph), axis=-1)
-    pl = vib.lin_w[None] * tau + vib.lin_p[None]
-    d0 = -np.sum(vib.lin_b / vib.lin_w ** 2 * np.sin(pl), axis=-1)
-    d1 = -np.sum(vib.lin_b / vib.lin_w * np.cos(pl), axis=-1)
-    d2 = np.sum(vib.lin_b * np.sin(pl), axis=-1)
-    return m * a0, m1 * a0 + m * a1, m * d0, m1 * d0 + m * d1, m2 * d0 + 2.0 * m1 * d1 + m * d2
+    tau = np.ascontiguousarray(tau, dtype=np.float64)
+    m, m1, m2 = envelope(tau, vib.ramp)
+    return _lines(tau, m, m1, m2, vib.rot_w, vib.rot_a, vib.rot_p, vib.lin_w, vib.lin_b, vib.lin_p)
+
+
+@njit(cache=True)
+def _lines(tau, m, m1, m2, rot_w, rot_a, rot_p, lin_w, lin_b, lin_p):
+    """The sums of :func:`mount_motion` with the envelope ``m, m', m''`` (the module docstring's formulas)."""
+    n = tau.shape[0]
+    k = rot_w.shape[1]
+    th, dth, d, dd, ddd = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    for j in range(n):
+        t = tau[j]
+        for i in range(3):
+            a0 = 0.0
+            a1 = 0.0
+            d0 = 0.0
+            d1 = 0.0
+            d2 = 0.0
+            for q in range(k):
+                if rot_a[i, q] != 0.0:
+                    ph = rot_w[i, q] * t + rot_p[i, q]
+                    a0 += rot_a[i, q] / rot_w[i, q] * np.sin(ph)
+                    a1 += rot_a[i, q] * np.cos(ph)
+                if lin_b[i, q] != 0.0:
+                    pl = lin_w[i, q] * t + lin_p[i, q]
+                    s, c = np.sin(pl), np.cos(pl)
+                    d0 -= lin_b[i, q] / (lin_w[i, q] * lin_w[i, q]) * s
+                    d1 -= lin_b[i, q] / lin_w[i, q] * c
+                    d2 += lin_b[i, q] * s
+            th[j, i] = m[j] * a0
+            dth[j, i] = m1[j] * a0 + m[j] * a1
+            d[j, i] = m[j] * d0
+            dd[j, i] = m1[j] * d0 + m[j] * d1
+            ddd[j, i] = m2[j] * d0 + 2.0 * m1[j] * d1 + m[j] * d2
+    return th, dth, d, dd, ddd
 
 
 def vibrate(vib: Vibration | None, tau: np.ndarray, w_ib: np.ndarray, f_b: np.ndarray):
