@@ -395,6 +395,11 @@ def test_shipped_realistic_scenarios_record_their_truth(tmp_path):
         assert rec["imu"]["mounting"] == {k: float(sc["imu"].get("mounting", {}).get(k, 0.0))
                                           for k in ("roll", "pitch", "yaw")}
         assert set(rec["imu"]["errors"]) == {"gyro", "accel"}
+        real = simulate(SCEN / f"{name}.yaml", duration=30).sensor["gyro"]            # the realized bias, deg/h
+        c = np.array(rec["imu"]["mounting_matrix"])
+        assert np.allclose(rec["imu"]["errors"]["gyro"]["bias"], np.degrees(real["bias"]) * 3600, rtol=1e-15)
+        assert np.allclose(rec["imu"]["errors"]["gyro"]["bias_body"], c @ np.degrees(real["bias"]) * 3600,
+                           rtol=1e-12)
         header = (out / "imu.csv").read_text().split("\n", 1)[0]
         assert header == "time,gyro_x,gyro_y,gyro_z,accel_x,accel_y,accel_z"
         imu = read_imu_csv(out / "imu.csv")                                     # the reader's rate form

@@ -101,14 +101,16 @@ def _plain(x):
     return x
 
 
-def _sensor_record(realized: dict) -> dict:
-    """Realized constant errors in the sensor axes, in the sensor description's units."""
+def _sensor_record(realized: dict, c_sb: np.ndarray) -> dict:
+    """Realized constant errors in the sensor axes, in the sensor description's units, and the turn-on bias
+    in the body axes too (``C_sensor^body b``: what a filter after the mounting estimates)."""
     out = {}
     for which, units in (("gyro", GYRO_UNITS), ("accel", ACCEL_UNITS)):
         r = realized.get(which)
         if not r:
             continue
         out[which] = {k: (np.asarray(r[k]) / units[k]).tolist() for k in ("bias", "scale_factor", "misalignment")}
+        out[which]["bias_body"] = (c_sb @ np.asarray(r["bias"]) / units["bias"]).tolist()
         if r.get("bias_gm") is not None:
             gm = np.asarray(r["bias_gm"]) / units["bias"]
             out[which]["bias_instability_first_last"] = [gm[0].tolist(), gm[-1].tolist()]
@@ -130,8 +132,8 @@ def sim_record(res, vibration=None) -> dict:
             "rate": sc.imu_rate, "output": sc.imu_output, "sensor": sc.sensor if isinstance(sc.sensor, str) else None,
             "mounting": mounting_angles(c_sb), "mounting_matrix": c_sb.tolist(),
             "time_offset": imu_off, "stamp_jitter": 0.0 if perfect else sc.stamp_jitter,
-            "errors": _sensor_record(res.sensor),
-            "errors_units": "sensor axes; gyro bias deg/h, accel bias micro-g, scale_factor ppm, misalignment "
+            "errors": _sensor_record(res.sensor, c_sb),
+            "errors_units": "sensor axes (bias_body: body axes); gyro bias deg/h, accel bias micro-g, scale_factor ppm, misalignment "
                             "arcsec [xy, xz, yx, yz, zx, zy]; bias_instability_first_last: the Gauss-Markov "
                             "part at the first and last interval",
         },
