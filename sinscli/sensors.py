@@ -46,7 +46,7 @@ ACCEL_UNITS = {
     "misalignment_sigma": ARCSEC,          # arcsec
     "quantization": 1.0,                   # m/s per count
 }
-PRESETS = ("navigation", "tactical", "mems")
+PRESETS = ("navigation", "tactical", "mems", "consumer")
 MAX_VALUE = 1.0e9            # any value of a sensor description, in its units (squares stay finite)
 MIN_TAU = 1.0e-6             # s: shortest Gauss-Markov correlation time
 

@@ -245,6 +245,17 @@ def check_static_start(imu: ImuLog, g_local: float, conv: int = 0, seconds: floa
     return msg
 
 
+def write_imu_rates_csv(path, time, gyro, accel) -> None:
+    """Write rates (FORMATS.md rate form: ``time``, ``gyro_*`` rad/s, ``accel_*`` m/s^2), atomically, exact floats."""
+    data = {"time": time}
+    for i, ax in enumerate("xyz"):
+        data[f"gyro_{ax}"] = gyro[:, i]
+    for i, ax in enumerate("xyz"):
+        data[f"accel_{ax}"] = accel[:, i]
+    with atomic_path(path) as tmp:
+        write_table_csv(tmp, data, ["time"] + RATE_COLS)
+
+
 def write_imu_csv(path, imu: ImuLog) -> None:
     """Write increments (FORMATS.md increment form), atomically, exact floats."""
     data = {"time": imu.time}

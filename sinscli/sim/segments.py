@@ -89,6 +89,7 @@ class Primitive:
     pert: Perturbation | None = None
     index: int = 0              # user segment index
     kind: str = ""              # user segment type
+    gait: object = None         # a :class:`~sinscli.sim.gait.Gait` (walker step dynamics) or None
 
     @property
     def t_end(self) -> float:
@@ -117,6 +118,8 @@ class Primitive:
                 10.0 / self.duration)
         if self.pert is not None:
             w = max(w, abs(self.pert.omega))
+        if self.gait is not None:
+            w = max(w, self.gait.omega)
         return w
 
     def kinematics(self, t_local: np.ndarray):
@@ -140,6 +143,11 @@ class Primitive:
         cbn = (c_path @ axis_rotation(1, rol)) @ C_FLU_TO_RFU
         ch, sh, cp, sp = np.cos(hdg), np.sin(hdg), np.cos(pit), np.sin(pit)
         vel = spd.truncate(1)[..., None] * stack([sh * cp, ch * cp, sp], axis=-1)
+        if self.gait is not None:
+            from .gait import gait_terms
+            rot, dv = gait_terms(self.gait, T * u, self.t_start, spd, hdg, pit)
+            cbn = cbn @ rot
+            vel = vel + dv
         disp = np.zeros(vel.shape)
         if self.pert is not None:
             rot, lin = _perturbation(self.pert, u, T)
