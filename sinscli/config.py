@@ -30,8 +30,11 @@ DEFAULTS = {
         "ignore_columns": [],     # extra file columns to ignore
         "units": {"gyro": "rad/s", "accel": "m/s^2", "dtheta": "rad", "dvel": "m/s"},
         "body": "flu",            # flu | rfu | frd: the body axes after mounting
-        "mounting": None,         # sensor -> body: {roll, pitch, yaw} deg, or a 3x3 matrix
+        "mounting": None,         # sensor -> body: {roll, pitch, yaw} deg, a 3x3 matrix, or auto (estimated
+                                  # from the log by navigate --gnss)
         "static_start": False,    # the log starts at rest (enables the specific-force check)
+        "time_offset": 0.0,       # s added to every IMU time on reading (a logging delay on the IMU side: the
+                                  # output is then on the GNSS clock)
     },
     "gnss": {
         "columns": {},
@@ -230,7 +233,7 @@ def validate(cfg: dict, src: str) -> None:
                        for x in arm)):
         _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres (at most {MAX_LEVER_ARM:g} "
                                      f"each), got {arm!r}")
-    for section in ("gnss", "truth"):
+    for section in ("imu", "gnss", "truth"):
         off = cfg[section]["time_offset"]
         if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
             _fail(src, f"{section}.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the "
@@ -259,7 +262,7 @@ def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
     with ``v_body = C v_sensor`` (active rotations about the body x, y, z axes);
     a 3x3 list is taken as the matrix itself and must be a rotation.
     """
-    if mounting is None:
+    if mounting is None or mounting == "auto":     # auto: read in sensor axes, estimated by the fused run
         return np.eye(3)
     if isinstance(mounting, dict):
         bad = set(mounting) - {"roll", "pitch", "yaw"}
@@ -283,7 +286,7 @@ def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
     except (TypeError, ValueError):
         m = None
     if m is None or m.shape != (3, 3):
-        _fail(src, "imu.mounting", "expected {roll, pitch, yaw} in degrees or a 3x3 rotation matrix")
+        _fail(src, "imu.mounting", "expected {roll, pitch, yaw} in degrees, a 3x3 rotation matrix or auto")
     if not np.all(np.abs(m) <= 1.0 + 1e-6) or not np.abs(m @ m.T - np.eye(3)).max() <= 1e-6 \
             or not np.linalg.det(m) > 0:
         _fail(src, "imu.mounting", "the 3x3 matrix is not a rotation (orthonormal, det +1) within 1e-6")

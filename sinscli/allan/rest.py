@@ -11,8 +11,9 @@ variance of every axis is computed (:mod:`.adev`); the windows are pooled cluste
 is fitted by nonnegative weighted least squares (:func:`sinscli.allan.fit._nnls_small`).  ``N`` is the
 white noise (ARW/VRW) the filter's process noise takes; the ``1/tau^2`` term holds quantization and the
 vibration of the mount (a narrowband process averages out as ``1/tau^2`` over a few of its periods), the
-constant a flicker floor, so that neither inflates ``N``.  Cluster times from 0.05 s (or one sample) to a
-quarter of the longest window.  No I/O.
+constant a flicker floor, so that neither inflates ``N``.  Cluster times from ``TAU_MIN`` (or one sample) to a
+quarter of the longest window (``TAU_MIN`` = 0.25 s: below it an engine's vibration is not yet
+``1/tau^2`` and would pass for white noise).  No I/O.
 """
 from __future__ import annotations
 
@@ -26,6 +27,8 @@ from .fit import _nnls_small
 
 MIN_REST = 10.0            # s at rest in all, at least
 MIN_WINDOW = 3.0           # s: shorter intervals at rest are not used
+TAU_MIN = 0.25             # s: the shortest cluster time fitted (five periods of a 20 Hz vibration: its Allan
+                           # variance is in its 1/tau^2 regime from there)
 G_NOMINAL = 9.80665        # the detector's gravity (its 0.3 m/s^2 tolerance covers every latitude)
 
 
@@ -78,7 +81,7 @@ def noise_from_rest(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> RestNois
         return None
     tau0 = float(np.median(np.diff(t)))
     n_max = max(j - i for i, j in spans)
-    m_lo = max(1, int(round(0.05 / tau0)))
+    m_lo = max(1, int(round(TAU_MIN / tau0)))
     ms = np.unique(np.round(np.geomspace(m_lo, max(m_lo, n_max // 4), 16)).astype(np.int64))
     acc = np.zeros((ms.size, 6))
     wsum = np.zeros(ms.size)

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import SinsError
 from ..io.gnss_csv import check_gnss_against_imu
-from ..io.atomic import prepare_output
+from ..io.atomic import atomic_path, prepare_output
 from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
 from ..io.readers import read_body_velocity, read_gnss, read_imu
@@ -30,7 +30,7 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
 
     from ..allan.rest import noise_from_rest
     from ..fusion.options import build_fusion_options
-    from ..fusion.pipeline import Fusion, fuse_blocks
+    from ..fusion.pipeline import Fusion, calibrated_base, fuse_blocks, has_outages
     from ..nav.pipeline import concat
 
     src = str(config_path) if config_path else "config"
@@ -63,6 +63,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
             raise
         raise SinsError(f"{exc} (after the GNSS time offset of {offset:g} s, --time-offset or gnss.time_offset)") \
             from None
+    mounting = None
+    if cfg["imu"].get("mounting") == "auto":
+        imu, mounting = _auto_mounting(imu, gnss, opts.conv, fopts, output)
     body_vel = None
     if odom_path is not None:
         body_vel = read_body_velocity(odom_path, cfg)
@@ -88,13 +91,23 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         if note:
             log.warning(note)
     data_noise = noise_from_rest(imu, fopts, gnss) if fopts.noise_from_data else None
-    fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias,
-                    body_vel=body_vel, data_noise=data_noise, t_log0=t0)
+
+    def make(**kw):
+        return Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, src=src, init_bias=init_bias,
+                      body_vel=body_vel, data_noise=data_noise, t_log0=t0, **kw)
+
     step = 1 << 16
-    blocks = (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],
-                     t0=imu.t0 if a == 0 else None, source=imu.source) for a in range(0, len(imu), step))
-    with progress(len(imu), "fusing", quiet or len(imu) < 200_000) as bar:
-        traj = concat(list(fuse_blocks(blocks, fusion, progress=bar.update)))
+
+    def blocks():
+        return (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],
+                       t0=imu.t0 if a == 0 else None, source=imu.source) for a in range(0, len(imu), step))
+    calibrate = fopts.adapt and has_outages(gnss, fopts)
+    with progress(len(imu) * (3 if calibrate else 1), "fusing", quiet or len(imu) < 200_000) as bar:
+        base = 1.0
+        if calibrate:                           # forward passes calibrate the drift process noise
+            base = calibrated_base(make, lambda f: [None for _ in fuse_blocks(blocks(), f, progress=bar.update)])
+        fusion = make(smooth=smooth, drift_base=base)
+        traj = concat(list(fuse_blocks(blocks(), fusion, progress=bar.update)))
     if smooth:
         traj = fusion.smoothed()
     if window.active:
@@ -111,6 +124,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         write_innovations(innovations_path, records)
     try:
         write_trajectory(output, traj, opts.conv)
+        if mounting is not None:
+            with atomic_path(mounting_snippet_path(output), suffix=".yaml") as tmp:
+                Path(tmp).write_text(mounting.snippet(), encoding="utf-8")
     except BaseException:
         if innovations_path is not None:
             Path(innovations_path).unlink(missing_ok=True)
@@ -121,6 +137,27 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         log.warning("fusion: %s", w)
     if not quiet:
         summary_line(imu_path, len(traj), float(traj.time[0]), float(traj.time[-1]), output)
+
+
+def _auto_mounting(imu, gnss, conv, fopts, output):
+    """``imu.mounting: auto``: the mounting estimated from the log (:mod:`sinscli.fusion.mounting`), applied
+    to the increments read in sensor axes, reported and written as a config snippet beside the output."""
+    from ..fusion.mounting import estimate_mounting
+    from ..io.imu_csv import apply_mounting
+    est = estimate_mounting(imu, gnss, conv, fopts)
+    r, p, y = est.rpy
+    sr, sp, sy = est.sigma
+    snippet = mounting_snippet_path(output)
+    prepare_output(snippet)
+    click.echo(f"sins: mounting: imu.mounting estimated as {{roll: {r:.2f}, pitch: {p:.2f}, yaw: {y:.2f}}} deg "
+               f"(1-sigma {sr:.2g}, {sp:.2g}, {sy:.2g} deg): {'; '.join(est.notes)}; the config snippet goes to "
+               f"{snippet}", err=True)
+    return apply_mounting(imu, est.C), est
+
+
+def mounting_snippet_path(output) -> Path:
+    """Where ``imu.mounting: auto`` writes its estimate as a config snippet: beside the output."""
+    return Path(output).with_name(Path(output).stem + ".mounting.yaml")
 
 
 def _align(imu, gnss, method, cfg, config_path, conv, gnss_pos_sigma):

@@ -32,10 +32,12 @@ Robustness (docs/fusion.md):
   1 (the stated sigma), at most ``adapt.max_scale``: where the innovations say the measurements are
   noisier than stated, R grows, never the process noise;
 * **outage exit**: the first fix after a GNSS outage tests the dead-reckoning prediction; an exit
-  fix beyond the gate widens the position covariance by its innovation and is accepted
-  (reacquisition), and the ratio of its horizontal innovation to its predicted variance raises the
-  scale of the bias-instability process noise only (the terms that drive dead-reckoning drift),
-  bounded by ``adapt.max_bias_scale`` and decaying back to 1 with ``adapt.decay``.
+  fix beyond the gate widens the navigation block of P by its ratio to the predicted variance and is
+  accepted (reacquisition), and a ratio over ``adapt.exit_ratio`` raises the scale of the drift process
+  noise only (bias instability, scale factor, misalignment: the terms that make dead reckoning drift),
+  at most ``adapt.max_bias_scale`` times its base and decaying back to the base with ``adapt.decay``
+  (:func:`_exit_drift_scale`); the base is 1, or what a first pass over the whole log found
+  (:func:`sinscli.fusion.pipeline.calibrate_drift`).
 
 Every change of a scale and every reacquisition is an event (:data:`EV_NAMES`).
 """
@@ -82,22 +84,23 @@ CV = Layout("fusion config", [
     ("rej_run", 1),
     ("radapt_n", 1),        # measurements per R-adaptation window (0: off)
     ("radapt_max", 1),      # largest R variance scale
-    ("qb_max", 1),          # largest bias process-noise scale (1: off)
-    ("qb_tau", 1),          # s: its decay back to 1
+    ("qb_max", 1),          # the drift process-noise scale stays at most qb_max times its base (1: off)
+    ("qb_tau", 1),          # s: its decay back to the base
     ("qb_thr", 1),          # outage-exit ratio (innovation^2 / predicted variance) that raises it
+    ("qb_base", 1),         # the base drift scale (1, or calibrated by a first pass over the log)
     ("outage_dt", 1),       # s: a gap between GNSS fixes longer than this is an outage
     ("smooth_dt", 1),       # > 0: store smoother epochs at least this often
     ("zupt_maxv", 1),
     ("nhc_ax", 2),
     ("fwd", 1),             # the body's forward axis (0 x, 1 y): roll/pitch sigma
-], size=48)
+], size=49)
 C_NX, C_NCORE, C_LA, C_TD = CV.nx, CV.ncore, CV.la, CV.td
 C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT = CV.method, CV.order, CV.nsub, CV.every, CV.conv, CV.prop_dt
 C_GATE, C_ROBUST = CV.gate, CV.robust
 C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA = CV.arw2, CV.vrw2, CV.qbg, CV.qba, CV.itg, CV.ita, \
     CV.sfg, CV.sfa
 C_REJ_RUN, C_RADAPT_N, C_RADAPT_MAX = CV.rej_run, CV.radapt_n, CV.radapt_max
-C_QB_MAX, C_QB_TAU, C_QB_THR, C_OUTAGE_DT = CV.qb_max, CV.qb_tau, CV.qb_thr, CV.outage_dt
+C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT = CV.qb_max, CV.qb_tau, CV.qb_thr, CV.qb_base, CV.outage_dt
 C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD = CV.smooth_dt, CV.zupt_maxv, CV.nhc_ax, CV.fwd
 CV_SIZE = CV.size
 
@@ -106,7 +109,7 @@ FS = Layout("fusion filter scalars", [
     ("bg", 3), ("ba", 3), ("sg", 3), ("sa", 3),   # sensor estimates (SI): the first NBIAS, as output
     ("lever", 3),           # antenna lever arm estimate (body, m)
     ("td", 1),              # GNSS time-offset estimate (s, added to the GNSS stamps)
-    ("qs_bias", 1),         # scale of the bias process noise (>= 1)
+    ("qs_drift", 1),        # scale of the drift process noise: bias instability, scale factor, misalignment
     ("t_qs", 1),            # time of its last decay step
     ("rs", 3 * NK),         # R variance scale per adapted kind and axis (>= 1)
     ("rp", 4 * NK * 3),     # per kind and axis, the previous measurement: innovation, H P H^T, stated R, time
@@ -125,7 +128,7 @@ FS = Layout("fusion filter scalars", [
     ("xacc", NX_MAX),       # correction fed back since the last stored epoch
 ], size=175)
 F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD = FS.bg, FS.ba, FS.sg, FS.sa, FS.lever, FS.td
-F_QS_BIAS, F_T_QS, F_RS, F_RP, F_RA = FS.qs_bias, FS.t_qs, FS.rs, FS.rp, FS.ra
+F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA = FS.qs_drift, FS.t_qs, FS.rs, FS.rp, FS.ra
 F_ACC_T, F_ACC_DV, F_ACC_DTH, F_W, F_HAVE_W, F_F = FS.acc_t, FS.acc_dv, FS.acc_dth, FS.w, FS.have_w, FS.f
 F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH = FS.head_known, FS.nrej, FS.trej0, FS.t_fix, FS.t_epoch
 F_ERR, F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC = FS.err, FS.err_t, FS.reset, FS.tprev, FS.nsamp_out, FS.xacc
@@ -133,8 +136,8 @@ FS_SIZE = FS.size
 
 ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
 # events: (time, code, a, b)
-EV_REJECTION_RUN, EV_HEADING_INIT, EV_RSCALE, EV_REACQUIRE, EV_QSCALE = 1.0, 2.0, 3.0, 4.0, 5.0
-EV_NAMES = {1: "rejection_run", 2: "heading_init", 3: "r_scale", 4: "reacquire", 5: "bias_q_scale"}
+EV_REJECTION_RUN, EV_HEADING_INIT, EV_RSCALE, EV_REACQUIRE, EV_QSCALE, EV_EXIT = 1.0, 2.0, 3.0, 4.0, 5.0, 6.0
+EV_NAMES = {1: "rejection_run", 2: "heading_init", 3: "r_scale", 4: "reacquire", 5: "drift_q_scale", 6: "outage_exit"}
 
 # workspace: matrices (nx, nx) and rows (nx,)
 WM = Layout("fusion workspace matrices", [("F", 1), ("W", 1), ("PM", 1), ("A", 1), ("L", 1), ("PHI", 1)])
@@ -279,7 +282,7 @@ def _do_propagate(st, fs, cv, P, mats, store):
     g = gravity(np.sin(lat), h)
     w2 = w_b[0] * w_b[0] + w_b[1] * w_b[1] + w_b[2] * w_b[2]
     fd2 = f_n[0] * f_n[0] + f_n[1] * f_n[1] + (f_n[2] - g) * (f_n[2] - g)
-    add_process_noise(P, c, T, 1.0, fs[F_QS_BIAS], cv[C_ARW2:C_ARW2 + 3], cv[C_VRW2:C_VRW2 + 3],
+    add_process_noise(P, c, T, fs[F_QS_DRIFT], cv[C_ARW2:C_ARW2 + 3], cv[C_VRW2:C_VRW2 + 3],
                       cv[C_QBG:C_QBG + 3], cv[C_QBA:C_QBA + 3], cv[C_SFG] * w2, cv[C_SFA] * fd2)
     if store:
         transition_step(mats[W_PHI], W, fb, T, ncore, itg, ita)
@@ -489,8 +492,9 @@ def _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t):
     measurement noise and make the filter trust the measurements less and diverge more; a time-correlated
     measurement error cancels too (the rejection run and the robust weight meet it).  Each ``dz^2`` is
     clipped at 9 times its variance (an outlier counts as a 3-sigma difference).  Over windows of
-    ``adapt.window`` differences the scale moves to the estimate when the estimate leaves its 3-sigma band
-    and differs from the scale by over 25 %; never below 1, at most ``adapt.max_scale``.  Returns the
+    ``adapt.window`` differences the scale moves half-way (in the logarithm) to the estimate when the
+    estimate leaves its 3-sigma band and differs from the scale by over 25 %; never below 1, at most
+    ``adapt.max_scale``.  Returns the
     event count."""
     k = K_OF_KIND[kind]
     if k < 0 or cv[C_RADAPT_N] <= 0.0:
@@ -516,10 +520,11 @@ def _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t):
                     fs[q + j] = 0.0
                 band = 3.0 * np.sqrt(3.0 / n)   # 3 sigma of the estimate in a consistent filter
                 new = s_r
+                # half-way in the logarithm toward an estimate out of its band: a noisy window cannot swing it
                 if est > s_r * (1.0 + band) and est > 1.25 * s_r:
-                    new = min(est, cv[C_RADAPT_MAX])
+                    new = min(np.sqrt(s_r * est), cv[C_RADAPT_MAX])
                 elif est < s_r * (1.0 - band) and est < s_r / 1.25:
-                    new = max(est, 1.0)
+                    new = max(np.sqrt(s_r * max(est, 1e-12)), 1.0)
                 if new != s_r:
                     fs[F_RS + i] = new
                     n_evs = _event(evs, n_evs, t, EV_RSCALE, float(3 * kind + a), new)
@@ -531,11 +536,31 @@ def _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t):
 
 
 @njit(cache=True)
-def _decay_bias_scale(fs, cv, t):
-    """The bias process-noise scale decays back toward 1 with time constant ``qb_tau``."""
-    if fs[F_QS_BIAS] > 1.0 and t > fs[F_T_QS]:
-        fs[F_QS_BIAS] = 1.0 + (fs[F_QS_BIAS] - 1.0) * np.exp(-(t - fs[F_T_QS]) / cv[C_QB_TAU])
+def _decay_drift_scale(fs, cv, t):
+    """The drift process-noise scale decays back toward its base (in its logarithm) with time constant
+    ``qb_tau``."""
+    base = cv[C_QB_BASE]
+    if fs[F_QS_DRIFT] != base and t > fs[F_T_QS]:
+        fs[F_QS_DRIFT] = base * np.exp(np.log(fs[F_QS_DRIFT] / base) * np.exp(-(t - fs[F_T_QS]) / cv[C_QB_TAU]))
     fs[F_T_QS] = t
+
+
+@njit(cache=True)
+def _exit_drift_scale(ratio, r_share, fs, cv, evs, n_evs, t):
+    """An outage exit tests the dead-reckoning prediction: the ratio of its horizontal innovation squared to
+    its predicted variance (logged as an event with the measurement's share of S, for the calibration pass
+    of :mod:`sinscli.fusion.pipeline`).  Over ``qb_thr`` the drift process noise (bias instability, scale
+    factor and misalignment: the terms that make dead reckoning drift) was too small by about the ratio:
+    its scale is multiplied by it, at most ``qb_max`` times its base; an event."""
+    n_evs = _event(evs, n_evs, t, EV_EXIT, ratio, r_share)
+    if cv[C_QB_MAX] <= 1.0:
+        return n_evs
+    s_old = fs[F_QS_DRIFT]
+    if ratio > cv[C_QB_THR]:
+        fs[F_QS_DRIFT] = min(s_old * ratio, cv[C_QB_MAX] * cv[C_QB_BASE])
+    if fs[F_QS_DRIFT] != s_old:
+        n_evs = _event(evs, n_evs, t, EV_QSCALE, ratio, fs[F_QS_DRIFT])
+    return n_evs
 
 
 @njit(cache=True)
@@ -577,22 +602,28 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
     if kind == MT_GNSS_POS:
         exit_fix = fs[F_T_FIX] > -np.inf and t - fs[F_T_FIX] > cv[C_OUTAGE_DT]
         fs[F_T_FIX] = t
-        _decay_bias_scale(fs, cv, t)
+        _decay_drift_scale(fs, cv, t)
     if k >= 0 and not exit_fix:
         n_evs = _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t)
     if exit_fix:
         # the dead-reckoning prediction tested: its horizontal innovation against its variance
         ratio = (z[0] * z[0] + z[1] * z[1]) / (S[0, 0] + S[1, 1])
-        if ratio > cv[C_QB_THR] and fs[F_QS_BIAS] < cv[C_QB_MAX]:
-            fs[F_QS_BIAS] = min(fs[F_QS_BIAS] * ratio, cv[C_QB_MAX])
-            n_evs = _event(evs, n_evs, t, EV_QSCALE, ratio, fs[F_QS_BIAS])
-        if not acc:                             # reacquisition: widen the position by the innovation
+        n_evs = _exit_drift_scale(ratio, (r[0] + r[1]) / (S[0, 0] + S[1, 1]), fs, cv, evs, n_evs, t)
+        if not acc:
+            # reacquisition: the dead reckoning's covariance was too small by about the ratio: its navigation
+            # rows and columns (position, velocity, attitude) widened by sqrt(ratio) (a congruence: P stays
+            # positive definite, its correlations kept), then the fix taken
             n_evs = _event(evs, n_evs, t, EV_REACQUIRE, nis, ratio)
-            for i in range(3):
-                P[R + i, R + i] += z[i] * z[i]
+            f = np.sqrt(max(ratio, 1.0))
+            for i in range(nx):
+                for j in range(nx):
+                    if i < 9:
+                        P[i, j] *= f
+                    if j < 9:
+                        P[i, j] *= f
             innovation_covariance(P, nx, H, r, m, HP, S)
-            nis_of(S, z, m, Si)
-            acc = True
+            nis = nis_of(S, z, m, Si)
+            acc = True                          # a reacquired fix is taken (the widening made room)
     elif kind == MT_GNSS_POS and not acc:
         if fs[F_NREJ] == 0.0:
             fs[F_TREJ0] = t

@@ -351,14 +351,13 @@ def transition_step(M, W, fb, T, ncore, inv_tau_g, inv_tau_a):
 
 
 @njit(cache=True)
-def add_process_noise(P, c, T, s_white, s_bias, arw2, vrw2, q_bg, q_ba, q_att_extra, q_vel_extra):
-    """``P += Qd``, ``Qd = G Q G^T T``: ``Cbn diag(arw^2) Cbn^T`` on phi, ``Cbn diag(vrw^2) Cbn^T`` on dv
-    (plus the isotropic scale-factor/misalignment densities ``q_*_extra``), times ``s_white``;
-    ``q_bg``/``q_ba`` (3,) bias densities times ``s_bias`` (the bounded, decaying scale of the bias
-    terms that outage-exit innovations raise, :mod:`sinscli.fusion.kernel`); ``c`` is Cbn as a 3-tuple
-    of rows."""
-    s = T * s_white
-    sb = T * s_bias
+def add_process_noise(P, c, T, s_drift, arw2, vrw2, q_bg, q_ba, q_att_extra, q_vel_extra):
+    """``P += Qd``, ``Qd = G Q G^T T``: ``Cbn diag(arw^2) Cbn^T`` on phi, ``Cbn diag(vrw^2) Cbn^T`` on dv; the
+    drift terms times ``s_drift`` (the bounded, decaying scale that outage-exit innovations move,
+    :mod:`sinscli.fusion.kernel`): ``q_bg``/``q_ba`` (3,) bias densities and the isotropic
+    scale-factor/misalignment densities ``q_*_extra``; ``c`` is Cbn as a 3-tuple of rows."""
+    s = T
+    sd = T * s_drift
     for i in range(3):
         for j in range(3):
             a = 0.0
@@ -368,7 +367,7 @@ def add_process_noise(P, c, T, s_white, s_bias, arw2, vrw2, q_bg, q_ba, q_att_ex
                 b += c[i][k] * vrw2[k] * c[j][k]
             P[PHI + i, PHI + j] += a * s
             P[V + i, V + j] += b * s
-        P[PHI + i, PHI + i] += q_att_extra * s
-        P[V + i, V + i] += q_vel_extra * s
-        P[BG + i, BG + i] += q_bg[i] * sb
-        P[BA + i, BA + i] += q_ba[i] * sb
+        P[PHI + i, PHI + i] += q_att_extra * sd
+        P[V + i, V + i] += q_vel_extra * sd
+        P[BG + i, BG + i] += q_bg[i] * sd
+        P[BA + i, BA + i] += q_ba[i] * sd

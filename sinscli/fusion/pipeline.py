@@ -350,7 +350,8 @@ class Fusion:
 
     def __init__(self, init: NavState, nav: NavOptions, fopts: FusionOptions, gnss: GnssLog,
                  init_sigma: dict | None = None, body_vel=None, smooth: bool = False, src: str = "config",
-                 init_bias: dict | None = None, data_noise=None, t_log0: float | None = None):
+                 init_bias: dict | None = None, data_noise=None, t_log0: float | None = None,
+                 drift_base: float = 1.0):
         nav.check()
         if nav.attitude not in ("quat", "dcm") or nav.frame != "enu":
             raise SinsError(f"--gnss: the fusion filter runs with --attitude quat or dcm in the ENU frame, "
@@ -380,9 +381,10 @@ class Fusion:
         lever = fopts.lever_arm if fopts.lever_arm is not None else np.zeros(3)
         self.lever = np.asarray(lever, dtype=float)
         self.gnss_interval = float(np.median(np.diff(gnss.time))) if len(gnss) > 2 else math.inf
+        self.drift_base = float(drift_base)
         self.cv = self._config_vector()
         self.fs = np.zeros(kn.FS_SIZE)
-        self.fs[kn.F_QS_BIAS] = 1.0
+        self.fs[kn.F_QS_DRIFT] = self.drift_base
         self.fs[kn.F_T_QS] = init.time
         self.fs[kn.F_RS:kn.F_RS + 3 * kn.NK] = 1.0
         self.fs[kn.F_T_FIX] = -np.inf
@@ -457,6 +459,7 @@ class Fusion:
         cv[kn.C_QB_MAX] = f.adapt_max_bias_scale if f.adapt else 1.0
         cv[kn.C_QB_TAU] = f.adapt_decay
         cv[kn.C_QB_THR] = f.adapt_exit_ratio
+        cv[kn.C_QB_BASE] = self.drift_base
         cv[kn.C_OUTAGE_DT] = f.outage * self.gnss_interval
         cv[kn.C_SMOOTH_DT] = f.smoother_interval if self.smooth else 0.0
         cv[kn.C_ZUPT_MAXV] = f.zupt_max_speed
@@ -624,7 +627,7 @@ class Fusion:
             log.info("fusion: %s innovations at %s: measurement noise variance scale now %.3g",
                      self._axis_name(int(e[2])), c, e[3])
         elif kind == kn.EV_QSCALE:
-            log.info("fusion: outage exit at %s: innovation %.3g x its predicted variance: bias process noise "
+            log.info("fusion: outage exit at %s: innovation %.3g x its predicted variance: drift process noise "
                      "scale now %.3g", c, e[2], e[3])
         elif kind == kn.EV_REACQUIRE:
             log.info("fusion: outage exit at %s beyond the gate (NIS %.3g): position covariance widened, fix "
@@ -757,12 +760,18 @@ class Fusion:
                 f"{self._axis_name(code)} noise variance x{e[-1, 3]:.3g} at the end (max x{e[:, 3].max():.3g}, "
                 f"{len(e)} change(s) from {clock(float(e[0, 0]), t0)}): its innovations said it was noisier "
                 f"than its stated sigma")
+        if self.drift_base != 1.0:
+            s.adaptations.append(
+                f"drift process noise (bias instability, scale factor, misalignment) x{self.drift_base:.3g} from "
+                f"the start: calibrated by a first pass over the log on its outage exits (the worst at the 99 % "
+                f"level of its predicted variance)")
         q = ev[ev[:, 1] == kn.EV_QSCALE]
         if len(q):
             s.adaptations.append(
-                f"bias process noise x{q[:, 3].max():.3g} at most ({len(q)} outage exit(s) from {clock(float(q[0, 0]), t0)} "
-                f"whose innovation was {q[:, 2].min():.3g}-{q[:, 2].max():.3g}x its predicted variance), "
-                f"decaying with {self.fopts.adapt_decay:g} s")
+                f"drift process noise (bias instability, scale factor, misalignment) x{q[:, 3].min():.3g} to "
+                f"x{q[:, 3].max():.3g} ({len(q)} change(s) from {clock(float(q[0, 0]), t0)}: outage exits whose "
+                f"innovation was {q[:, 2].min():.3g}-{q[:, 2].max():.3g}x its predicted variance), decaying to 1 "
+                f"with {self.fopts.adapt_decay:g} s")
         rq = ev[ev[:, 1] == kn.EV_REACQUIRE]
         s.reacquired = len(rq)
 
@@ -797,6 +806,52 @@ class Fusion:
                             f"the init time is outside the log")
 
 
+EXIT_QUANTILE = 4.605170185988091 / 2.0     # the 99 % quantile of chi-square(2) / 2: an exit's ratio
+
+
+def drift_base_from(fusion: Fusion, min_exits: int = 3) -> float:
+    """The drift process-noise base scale a pass over the log (``fusion``, run to its end, itself with a
+    base ``b``) implies: its outage exits' ratios (horizontal innovation squared over predicted variance,
+    those where the prediction dominates the innovation variance) scaled so that the largest sits at the
+    99 % quantile of a consistent exit's (chi-square(2)/2): ``b * r_max / 2.3``, within
+    ``[1/max, max]`` (``adapt.max_bias_scale``).  With fewer than ``min_exits`` such exits, or within a
+    factor 2 of ``b``, ``b`` itself.  Aiming the worst exit at the 99 % quantile keeps every outage
+    inside its 3 sigma when the description is optimistic, and lowers a pessimistic one (whose exits all
+    fall far inside) without letting any exit out."""
+    b0 = fusion.drift_base
+    ev = fusion.events()
+    ex = ev[ev[:, 1] == kn.EV_EXIT] if len(ev) else ev
+    r = ex[ex[:, 3] < 0.25, 2] if len(ex) else np.zeros(0)
+    r = r[r > 0]
+    if len(r) < min_exits:
+        return b0
+    base = b0 * float(r.max()) / EXIT_QUANTILE
+    if 0.5 * b0 < base < 2.0 * b0:
+        return b0
+    m = fusion.fopts.adapt_max_bias_scale
+    return float(min(max(base, 1.0 / m), m))
+
+
+def calibrated_base(make, run, passes: int = 2) -> float:
+    """The drift base from up to ``passes`` forward passes (``make(drift_base=b)`` a :class:`Fusion`,
+    ``run(f)`` feeds it the log): each pass starts from the base the previous one implied, until a pass
+    confirms its own (the exits' ratios respond to the drift terms' share of the prediction only)."""
+    base = 1.0
+    for _ in range(passes):
+        f = make(smooth=False, drift_base=base)
+        run(f)
+        new = drift_base_from(f)
+        if new == base:
+            break
+        base = new
+    return base
+
+
+def has_outages(gnss: GnssLog, fopts: FusionOptions) -> bool:
+    """Whether the GNSS log has an outage (a gap over ``fusion.outage`` nominal intervals)."""
+    return len(outages(gnss.time, fopts.outage)) > 0
+
+
 def fuse_blocks(blocks, fusion: Fusion, progress=None):
     """Yield forward-filtered trajectory chunks (the initial row first) for an iterable of IMU blocks."""
     yield from stream_blocks(fusion, blocks, progress)
@@ -805,10 +860,19 @@ def fuse_blocks(blocks, fusion: Fusion, progress=None):
 def run_fusion(imu: ImuLog, init: NavState, gnss: GnssLog, fopts: FusionOptions | None = None,
                nav: NavOptions | None = None, smooth: bool = False, init_sigma=None, body_vel=None,
                init_bias=None, data_noise=None):
-    """Fuse a whole in-memory log; returns ``(trajectory, innovations, summary, fusion)``."""
+    """Fuse a whole in-memory log; returns ``(trajectory, innovations, summary, fusion)``.  With adaptation
+    on and GNSS outages in the log, a first forward pass calibrates the drift process noise
+    (:func:`drift_base_from`)."""
     fopts = fopts or FusionOptions()
-    f = Fusion(init, nav or NavOptions(), fopts, gnss, init_sigma=init_sigma, body_vel=body_vel, smooth=smooth,
-               init_bias=init_bias, data_noise=data_noise, t_log0=imu.t0)
+
+    def make(**kw):
+        return Fusion(init, nav or NavOptions(), fopts, gnss, init_sigma=init_sigma, body_vel=body_vel,
+                      init_bias=init_bias, data_noise=data_noise, t_log0=imu.t0, **kw)
+
+    base = 1.0
+    if fopts.adapt and has_outages(gnss, fopts):
+        base = calibrated_base(make, lambda f: [None for _ in fuse_blocks([imu], f)])
+    f = make(smooth=smooth, drift_base=base)
     traj = concat(list(fuse_blocks([imu], f)))
     if smooth:
         traj = f.smoothed()
