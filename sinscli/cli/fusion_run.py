@@ -30,7 +30,7 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
 
     from ..allan.rest import noise_from_rest
     from ..fusion.options import build_fusion_options
-    from ..fusion.pipeline import Fusion, calibrated_base, fuse_blocks, has_outages
+    from ..fusion.pipeline import Fusion, calibrated_run, fuse_blocks
     from ..nav.pipeline import concat
 
     src = str(config_path) if config_path else "config"
@@ -101,13 +101,12 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     def blocks():
         return (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],
                        t0=imu.t0 if a == 0 else None, source=imu.source) for a in range(0, len(imu), step))
-    calibrate = fopts.adapt and has_outages(gnss, fopts)
-    with progress(len(imu) * (3 if calibrate else 1), "fusing", quiet or len(imu) < 200_000) as bar:
-        base = 1.0
-        if calibrate:                           # forward passes calibrate the drift process noise
-            base = calibrated_base(make, lambda f: [None for _ in fuse_blocks(blocks(), f, progress=bar.update)])
-        fusion = make(smooth=smooth, drift_base=base)
-        traj = concat(list(fuse_blocks(blocks(), fusion, progress=bar.update)))
+    with progress(len(imu), "fusing", quiet or len(imu) < 200_000) as bar:
+        def run(f):                             # each calibration pass restarts the bar
+            bar.update(-bar.pos if hasattr(bar, "pos") else 0)
+            return list(fuse_blocks(blocks(), f, progress=bar.update))
+        fusion, chunks = calibrated_run(lambda **kw: make(smooth=smooth, **kw), run)
+        traj = concat(chunks)
     if smooth:
         traj = fusion.smoothed()
     if window.active:

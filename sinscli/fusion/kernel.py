@@ -81,9 +81,11 @@ CV = Layout("fusion config", [
     ("robust", 3),          # IGG-III full-weight bound (NIS of 1, 2, 3 components; 0: off)
     ("arw2", 3), ("vrw2", 3), ("qbg", 3), ("qba", 3), ("itg", 3), ("ita", 3),
     ("sfg", 1), ("sfa", 1),     # sigma^2 tau_c of the unestimated scale factor + misalignment
+    ("sf_tau", 1),              # tau_c, s
     ("rej_run", 1),
     ("radapt_n", 1),        # measurements per R-adaptation window (0: off)
     ("radapt_max", 1),      # largest R variance scale
+    ("rbase", 3 * NK),      # per kind and axis, the R scale a calibration pass found (the online floor)
     ("qb_max", 1),          # the drift process-noise scale stays at most qb_max times its base (1: off)
     ("qb_tau", 1),          # s: its decay back to the base
     ("qb_thr", 1),          # outage-exit ratio (innovation^2 / predicted variance) that raises it
@@ -93,13 +95,14 @@ CV = Layout("fusion config", [
     ("zupt_maxv", 1),
     ("nhc_ax", 2),
     ("fwd", 1),             # the body's forward axis (0 x, 1 y): roll/pitch sigma
-], size=49)
+], size=62)
 C_NX, C_NCORE, C_LA, C_TD = CV.nx, CV.ncore, CV.la, CV.td
 C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT = CV.method, CV.order, CV.nsub, CV.every, CV.conv, CV.prop_dt
 C_GATE, C_ROBUST = CV.gate, CV.robust
 C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA = CV.arw2, CV.vrw2, CV.qbg, CV.qba, CV.itg, CV.ita, \
     CV.sfg, CV.sfa
-C_REJ_RUN, C_RADAPT_N, C_RADAPT_MAX = CV.rej_run, CV.radapt_n, CV.radapt_max
+C_SF_TAU = CV.sf_tau
+C_REJ_RUN, C_RADAPT_N, C_RADAPT_MAX, C_RBASE = CV.rej_run, CV.radapt_n, CV.radapt_max, CV.rbase
 C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT = CV.qb_max, CV.qb_tau, CV.qb_thr, CV.qb_base, CV.outage_dt
 C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD = CV.smooth_dt, CV.zupt_maxv, CV.nhc_ax, CV.fwd
 CV_SIZE = CV.size
@@ -116,6 +119,7 @@ FS = Layout("fusion filter scalars", [
     ("ra", 4 * NK * 3),     # R-adaptation window per kind and axis: sums of dz^2, H P H^T, stated R; count
     ("acc_t", 1), ("acc_dv", 3), ("acc_dth", 3),  # since the last propagation: time, f^n dt, w^b dt
     ("w", 3), ("have_w", 1),                      # last compensated body rate
+    ("lpw", 3), ("lpf", 3),                       # low-passed body rate and f^n - g^n (scale_factor_tau)
     ("f", 3),               # last mean specific force (ENU, m/s^2)
     ("head_known", 1),
     ("nrej", 1), ("trej0", 1),
@@ -126,10 +130,11 @@ FS = Layout("fusion filter scalars", [
     ("tprev", 1),
     ("nsamp_out", 1),
     ("xacc", NX_MAX),       # correction fed back since the last stored epoch
-], size=175)
+], size=181)
 F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD = FS.bg, FS.ba, FS.sg, FS.sa, FS.lever, FS.td
 F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA = FS.qs_drift, FS.t_qs, FS.rs, FS.rp, FS.ra
 F_ACC_T, F_ACC_DV, F_ACC_DTH, F_W, F_HAVE_W, F_F = FS.acc_t, FS.acc_dv, FS.acc_dth, FS.w, FS.have_w, FS.f
+F_LPW, F_LPF = FS.lpw, FS.lpf
 F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH = FS.head_known, FS.nrej, FS.trej0, FS.t_fix, FS.t_epoch
 F_ERR, F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC = FS.err, FS.err_t, FS.reset, FS.tprev, FS.nsamp_out, FS.xacc
 FS_SIZE = FS.size
@@ -146,6 +151,7 @@ WV = Layout("fusion workspace rows", [("x", 1), ("H", 3), ("HP", 3), ("KT", 3), 
 V_X, V_H, V_HP, V_KT, V_Z, V_R = WV.x, WV.H, WV.HP, WV.KT, WV.z, WV.r
 # per-row variances written with every output row
 NVAR = 9             # pos E N U, vel E N U, roll, pitch, heading (heading < 0: not yet known)
+NREC = 11            # columns of an innovation record (_record)
 NBIAS = 12           # b_g, b_a, s_g, s_a (SI)
 
 
@@ -280,8 +286,15 @@ def _do_propagate(st, fs, cv, P, mats, store):
     W = mats[W_W]
     propagate(P, W, fb, T, nx, ncore, itg, ita)
     g = gravity(np.sin(lat), h)
-    w2 = w_b[0] * w_b[0] + w_b[1] * w_b[1] + w_b[2] * w_b[2]
-    fd2 = f_n[0] * f_n[0] + f_n[1] * f_n[1] + (f_n[2] - g) * (f_n[2] - g)
+    # the unestimated scale factor and misalignment act on the sustained rate and acceleration: their means
+    # over the correlation time (a step, a wobble or a vibration averages out: its error is bounded, not a
+    # random walk); first-order low-pass of time constant scale_factor_tau
+    a = min(T / max(cv[C_SF_TAU], 1e-9), 1.0)
+    for i in range(3):
+        fs[F_LPW + i] += a * (w_b[i] - fs[F_LPW + i])
+        fs[F_LPF + i] += a * ((f_n[i] - g if i == 2 else f_n[i]) - fs[F_LPF + i])
+    w2 = fs[F_LPW] ** 2 + fs[F_LPW + 1] ** 2 + fs[F_LPW + 2] ** 2
+    fd2 = fs[F_LPF] ** 2 + fs[F_LPF + 1] ** 2 + fs[F_LPF + 2] ** 2
     add_process_noise(P, c, T, fs[F_QS_DRIFT], cv[C_ARW2:C_ARW2 + 3], cv[C_VRW2:C_VRW2 + 3],
                       cv[C_QBG:C_QBG + 3], cv[C_QBA:C_QBA + 3], cv[C_SFG] * w2, cv[C_SFA] * fd2)
     if store:
@@ -307,7 +320,11 @@ def _close(st, fs, sums, order, method, t_end, cflu, events, n_ev):
 
 
 @njit(cache=True)
-def _record(inn, n_inn, t, kind, axis, z, var, nis, acc):
+def _record(inn, n_inn, t, kind, axis, z, var, nis, acc, hph, r_stated, exit_fix, comp):
+    """One innovation record (:data:`NREC` columns): time, kind, axis, innovation, its sigma, the NIS of its
+    measurement, accepted, then the filter's part of its variance (H P H^T), the stated noise variance
+    whether it was an outage exit and the component's index (the calibration pass's statistics,
+    :mod:`sinscli.fusion.pipeline`)."""
     if n_inn < inn.shape[0]:
         inn[n_inn, 0] = t
         inn[n_inn, 1] = kind
@@ -316,6 +333,10 @@ def _record(inn, n_inn, t, kind, axis, z, var, nis, acc):
         inn[n_inn, 4] = np.sqrt(var) if var > 0.0 else 0.0
         inn[n_inn, 5] = nis
         inn[n_inn, 6] = 1.0 if acc else 0.0
+        inn[n_inn, 7] = hph
+        inn[n_inn, 8] = r_stated
+        inn[n_inn, 9] = 1.0 if exit_fix else 0.0
+        inn[n_inn, 10] = comp
     return n_inn + 1
 
 
@@ -490,11 +511,12 @@ def _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t):
     ``s = (mean dz^2 - mean(HPH_k + HPH_k-1)) / mean(R_k + R_k-1)`` (stated R).  A filter error that grows
     slowly (a diverging heading, a wandering bias) cancels in the difference, so it cannot pass for
     measurement noise and make the filter trust the measurements less and diverge more; a time-correlated
-    measurement error cancels too (the rejection run and the robust weight meet it).  Each ``dz^2`` is
+    measurement error cancels too (a calibration pass over the whole log measures it and sets the floor
+    ``rbase``, :func:`sinscli.fusion.pipeline.calibrated_noise`).  Each ``dz^2`` is
     clipped at 9 times its variance (an outlier counts as a 3-sigma difference).  Over windows of
     ``adapt.window`` differences the scale moves half-way (in the logarithm) to the estimate when the
-    estimate leaves its 3-sigma band and differs from the scale by over 25 %; never below 1, at most
-    ``adapt.max_scale``.  Returns the
+    estimate leaves its 3-sigma band and differs from the scale by over 25 %; never below the calibrated
+    floor (1 without calibration), at most ``adapt.max_scale``.  Returns the
     event count."""
     k = K_OF_KIND[kind]
     if k < 0 or cv[C_RADAPT_N] <= 0.0:
@@ -524,7 +546,7 @@ def _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t):
                 if est > s_r * (1.0 + band) and est > 1.25 * s_r:
                     new = min(np.sqrt(s_r * est), cv[C_RADAPT_MAX])
                 elif est < s_r * (1.0 - band) and est < s_r / 1.25:
-                    new = max(np.sqrt(s_r * max(est, 1e-12)), 1.0)
+                    new = max(np.sqrt(s_r * max(est, 1e-12)), cv[C_RBASE + i])
                 if new != s_r:
                     fs[F_RS + i] = new
                     n_evs = _event(evs, n_evs, t, EV_RSCALE, float(3 * kind + a), new)
@@ -596,6 +618,9 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
     nis = nis_of(S, z, m, Si)
     if not np.isfinite(nis):
         return n_inn, n_evs
+    hph = (S[0, 0] - r[0], S[1, 1] - r[1], S[2, 2] - r[2])
+    rst = (r[0] / fs[F_RS + 3 * k] if k >= 0 else r[0], r[1] / fs[F_RS + 3 * k + 1] if k >= 0 else r[1],
+           r[2] / fs[F_RS + 3 * k + 2] if k >= 0 else r[2])
     acc = nis < gate
     nis_report = nis
     exit_fix = False
@@ -651,7 +676,8 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
         fs[F_NREJ] = 0.0
     axes = (a0, a1, a2)
     for a in range(m):
-        n_inn = _record(inn, n_inn, t, kind, axis0 + axes[a], z[a], S[a, a], nis_report, acc)
+        n_inn = _record(inn, n_inn, t, kind, axis0 + axes[a], z[a], S[a, a], nis_report, acc, hph[a], rst[a],
+                        exit_fix, a)
     if acc:
         kalman_apply(P, nx, H, z, r, m, x, HP, KT, A, Si)
         if not head_known:

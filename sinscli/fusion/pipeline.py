@@ -351,7 +351,7 @@ class Fusion:
     def __init__(self, init: NavState, nav: NavOptions, fopts: FusionOptions, gnss: GnssLog,
                  init_sigma: dict | None = None, body_vel=None, smooth: bool = False, src: str = "config",
                  init_bias: dict | None = None, data_noise=None, t_log0: float | None = None,
-                 drift_base: float = 1.0):
+                 drift_base: float = 1.0, r_base=None):
         nav.check()
         if nav.attitude not in ("quat", "dcm") or nav.frame != "enu":
             raise SinsError(f"--gnss: the fusion filter runs with --attitude quat or dcm in the ENU frame, "
@@ -382,11 +382,12 @@ class Fusion:
         self.lever = np.asarray(lever, dtype=float)
         self.gnss_interval = float(np.median(np.diff(gnss.time))) if len(gnss) > 2 else math.inf
         self.drift_base = float(drift_base)
+        self.r_base = np.ones(3 * kn.NK) if r_base is None else np.asarray(r_base, dtype=float)
         self.cv = self._config_vector()
         self.fs = np.zeros(kn.FS_SIZE)
         self.fs[kn.F_QS_DRIFT] = self.drift_base
         self.fs[kn.F_T_QS] = init.time
-        self.fs[kn.F_RS:kn.F_RS + 3 * kn.NK] = 1.0
+        self.fs[kn.F_RS:kn.F_RS + 3 * kn.NK] = self.r_base
         self.fs[kn.F_T_FIX] = -np.inf
         self.fs[kn.F_LEVER:kn.F_LEVER + 3] = self.lever
         self.fs[kn.F_TPREV] = init.time
@@ -453,9 +454,11 @@ class Fusion:
         cv[kn.C_ITA:kn.C_ITA + 3] = m.inv_tau_a
         cv[kn.C_SFG] = m.sfmis_g * f.scale_factor_tau
         cv[kn.C_SFA] = m.sfmis_a * f.scale_factor_tau
+        cv[kn.C_SF_TAU] = f.scale_factor_tau
         cv[kn.C_REJ_RUN] = f.rejection_run
         cv[kn.C_RADAPT_N] = f.adapt_window if f.adapt else 0.0
         cv[kn.C_RADAPT_MAX] = f.adapt_max_scale
+        cv[kn.C_RBASE:kn.C_RBASE + 3 * kn.NK] = self.r_base
         cv[kn.C_QB_MAX] = f.adapt_max_bias_scale if f.adapt else 1.0
         cv[kn.C_QB_TAU] = f.adapt_decay
         cv[kn.C_QB_THR] = f.adapt_exit_ratio
@@ -581,7 +584,7 @@ class Fusion:
         nm = len(meas)
         out = (np.empty(cap), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3, 3)), np.empty((cap, kn.NVAR)),
                np.empty((cap, kn.NBIAS)))
-        inn = np.empty((3 * nm + 3, 7))
+        inn = np.empty((3 * nm + 3, kn.NREC))
         evs = np.empty((2 * nm + 8, 4))
         if self.smooth:
             ep = self.epochs
@@ -653,7 +656,7 @@ class Fusion:
 
     # ------------------------------------------------------------------ end
     def innovations(self) -> np.ndarray:
-        inn = np.vstack(self.inn_parts) if self.inn_parts else np.zeros((0, 7))
+        inn = np.vstack(self.inn_parts) if self.inn_parts else np.zeros((0, kn.NREC))
         rec = np.empty(len(inn), dtype=INNOVATION_DTYPE)
         rec["time"] = inn[:, 0]
         rec["type"] = np.array(kn.MEAS_NAMES)[inn[:, 1].astype(int)] if len(inn) else []
@@ -760,6 +763,11 @@ class Fusion:
                 f"{self._axis_name(code)} noise variance x{e[-1, 3]:.3g} at the end (max x{e[:, 3].max():.3g}, "
                 f"{len(e)} change(s) from {clock(float(e[0, 0]), t0)}): its innovations said it was noisier "
                 f"than its stated sigma")
+        for i in np.nonzero(self.r_base != 1.0)[0]:
+            s.adaptations.append(
+                f"{self._axis_name(3 * kn.K_OF_KIND.index(i // 3) + i % 3)} noise variance x{self.r_base[i]:.3g} from "
+                f"the start: calibrated by a first pass on the log's innovations (their variance and their "
+                f"correlation from one measurement to the next)")
         if self.drift_base != 1.0:
             s.adaptations.append(
                 f"drift process noise (bias instability, scale factor, misalignment) x{self.drift_base:.3g} from "
@@ -832,19 +840,61 @@ def drift_base_from(fusion: Fusion, min_exits: int = 3) -> float:
     return float(min(max(base, 1.0 / m), m))
 
 
-def calibrated_base(make, run, passes: int = 2) -> float:
-    """The drift base from up to ``passes`` forward passes (``make(drift_base=b)`` a :class:`Fusion`,
-    ``run(f)`` feeds it the log): each pass starts from the base the previous one implied, until a pass
-    confirms its own (the exits' ratios respond to the drift terms' share of the prediction only)."""
-    base = 1.0
-    for _ in range(passes):
-        f = make(smooth=False, drift_base=base)
-        run(f)
-        new = drift_base_from(f)
-        if new == base:
+MAX_CORRELATION_FACTOR = 25.0
+
+
+def r_base_from(fusion: Fusion, min_n: int = 30) -> np.ndarray:
+    """The measurement-noise scales (per adapted kind and component, :data:`kernel.K_OF_KIND`) a pass over
+    the log implies, by covariance matching over the whole log: ``s = sum(min(z^2, 9 S) - H P H^T) /
+    sum(R)`` (outage exits left out), times the variance inflation ``(1 + rho) / (1 - rho)`` of the
+    measurement errors' correlation between consecutive measurements (``rho`` the lag-1 correlation of the
+    normalized innovations, when over 0.1): a receiver's time-correlated error carries less information
+    than as many independent fixes.  Within ``[1, adapt.max_scale]``; 1 with fewer than ``min_n``
+    measurements or within 25 % of 1.  (Within one pass the online adaptation only sees the white part,
+    :func:`sinscli.fusion.kernel._adapt_r`: a slowly diverging filter cannot pass for noisy
+    measurements there; across passes it is one measured step, not a loop.)"""
+    out = fusion.r_base.copy()
+    inn = np.vstack(fusion.inn_parts) if fusion.inn_parts else np.zeros((0, kn.NREC))
+    if not len(inn):
+        return out
+    for kind, k in enumerate(kn.K_OF_KIND):
+        if k < 0:
+            continue
+        for a in range(3):
+            x = inn[(inn[:, 1] == kind) & (inn[:, 10] == a) & (inn[:, 9] == 0)]
+            if len(x) < min_n:
+                continue
+            z, S, hph, r = x[:, 3], x[:, 4] ** 2, x[:, 7], x[:, 8]
+            s = float(np.sum(np.minimum(z * z, 9.0 * S) - hph) / np.sum(r))
+            u = z / np.sqrt(S)
+            dt = np.diff(x[:, 0])
+            ok = dt <= 1.5 * np.median(dt)
+            rho = float(np.corrcoef(u[:-1][ok], u[1:][ok])[0, 1]) if ok.sum() > 10 else 0.0
+            if np.isfinite(rho) and rho > 0.1:
+                s *= min((1.0 + rho) / (1.0 - rho), MAX_CORRELATION_FACTOR)
+            s = min(max(s, 1.0), fusion.fopts.adapt_max_scale)
+            if s > 1.25:
+                out[3 * k + a] = s
+    return out
+
+
+def calibrated_run(make, run, passes: int = 3):
+    """Run the log through ``make(drift_base=b, r_base=rb)`` (a :class:`Fusion`; ``run(f)`` feeds it the
+    log and returns its chunks), then again with the drift process noise (:func:`drift_base_from`) and the
+    measurement noise (:func:`r_base_from`) its innovations imply, until a pass confirms its own (at most
+    ``passes``; a consistent log costs one).  Returns ``(fusion, chunks)`` of the last pass."""
+    base, rb = 1.0, None
+    for i in range(passes):
+        f = make(drift_base=base, r_base=rb)
+        chunks = run(f)
+        if not f.fopts.adapt or i == passes - 1:
             break
-        base = new
-    return base
+        new_base = drift_base_from(f) if has_outages(f.gnss, f.fopts) else base
+        new_rb = r_base_from(f) if i == 0 else f.r_base
+        if new_base == base and np.array_equal(new_rb, f.r_base):
+            break
+        base, rb = new_base, new_rb
+    return f, chunks
 
 
 def has_outages(gnss: GnssLog, fopts: FusionOptions) -> bool:
@@ -861,19 +911,15 @@ def run_fusion(imu: ImuLog, init: NavState, gnss: GnssLog, fopts: FusionOptions 
                nav: NavOptions | None = None, smooth: bool = False, init_sigma=None, body_vel=None,
                init_bias=None, data_noise=None):
     """Fuse a whole in-memory log; returns ``(trajectory, innovations, summary, fusion)``.  With adaptation
-    on and GNSS outages in the log, a first forward pass calibrates the drift process noise
-    (:func:`drift_base_from`)."""
+    on, the passes of :func:`calibrated_run` (one for a consistent log)."""
     fopts = fopts or FusionOptions()
 
     def make(**kw):
         return Fusion(init, nav or NavOptions(), fopts, gnss, init_sigma=init_sigma, body_vel=body_vel,
                       init_bias=init_bias, data_noise=data_noise, t_log0=imu.t0, **kw)
 
-    base = 1.0
-    if fopts.adapt and has_outages(gnss, fopts):
-        base = calibrated_base(make, lambda f: [None for _ in fuse_blocks([imu], f)])
-    f = make(smooth=smooth, drift_base=base)
-    traj = concat(list(fuse_blocks([imu], f)))
+    f, chunks = calibrated_run(lambda **kw: make(smooth=smooth, **kw), lambda f: list(fuse_blocks([imu], f)))
+    traj = concat(chunks)
     if smooth:
         traj = f.smoothed()
     return traj, f.innovations(), f.summary(traj), f
