@@ -91,6 +91,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         if note:
             log.warning(note)
     data_noise = noise_from_rest(imu, fopts, gnss) if fopts.noise_from_data else None
+    if mounting is not None:                 # stage 3 of imu.mounting: auto: a fused pass without NHC refines it
+        imu, mounting, init = _refine_mounting(imu, mounting, init, opts, fopts, gnss, init_sigma, init_bias,
+                                               data_noise, t0, src)
 
     def make(**kw):
         return Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, src=src, init_bias=init_bias,
@@ -152,6 +155,29 @@ def _auto_mounting(imu, gnss, conv, fopts, output):
                f"(1-sigma {sr:.2g}, {sp:.2g}, {sy:.2g} deg): {'; '.join(est.notes)}; the config snippet goes to "
                f"{snippet}", err=True)
     return apply_mounting(imu, est.C), est
+
+
+def _refine_mounting(imu, est, init, opts, fopts, gnss, init_sigma, init_bias, data_noise, t0, src):
+    """Stage 3 of ``imu.mounting: auto`` (:func:`sinscli.fusion.mounting.refine`): a forward pass with the
+    stages 1-2 mounting, GNSS only (no NHC, no adaptation passes), gives the vehicle's axes in that body
+    frame; the increments and the initial attitude are turned by the residual rotation."""
+    from dataclasses import replace
+
+    from ..fusion.mounting import refine
+    from ..fusion.pipeline import Fusion, fuse_blocks
+    from ..io.imu_csv import apply_mounting
+    from ..nav.pipeline import concat
+    f = Fusion(init, opts, replace(fopts, nhc=False, adapt=False), gnss, init_sigma=init_sigma, src=src,
+               init_bias=init_bias, data_noise=data_noise, t_log0=t0)
+    traj = concat(list(fuse_blocks([imu], f)))
+    new = refine(est, traj, opts.conv)
+    D = new.C @ est.C.T                             # body_new = D body_old
+    r, p, y = new.rpy
+    sr, sp, sy = new.sigma
+    click.echo(f"sins: mounting: refined by a fused pass to {{roll: {r:.2f}, pitch: {p:.2f}, yaw: {y:.2f}}} deg "
+               f"(1-sigma {sr:.2g}, {sp:.2g}, {sy:.2g} deg)", err=True)
+    init = replace(init, Cbn=np.asarray(init.Cbn, dtype=float) @ D.T)
+    return apply_mounting(imu, D), new, init
 
 
 def mounting_snippet_path(output) -> Path:

@@ -118,9 +118,9 @@ FS = Layout("fusion filter scalars", [
     ("rp", 4 * NK * 3),     # per kind and axis, the previous measurement: innovation, H P H^T, stated R, time
     ("ra", 4 * NK * 3),     # R-adaptation window per kind and axis: sums of dz^2, H P H^T, stated R; count
     ("acc_t", 1), ("acc_dv", 3), ("acc_dth", 3),  # since the last propagation: time, f^n dt, w^b dt
-    ("w", 3), ("have_w", 1),                      # last compensated body rate
+    ("w", 3), ("have_w", 1),                      # compensated body rate, low-passed (ANTENNA_TAU)
     ("lpw", 3), ("lpf", 3),                       # low-passed body rate and f^n - g^n (scale_factor_tau)
-    ("f", 3),               # last mean specific force (ENU, m/s^2)
+    ("f", 3),               # specific force (ENU, m/s^2), low-passed (ANTENNA_TAU)
     ("head_known", 1),
     ("nrej", 1), ("trej0", 1),
     ("t_fix", 1),           # time of the last GNSS position fix (-inf: none yet)
@@ -152,6 +152,7 @@ V_X, V_H, V_HP, V_KT, V_Z, V_R = WV.x, WV.H, WV.HP, WV.KT, WV.z, WV.r
 # per-row variances written with every output row
 NVAR = 9             # pos E N U, vel E N U, roll, pitch, heading (heading < 0: not yet known)
 NREC = 11            # columns of an innovation record (_record)
+ANTENNA_TAU = 0.25   # s: low-pass of the rate and specific force in the GNSS models (lever arm, time offset)
 NBIAS = 12           # b_g, b_a, s_g, s_a (SI)
 
 
@@ -274,9 +275,13 @@ def _do_propagate(st, fs, cv, P, mats, store):
     c = sd._cbn(st)
     f_n = (fs[F_ACC_DV] / T, fs[F_ACC_DV + 1] / T, fs[F_ACC_DV + 2] / T)
     w_b = (fs[F_ACC_DTH] / T, fs[F_ACC_DTH + 1] / T, fs[F_ACC_DTH + 2] / T)
+    # the rate and specific force the GNSS models see: low-passed with ANTENNA_TAU, as a receiver's loops
+    # smooth its velocity (an engine's vibration of the gyro would otherwise make the lever-arm velocity
+    # term a noise the GNSS never shows)
+    b = min(T / ANTENNA_TAU, 1.0) if fs[F_HAVE_W] > 0.0 else 1.0
     for i in range(3):
-        fs[F_W + i] = w_b[i]
-        fs[F_F + i] = f_n[i]
+        fs[F_W + i] += b * (w_b[i] - fs[F_W + i])
+        fs[F_F + i] += b * (f_n[i] - fs[F_F + i])
     fs[F_HAVE_W] = 1.0
     f_b = m_tvec(c, f_n)
     vel = (st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2])

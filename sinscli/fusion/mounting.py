@@ -44,6 +44,7 @@ MIN_SPEED = 0.5            # m/s
 MAX_YAW_SIGMA = 30.0       # deg: a yaw less certain than this is refused
 WARN_YAW_SIGMA = 3.0       # deg: over this, a warning (a slow vehicle's accelerations barely show its axes)
 MIN_REST = 5.0             # s at rest for the up axis from gravity at standstill
+ROAD_ROLL = 0.1            # deg: the average roll of the roads a drive takes (crowned, banked both ways)
 
 
 class MountingError(SinsError):
@@ -257,9 +258,13 @@ def refine(est: MountingEstimate, traj: Trajectory, conv: int, min_speed: float 
     C_flu = D @ (c_flu @ est.C)
     C = c_flu.T @ C_flu
     n_eff = max(m.sum() / 100.0, 1.0)                          # epochs are correlated over ~1 s at 100 Hz
-    sig_yaw = math.degrees(float(np.std(np.arctan2(u[:, 1], u[:, 0]))) / math.sqrt(n_eff))
-    sig_pitch = math.degrees(float(np.std(np.arcsin(np.clip(u[:, 2], -1, 1)))) / math.sqrt(n_eff))
-    sig_roll = math.degrees(float(np.std(np.arctan2(up[:, 1], up[:, 2]))) / math.sqrt(n_eff))
-    sig = np.array([max(sig_roll, 0.02), max(sig_pitch, 0.02), max(sig_yaw, 0.02)])
-    return MountingEstimate(C, mounting_angles(C), np.hypot(sig, 0.0),
+    scatter = np.degrees([np.std(np.arctan2(up[:, 1], up[:, 2])), np.std(np.arcsin(np.clip(u[:, 2], -1, 1))),
+                          np.std(np.arctan2(u[:, 1], u[:, 0]))]) / math.sqrt(n_eff)
+    # the fused pass's own attitude error is common to every epoch: its claimed 1-sigma adds in full; the
+    # roll rests on the roads being level on average (ROAD_ROLL)
+    x = traj.extra
+    att = np.array([np.median(x["roll_std"][m]), np.median(x["pitch_std"][m]), np.median(x["heading_std"][m])]) \
+        if "roll_std" in x else np.zeros(3)
+    sig = np.sqrt(scatter ** 2 + att ** 2 + np.array([ROAD_ROLL, 0.0, 0.0]) ** 2)
+    return MountingEstimate(C, mounting_angles(C), sig,
                             est.notes + [f"refined from a fused pass over {m.sum()} epochs faster than {min_speed:g} m/s"])

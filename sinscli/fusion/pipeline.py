@@ -358,13 +358,17 @@ class Fusion:
                             f"not {nav.attitude} / {nav.frame}")
         self.nav, self.fopts, self.gnss, self.init = nav, fopts, gnss, init
         self.smooth = smooth
-        self.model = filter_model(fopts.sensor, fopts.base_dir, fopts.states, src, fopts.bias_model)
+        self.model = filter_model(fopts.sensor, fopts.base_dir, 21 if "lever_arm" in fopts.estimate else fopts.states,
+                                  src, fopts.bias_model)
         self.data_notes = []
         if data_noise is not None and fopts.noise_from_data:
             self.model, self.data_notes = apply_data_noise(self.model, data_noise,
                                                            float(gravity(math.sin(init.lat), init.height)))
         self.data_noise = data_noise
-        ncore = fopts.states
+        # an unestimated gyro scale factor (0.5 % for a consumer IMU) biases the lever arm by centimetres
+        # through the turns that make it observable: estimating the lever arm estimates the scale factors
+        ncore = 21 if "lever_arm" in fopts.estimate else fopts.states
+        self.sf_for_lever = ncore != fopts.states
         nx = ncore
         self.la = self.td = -1
         if "lever_arm" in fopts.estimate:
@@ -726,6 +730,9 @@ class Fusion:
         if self.fs[kn.F_HEAD_KNOWN] == 0.0:
             s.heading_never = self._why_no_heading()
             s.warnings.append(s.heading_never)
+        if self.sf_for_lever:
+            s.estimates.append("scale factors (21 states), since the lever arm is estimated: an unestimated scale "
+                               "factor would bias it")
         if self.la >= 0:
             sig = np.sqrt(np.diag(self.P)[self.la:self.la + 3])
             s.estimates.append("lever arm [{:.3f}, {:.3f}, {:.3f}] m +- [{:.2g}, {:.2g}, {:.2g}] m (body axes)".format(
