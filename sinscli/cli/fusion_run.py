@@ -80,7 +80,7 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
                                 None, cfg["imu"])
         if note:
             log.warning(note)
-        init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts.gnss_pos_sigma)
+        init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts)
     else:
         init = read_init(init_path, t0 if window.start is None else window.start, opts.conv, cfg["limits"],
                          cfg["init"])
@@ -141,6 +141,11 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         summary_line(imu_path, len(traj), float(traj.time[0]), float(traj.time[-1]), output)
 
 
+def mounting_snippet_path(output) -> Path:
+    """Where ``imu.mounting: auto`` writes its estimate as a config snippet: beside the output."""
+    return Path(output).with_name(Path(output).stem + ".mounting.yaml")
+
+
 def _auto_mounting(imu, gnss, conv, fopts, output):
     """``imu.mounting: auto``: the mounting estimated from the log (:mod:`sinscli.fusion.mounting`), applied
     to the increments read in sensor axes, reported and written as a config snippet beside the output."""
@@ -180,28 +185,71 @@ def _refine_mounting(imu, est, init, opts, fopts, gnss, init_sigma, init_bias, d
     return apply_mounting(imu, D), new, init
 
 
-def mounting_snippet_path(output) -> Path:
-    """Where ``imu.mounting: auto`` writes its estimate as a config snippet: beside the output."""
-    return Path(output).with_name(Path(output).stem + ".mounting.yaml")
+ALIGN_WINDOW = 60.0          # s: the alignment window of a log that does not start at rest
+NEEDS_REST = ("static", "inertial")
 
 
-def _align(imu, gnss, method, cfg, config_path, conv, gnss_pos_sigma):
-    """``sins align --method METHOD`` on the log's first window (the align section of the same config)."""
+def first_rest(imu, fopts, gnss) -> float:
+    """Seconds the log stays at rest from its start (the fused filter's detector, still by the GNSS too);
+    0 when it starts moving."""
+    from ..fusion.standstill import StandstillDetector, gnss_still
+    t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
+    k = int(np.searchsorted(imu.time, t0 + 600.0))
+    det = StandstillDetector(fopts.standstill_window, fopts.standstill_rate_std, fopts.standstill_accel_std,
+                             fopts.standstill_accel_mag, 9.80665, fopts.standstill_lowpass)
+    a, b, _ = det.feed(imu.time[:k], imu.dtheta_b[:k], imu.dvel_b[:k], t_start=t0)
+    end = t0
+    for x, y, still in zip(a, b, gnss_still(gnss, a, b) if len(a) else []):
+        if abs(x - end) > 1e-6 * max(1.0, abs(end)) or still == 0:
+            break
+        end = float(y)
+    return end - t0
+
+
+def _align(imu, gnss, method, cfg, config_path, conv, fopts):
+    """``--align METHOD`` inside the fused run: ``sins align`` on the log's first window (``align.duration``,
+    else the first standstill, else 60 s), its state at the window's start (the filter then runs the log
+    from its start); an unobservable heading is left to the heading from motion.  ``kf`` gives the
+    attitude at its window's end only: inside the fused run its coarse stage gives the start and the
+    fusion filter is the fine alignment."""
     from ..align.options import build_options, merge_section
     from ..align.pipeline import align
     src = str(config_path) if config_path else "config"
     al = merge_section(cfg.get("align"), src)
+    if method == "kf":
+        coarse = al["kf"]["coarse"]
+        method = coarse if coarse != "auto" else "gnss-inertial"
+        click.echo(f"sins: note: --align kf inside the fused run: its coarse stage ({method}) gives the state at "
+                   f"the log's start and the fusion filter is the fine alignment", err=True)
     al["method"] = method
+    al["epoch"] = "start"
+    rest = first_rest(imu, fopts, gnss)
+    if al["duration"] is None:
+        span = float(imu.time[-1] - (imu.t0 if imu.t0 is not None else imu.time[0]))
+        al["duration"] = min(rest if rest >= 5.0 else ALIGN_WINDOW, span)
+        why = f"the first standstill ({rest:.3g} s)" if rest >= 5.0 else f"the first {al['duration']:.3g} s"
+    else:
+        why = f"align.duration {al['duration']:g} s"
+    if method in NEEDS_REST and rest < min(al["duration"], 5.0):
+        raise SinsError(f"{imu.source}: --align {method} needs the log to start at rest, and its first "
+                        f"{al['duration']:.3g} s move (at rest for {rest:.3g} s); use --align gnss-inertial, or "
+                        f"--init with the initial state")
     aopts = build_options(al, src, conv=conv, lever_arm=cfg["gnss"]["lever_arm"])
-    res = align(imu, aopts, gnss)
+    res = align(imu, aopts, gnss, heading_optional=True)
     for note in res.notes:
         click.echo(f"sins: note: {note}", err=True)
-    sig = {"attitude": np.array([res.sigma[0], res.sigma[1],
-                                 res.sigma[2] if np.isfinite(res.sigma[2]) else np.inf])}
+    head_sigma = res.sigma[2] if np.isfinite(res.sigma[2]) else np.inf
+    if res.heading_source == "gnss-course":
+        # the course's heading carried back to the window's start through the gyros (their bias over the
+        # window): the filter's own heading from motion does the same job where it happens, consistently
+        click.echo("sins: note: the alignment's heading came from the GNSS course: the fused run takes its "
+                   "heading from the motion itself (fusion.heading_init) instead", err=True)
+        head_sigma = np.inf
+    sig = {"attitude": np.array([res.sigma[0], res.sigma[1], head_sigma])}
     k = int(np.clip(np.searchsorted(gnss.time, res.state.time), 0, len(gnss) - 1))
-    sig["position"] = np.maximum(gnss.position_sigma(gnss_pos_sigma)[k], 0.01) * 2.0
+    sig["position"] = np.maximum(gnss.position_sigma(fopts.gnss_pos_sigma)[k], 0.01) * 2.0
     bias = None
     if res.gyro_bias is not None:
         bias = {"gyro": res.gyro_bias, "accel": res.accel_bias}
-    log.info("aligned (%s): initial state at %.6f s", method, res.state.time)
+    log.info("aligned (%s over %s): initial state at %.6f s", method, why, res.state.time)
     return res.state, sig, bias

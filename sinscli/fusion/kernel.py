@@ -640,28 +640,21 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
         ratio = (z[0] * z[0] + z[1] * z[1]) / (S[0, 0] + S[1, 1])
         n_evs = _exit_drift_scale(ratio, (r[0] + r[1]) / (S[0, 0] + S[1, 1]), fs, cv, evs, n_evs, t)
         if not acc:
-            # reacquisition: the dead reckoning's covariance was too small by about the ratio: its navigation
-            # rows and columns (position, velocity, attitude) widened by sqrt(ratio) (a congruence: P stays
-            # positive definite, its correlations kept), then the fix taken
+            # reacquisition: the dead reckoning's covariance was too small by about the ratio (_widen_nav)
             n_evs = _event(evs, n_evs, t, EV_REACQUIRE, nis, ratio)
-            f = np.sqrt(max(ratio, 1.0))
-            for i in range(nx):
-                for j in range(nx):
-                    if i < 9:
-                        P[i, j] *= f
-                    if j < 9:
-                        P[i, j] *= f
+            _widen_nav(P, nx, ratio)
             innovation_covariance(P, nx, H, r, m, HP, S)
-            nis = nis_of(S, z, m, Si)
+            nis_of(S, z, m, Si)
             acc = True                          # a reacquired fix is taken (the widening made room)
     elif kind == MT_GNSS_POS and not acc:
         if fs[F_NREJ] == 0.0:
             fs[F_TREJ0] = t
         fs[F_NREJ] += 1.0
         if fs[F_NREJ] >= cv[C_REJ_RUN]:
+            # a run of rejected fixes: the filter diverged (or the GNSS jumped and stays): the navigation
+            # block widened by the fix's horizontal innovation against its variance (_widen_nav), the fix taken
             n_evs = _event(evs, n_evs, t, EV_REJECTION_RUN, fs[F_TREJ0], fs[F_NREJ])
-            for i in range(3):
-                P[R + i, R + i] += z[i] * z[i]
+            _widen_nav(P, nx, max((z[0] * z[0] + z[1] * z[1]) / (S[0, 0] + S[1, 1]), nis / m))
             innovation_covariance(P, nx, H, r, m, HP, S)
             nis_of(S, z, m, Si)
             acc = True
@@ -689,6 +682,20 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
             x[PHI + 2] = 0.0
         feedback(st, fs, cv, x, nx, int(cv[C_METHOD]))
     return n_inn, n_evs
+
+
+@njit(cache=True)
+def _widen_nav(P, nx, ratio):
+    """Widen the navigation rows and columns of P (position, velocity, attitude) by ``sqrt(ratio)``: their
+    block by the ratio, their correlations with the sensor states kept (a congruence: P stays positive
+    definite).  Where the innovations show the dead reckoning's covariance too small by that ratio."""
+    f = np.sqrt(max(ratio, 1.0))
+    for i in range(nx):
+        for j in range(nx):
+            if i < 9:
+                P[i, j] *= f
+            if j < 9:
+                P[i, j] *= f
 
 
 @njit(cache=True)

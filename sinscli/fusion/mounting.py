@@ -191,7 +191,8 @@ def estimate_mounting(imu: ImuLog, gnss: GnssLog, conv: int, fopts, span: float 
     C_flu = _rz(psi).T @ L                       # v_body = Rz(psi)^T L v_sensor
     C = conv_to_flu(conv).T @ C_flu
     rpy = mounting_angles(C)
-    sig = np.array([up_sigma, up_sigma, sig_psi])
+    # the levelling's own error tilts the plane the forward axis is fitted in: half of it as a yaw floor
+    sig = np.array([up_sigma, up_sigma, math.hypot(sig_psi, 0.5 * up_sigma)])
     notes.append(f"up from {up_src}, forward from {n * span:.0f} s of driving (speed changes and turns; "
                  f"horizontal accelerometer bias {np.hypot(*bias) / 9.80665e-3:.2g} mg fitted)")
     if sig_psi > WARN_YAW_SIGMA:
@@ -266,5 +267,16 @@ def refine(est: MountingEstimate, traj: Trajectory, conv: int, min_speed: float 
     att = np.array([np.median(x["roll_std"][m]), np.median(x["pitch_std"][m]), np.median(x["heading_std"][m])]) \
         if "roll_std" in x else np.zeros(3)
     sig = np.sqrt(scatter ** 2 + att ** 2 + np.array([ROAD_ROLL, 0.0, 0.0]) ** 2)
-    return MountingEstimate(C, mounting_angles(C), sig,
-                            est.notes + [f"refined from a fused pass over {m.sum()} epochs faster than {min_speed:g} m/s"])
+    # each angle from the stage that knows it better (a slow rover's fused pass without NHC has no heading
+    # to speak of: its yaw stays with stage 2)
+    rpy_new = mounting_angles(C)
+    better = sig < est.sigma
+    if not better.any():
+        return est
+    rpy = np.where(better, rpy_new, est.rpy)
+    from ..config import mounting_matrix
+    C = mounting_matrix({"roll": float(rpy[0]), "pitch": float(rpy[1]), "yaw": float(rpy[2])})
+    kept = [n for n, b in zip(("roll", "pitch", "yaw"), better) if b]
+    return MountingEstimate(C, mounting_angles(C), np.where(better, sig, est.sigma),
+                            est.notes + [f"{', '.join(kept)} refined from a fused pass over {m.sum()} epochs faster "
+                                         f"than {min_speed:g} m/s"])

@@ -624,9 +624,9 @@ class Fusion:
         t, kind = float(e[0]), e[1]
         c = clock(t, self.t_log0)
         if kind == kn.EV_REJECTION_RUN:
-            log.warning("fusion: %d consecutive GNSS fixes rejected from %s to %s (the filter diverged or the GNSS "
-                        "jumped): position covariance widened by the innovation, fix accepted", int(e[3]),
-                        clock(float(e[2]), self.t_log0), c)
+            log.info("fusion: %d consecutive GNSS fixes rejected from %s to %s (the filter diverged or the GNSS "
+                     "jumped): navigation covariance widened, fix accepted", int(e[3]),
+                     clock(float(e[2]), self.t_log0), c)
         elif kind == kn.EV_HEADING_INIT:
             log.info("fusion: heading initialized from the GNSS course at %s (changed by %.3f deg)", c,
                      math.degrees(e[2]))
@@ -724,8 +724,7 @@ class Fusion:
                 s.heading_init = (f"heading from the GNSS course ({self.course.source}) at {clock(float(e[0]), t0)}: "
                                   f"changed by {math.degrees(e[2]):.1f} deg, 1-sigma {math.degrees(e[3]):.2g} deg")
             elif e[1] == kn.EV_REJECTION_RUN:
-                s.warnings.append(f"{int(e[3])} consecutive GNSS fixes rejected {clock(float(e[2]), t0)} to "
-                                  f"{clock(float(e[0]), t0)} (position covariance widened, fix re-accepted)")
+                s.rejection_runs.append((float(e[2]), float(e[0]), int(e[3])))
         self._adaptation_lines(ev, s)
         if self.fs[kn.F_HEAD_KNOWN] == 0.0:
             s.heading_never = self._why_no_heading()
@@ -847,7 +846,7 @@ def drift_base_from(fusion: Fusion, min_exits: int = 3) -> float:
     return float(min(max(base, 1.0 / m), m))
 
 
-MAX_CORRELATION_FACTOR = 25.0
+MAX_CORRELATION_FACTOR = 10.0
 
 
 def r_base_from(fusion: Fusion, min_n: int = 30) -> np.ndarray:
@@ -856,14 +855,16 @@ def r_base_from(fusion: Fusion, min_n: int = 30) -> np.ndarray:
     sum(R)`` (outage exits left out), times the variance inflation ``(1 + rho) / (1 - rho)`` of the
     measurement errors' correlation between consecutive measurements (``rho`` the lag-1 correlation of the
     normalized innovations, when over 0.1): a receiver's time-correlated error carries less information
-    than as many independent fixes.  Within ``[1, adapt.max_scale]``; 1 with fewer than ``min_n``
-    measurements or within 25 % of 1.  (Within one pass the online adaptation only sees the white part,
+    than as many independent fixes (at most 10x).  Within ``[1, adapt.max_scale]``; 1 with fewer than
+    ``min_n`` measurements, within 25 % of 1, or when the pass had a rejection run (its innovations then
+    hold the filter's own excursion, not the measurements' noise).  (Within one pass the online adaptation only sees the white part,
     :func:`sinscli.fusion.kernel._adapt_r`: a slowly diverging filter cannot pass for noisy
     measurements there; across passes it is one measured step, not a loop.)"""
     out = fusion.r_base.copy()
     inn = np.vstack(fusion.inn_parts) if fusion.inn_parts else np.zeros((0, kn.NREC))
-    if not len(inn):
-        return out
+    ev = fusion.events()
+    if not len(inn) or (len(ev) and np.any(ev[:, 1] == kn.EV_REJECTION_RUN)):
+        return out              # a pass that lost the fixes (a GNSS jump, a divergence) tells nothing of R
     for kind, k in enumerate(kn.K_OF_KIND):
         if k < 0:
             continue

@@ -229,6 +229,7 @@ class FusionSummary:
     fixes_total: int = 0
     rejected_outside: int = 0                           # rejected fixes that are not outage exits
     reacquired: int = 0                                 # outage exits accepted by widening P
+    rejection_runs: list = field(default_factory=list)  # (first, last time, fixes) of each run
     counts: dict = field(default_factory=dict)          # type -> (accepted, rejected) measurements
     outages: list = field(default_factory=list)         # (start, length) s
     standstill: list = field(default_factory=list)      # (start, end) s
@@ -267,8 +268,12 @@ class FusionSummary:
         if self.fixes_rejected:
             fx += f", {self.fixes_rejected} rejected ({self.rejected_outside} outside outages)"
         if self.reacquired:
-            fx += f"; {self.reacquired} outage exit(s) reacquired by widening the position covariance"
+            fx += f"; {self.reacquired} outage exit(s) reacquired by widening the covariance"
         out.append(fx)
+        if self.rejection_runs:
+            out.append(f"fusion: {len(self.rejection_runs)} run(s) of consecutive rejected fixes (the filter diverged "
+                       f"or the GNSS jumped), each ended by widening the covariance and taking the fix: "
+                       + self._list([f"{clock(a, c)}..{clock(b, c).split(' ')[0]}" for a, b, _ in self.rejection_runs]))
         res = f"fusion: residual RMS against the fixes outside outages {r.h:.3g} m horizontal, {r.u:.3g} m vertical"
         if r.n_exit:
             res += f"; first fix after each outage {r.exit_h:.3g} m (max {r.exit_max:.3g} m)"
