@@ -85,6 +85,7 @@ CV = Layout("fusion config", [
     ("rej_run", 1),
     ("radapt_n", 1),        # measurements per R-adaptation window (0: off)
     ("radapt_max", 1),      # largest R variance scale
+    ("radapt_band", 2),     # the window's estimate out of [lo, hi] x the scale (chi-square quantiles) moves it
     ("rbase", 3 * NK),      # per kind and axis, the R scale a calibration pass found (the online floor)
     ("qb_max", 1),          # the drift process-noise scale stays at most qb_max times its base (1: off)
     ("qb_tau", 1),          # s: its decay back to the base
@@ -95,7 +96,7 @@ CV = Layout("fusion config", [
     ("zupt_maxv", 1),
     ("nhc_ax", 2),
     ("fwd", 1),             # the body's forward axis (0 x, 1 y): roll/pitch sigma
-], size=62)
+], size=64)
 C_NX, C_NCORE, C_LA, C_TD = CV.nx, CV.ncore, CV.la, CV.td
 C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT = CV.method, CV.order, CV.nsub, CV.every, CV.conv, CV.prop_dt
 C_GATE, C_ROBUST = CV.gate, CV.robust
@@ -103,6 +104,7 @@ C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA = CV.arw2, CV.vrw2, CV.
     CV.sfg, CV.sfa
 C_SF_TAU = CV.sf_tau
 C_REJ_RUN, C_RADAPT_N, C_RADAPT_MAX, C_RBASE = CV.rej_run, CV.radapt_n, CV.radapt_max, CV.rbase
+C_RADAPT_BAND = CV.radapt_band
 C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT = CV.qb_max, CV.qb_tau, CV.qb_thr, CV.qb_base, CV.outage_dt
 C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD = CV.smooth_dt, CV.zupt_maxv, CV.nhc_ax, CV.fwd
 CV_SIZE = CV.size
@@ -520,8 +522,9 @@ def _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t):
     ``rbase``, :func:`sinscli.fusion.pipeline.calibrated_noise`).  Each ``dz^2`` is
     clipped at 9 times its variance (an outlier counts as a 3-sigma difference).  Over windows of
     ``adapt.window`` differences the scale moves half-way (in the logarithm) to the estimate when the
-    estimate leaves its 3-sigma band and differs from the scale by over 25 %; never below the calibrated
-    floor (1 without calibration), at most ``adapt.max_scale``.  Returns the
+    estimate leaves the band a consistent filter keeps it in (the chi-square quantiles 1e-4 and 1 - 1e-4
+    of the window); never below the calibrated floor (1 without calibration), at most
+    ``adapt.max_scale``.  Returns the
     event count."""
     k = K_OF_KIND[kind]
     if k < 0 or cv[C_RADAPT_N] <= 0.0:
@@ -545,12 +548,12 @@ def _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t):
                 est = (fs[q] - fs[q + 1]) / fs[q + 2]
                 for j in range(4):
                     fs[q + j] = 0.0
-                band = 3.0 * np.sqrt(3.0 / n)   # 3 sigma of the estimate in a consistent filter
                 new = s_r
-                # half-way in the logarithm toward an estimate out of its band: a noisy window cannot swing it
-                if est > s_r * (1.0 + band) and est > 1.25 * s_r:
+                # half-way in the logarithm toward an estimate out of the band a consistent filter keeps it in
+                # (chi-square quantiles of the window: a false move once in ten thousand windows)
+                if est > s_r * cv[C_RADAPT_BAND + 1]:
                     new = min(np.sqrt(s_r * est), cv[C_RADAPT_MAX])
-                elif est < s_r * (1.0 - band) and est < s_r / 1.25:
+                elif est < s_r * cv[C_RADAPT_BAND]:
                     new = max(np.sqrt(s_r * max(est, 1e-12)), cv[C_RBASE + i])
                 if new != s_r:
                     fs[F_RS + i] = new

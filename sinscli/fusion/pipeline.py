@@ -463,6 +463,9 @@ class Fusion:
         cv[kn.C_RADAPT_N] = f.adapt_window if f.adapt else 0.0
         cv[kn.C_RADAPT_MAX] = f.adapt_max_scale
         cv[kn.C_RBASE:kn.C_RBASE + 3 * kn.NK] = self.r_base
+        nw = f.adapt_window
+        cv[kn.C_RADAPT_BAND] = chi2_ppf(1e-4, nw) / nw
+        cv[kn.C_RADAPT_BAND + 1] = chi2_ppf(1.0 - 1e-4, nw) / nw
         cv[kn.C_QB_MAX] = f.adapt_max_bias_scale if f.adapt else 1.0
         cv[kn.C_QB_TAU] = f.adapt_decay
         cv[kn.C_QB_THR] = f.adapt_exit_ratio
@@ -732,6 +735,7 @@ class Fusion:
         if self.sf_for_lever:
             s.estimates.append("scale factors (21 states), since the lever arm is estimated: an unestimated scale "
                                "factor would bias it")
+        self._unobserved(s)
         if self.la >= 0:
             sig = np.sqrt(np.diag(self.P)[self.la:self.la + 3])
             s.estimates.append("lever arm [{:.3f}, {:.3f}, {:.3f}] m +- [{:.2g}, {:.2g}, {:.2g}] m (body axes)".format(
@@ -788,6 +792,22 @@ class Fusion:
                 f"with {self.fopts.adapt_decay:g} s")
         rq = ev[ev[:, 1] == kn.EV_REACQUIRE]
         s.reacquired = len(rq)
+
+    def _unobserved(self, s: FusionSummary) -> None:
+        """An estimated parameter whose sigma the motion left above half its prior: a warning; its estimate
+        stays at the configured value (the filter's gain for it was near zero) and that value is the one to
+        keep."""
+        f = self.fopts
+        if self.la >= 0:
+            sig = np.sqrt(np.diag(self.P)[self.la:self.la + 3])
+            bad = [a for a, x in zip("xyz", sig) if x > 0.5 * f.lever_arm_sigma]
+            if bad:
+                s.warnings.append(f"the motion did not observe the lever arm's {', '.join(bad)} (1-sigma still over "
+                                  f"half its prior {f.lever_arm_sigma:g} m): keep the configured value "
+                                  f"{[round(float(v), 3) for v in self.lever]} m for {', '.join(bad)}")
+        if self.td >= 0 and math.sqrt(self.P[self.td, self.td]) > 0.5 * f.time_offset_sigma:
+            s.warnings.append(f"the motion did not observe the GNSS time offset (1-sigma still over half its prior "
+                              f"{f.time_offset_sigma:g} s): keep the configured gnss.time_offset")
 
     def _axis_name(self, code: int) -> str:
         """``gnss_pos u`` of an R-scale event's code ``3 kind + component``."""
@@ -854,9 +874,10 @@ def r_base_from(fusion: Fusion, min_n: int = 30) -> np.ndarray:
     the log implies, by covariance matching over the whole log: ``s = sum(min(z^2, 9 S) - H P H^T) /
     sum(R)`` (outage exits left out), times the variance inflation ``(1 + rho) / (1 - rho)`` of the
     measurement errors' correlation between consecutive measurements (``rho`` the lag-1 correlation of the
-    normalized innovations, when over 0.1): a receiver's time-correlated error carries less information
-    than as many independent fixes (at most 10x).  Within ``[1, adapt.max_scale]``; 1 with fewer than
-    ``min_n`` measurements, within 25 % of 1, or when the pass had a rejection run (its innovations then
+    normalized innovations, when over 0.1 and significant at 3 sigma): a receiver's time-correlated error
+    carries less information than as many independent fixes (at most 10x).  Within ``[1,
+    adapt.max_scale]``; 1 with fewer than ``min_n`` measurements, within 25 % of 1 or within the
+    estimate's 3-sigma band of 1, or when the pass had a rejection run (its innovations then
     hold the filter's own excursion, not the measurements' noise).  (Within one pass the online adaptation only sees the white part,
     :func:`sinscli.fusion.kernel._adapt_r`: a slowly diverging filter cannot pass for noisy
     measurements there; across passes it is one measured step, not a loop.)"""
@@ -877,11 +898,12 @@ def r_base_from(fusion: Fusion, min_n: int = 30) -> np.ndarray:
             u = z / np.sqrt(S)
             dt = np.diff(x[:, 0])
             ok = dt <= 1.5 * np.median(dt)
-            rho = float(np.corrcoef(u[:-1][ok], u[1:][ok])[0, 1]) if ok.sum() > 10 else 0.0
-            if np.isfinite(rho) and rho > 0.1:
+            n = int(ok.sum())
+            rho = float(np.corrcoef(u[:-1][ok], u[1:][ok])[0, 1]) if n > 10 else 0.0
+            if np.isfinite(rho) and rho > max(0.1, 3.0 / math.sqrt(max(n, 1))):    # significant at 3 sigma
                 s *= min((1.0 + rho) / (1.0 - rho), MAX_CORRELATION_FACTOR)
             s = min(max(s, 1.0), fusion.fopts.adapt_max_scale)
-            if s > 1.25:
+            if s > max(1.25, 1.0 + 3.0 * math.sqrt(2.0 / len(x))):                   # beyond its 3-sigma band
                 out[3 * k + a] = s
     return out
 
