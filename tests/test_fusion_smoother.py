@@ -105,7 +105,7 @@ def test_factored_smoother_matches_the_textbook_recursion_in_long_double(states)
     ep = f.epochs.trimmed()
     d, ps, guard = rts_backward(*ep[1:], f.ncore, f.nx)
     assert guard[0] == 0 and guard[2] == 0, guard                   # nothing clipped, no ridge
-    assert guard[3] > 2000                                          # epochs smoothed
+    assert guard[3] > 1500                                          # epochs smoothed (10 Hz fixes, 1 s in outages)
     d_ref, ps_ref = reference_rts(ep, f.ncore, f.nx)
     diag = ps_ref[:, :9]
     assert np.all(ps[:, :9] > 0) and np.all(np.isfinite(ps))

@@ -112,6 +112,7 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         traj = concat(chunks)
     if smooth:
         traj = fusion.smoothed()
+    traj = fusion.on_gnss_clock(traj)
     if window.active:
         traj = trim(traj, window)
         if len(traj) == 0:

@@ -154,7 +154,7 @@ V_X, V_H, V_HP, V_KT, V_Z, V_R = WV.x, WV.H, WV.HP, WV.KT, WV.z, WV.r
 # per-row variances written with every output row
 NVAR = 9             # pos E N U, vel E N U, roll, pitch, heading (heading < 0: not yet known)
 NREC = 11            # columns of an innovation record (_record)
-ANTENNA_TAU = 0.25   # s: low-pass of the rate and specific force in the GNSS models (lever arm, time offset)
+ANTENNA_TAU = 0.05   # s: low-pass of the rate and specific force in the GNSS models (lever arm, time offset)
 NBIAS = 12           # b_g, b_a, s_g, s_a (SI)
 
 
@@ -459,12 +459,15 @@ def _model(row, kind, st, fs, cv, nx, H, z, r):
             for j in range(3):
                 H[i, BG + j] = -clx[i][j]
         if la >= 0:                             # d v_ant / d l = Cbn [w x] - [w_in x] Cbn
+            # for the horizontal lever arm only (through the yaw rate): the vertical one would be observed
+            # through the roll and pitch rates, which on a car are mostly a mount's vibration, not the
+            # antenna's; taken for signal it would drag the estimate to zero; the positions observe it
             wx = ((0.0, -w[2], w[1]), (w[2], 0.0, -w[0]), (-w[1], w[0], 0.0))
             wix = ((0.0, -w_in[2], w_in[1]), (w_in[2], 0.0, -w_in[0]), (-w_in[1], w_in[0], 0.0))
             a1 = m_mul(c, wx)
             a2 = m_mul(wix, c)
             for i in range(3):
-                for j in range(3):
+                for j in range(2):
                     H[i, la + j] = a1[i][j] - a2[i][j]
         if td >= 0:
             for i in range(3):

@@ -24,6 +24,7 @@ from ..nav.earth import OMEGA_IE
 
 DEG = math.pi / 180.0
 FACTOR = 2.0            # a description's white noise off by more than this (either way) yields to the data
+CREDIBILITY = 3.0       # off by more than this, the description's other terms are taken off by as much
 
 
 @dataclass(frozen=True)
@@ -54,16 +55,38 @@ def apply_data_noise(model, dn: RestNoise, g: float):
     (``g`` the local gravity, m/s^2); returns ``(model, notes)``."""
     notes = []
     arw2, vrw2 = model.arw2.copy(), model.vrw2.copy()
-    for name, cur, data, unit, scale in (("gyro white noise (ARW)", arw2, dn.gyro_white ** 2, "deg/sqrt(h)",
-                                          60.0 / DEG),
-                                         ("accelerometer white noise (VRW)", vrw2, dn.accel_white ** 2,
-                                          "ug/sqrt(Hz)", 1.0 / 9.80665e-6)):
+    k2 = {}                     # the description's credibility: data / description, in variance
+    for which, name, cur, data, unit, scale in (("gyro", "gyro white noise (ARW)", arw2, dn.gyro_white ** 2,
+                                                 "deg/sqrt(h)", 60.0 / DEG),
+                                                ("accelerometer", "accelerometer white noise (VRW)", vrw2,
+                                                 dn.accel_white ** 2, "ug/sqrt(Hz)", 1.0 / 9.80665e-6)):
+        # the largest axis for all three: a fit may give one axis no white noise at all (its variance all in
+        # the vibration and flicker terms), which no filter should believe
+        data = np.full(3, data.max())
         r = np.sqrt(data / np.maximum(cur, 1e-300))
+        k2[which] = float(r.max() ** 2) if r.max() > 1.0 else float(r.min() ** 2)
         if model.default or np.any(r > FACTOR) or np.any(r < 1.0 / FACTOR):
             was = "no description" if model.default else f"the description's {np.sqrt(cur.max()) * scale:.3g}"
             notes.append(f"{name} {np.sqrt(data.max()) * scale:.3g} {unit} from {dn.rest_seconds:.0f} s at rest "
                          f"({was})")
             cur[:] = data
+    # a description whose white noise is off by more than CREDIBILITY (3x) in sigma is not this sensor's: its
+    # terms no static log can check (bias instability, scale factor, misalignment, turn-on bias) are taken
+    # off by as much (a vendor states them alike; a description 10x optimistic in one is so in all)
+    upd = {}
+    if not model.default:
+        kg, ka = k2["gyro"], k2["accelerometer"]
+        if not 1.0 / CREDIBILITY ** 2 <= kg <= CREDIBILITY ** 2:
+            upd.update(q_bg=model.q_bg * kg, sfmis_g=model.sfmis_g * kg, p0_bg=model.p0_bg * kg,
+                       p0_sg=model.p0_sg * kg)
+            notes.append(f"the description's gyro white noise is {math.sqrt(kg):.2g}x off the log's: its bias, "
+                         f"instability, scale factor and misalignment taken {math.sqrt(kg):.2g}x too")
+        if not 1.0 / CREDIBILITY ** 2 <= ka <= CREDIBILITY ** 2:
+            upd.update(q_ba=model.q_ba * ka, sfmis_a=model.sfmis_a * ka, p0_ba=model.p0_ba * ka,
+                       p0_sa=model.p0_sa * ka)
+            notes.append(f"the description's accelerometer white noise is {math.sqrt(ka):.2g}x off the log's: its "
+                         f"bias, instability, scale factor and misalignment taken {math.sqrt(ka):.2g}x too")
+    model = replace(model, **upd)
     # bias magnitudes: the mean rate at rest is the bias plus the earth rate's projection (<= 15 deg/h)
     p0_bg = model.p0_bg.copy()
     b2 = np.maximum(np.abs(dn.gyro_mean) - OMEGA_IE, 0.0) ** 2

@@ -793,21 +793,28 @@ class Fusion:
         rq = ev[ev[:, 1] == kn.EV_REACQUIRE]
         s.reacquired = len(rq)
 
+    def on_gnss_clock(self, traj: Trajectory) -> Trajectory:
+        """With the time offset estimated, the output moved onto the GNSS clock: ``t - tau`` (the IMU clock is
+        the GNSS's plus ``tau``, the final estimate)."""
+        if self.td >= 0 and len(traj):
+            traj.time = traj.time - self.fs[kn.F_TD]
+        return traj
+
     def _unobserved(self, s: FusionSummary) -> None:
-        """An estimated parameter whose sigma the motion left above half its prior: a warning; its estimate
+        """An estimated parameter whose sigma the motion left above UNOBSERVED of its prior: a warning; its estimate
         stays at the configured value (the filter's gain for it was near zero) and that value is the one to
         keep."""
         f = self.fopts
         if self.la >= 0:
             sig = np.sqrt(np.diag(self.P)[self.la:self.la + 3])
-            bad = [a for a, x in zip("xyz", sig) if x > 0.5 * f.lever_arm_sigma]
+            bad = [a for a, x in zip("xyz", sig) if x > UNOBSERVED * f.lever_arm_sigma]
             if bad:
                 s.warnings.append(f"the motion did not observe the lever arm's {', '.join(bad)} (1-sigma still over "
-                                  f"half its prior {f.lever_arm_sigma:g} m): keep the configured value "
+                                  f"{UNOBSERVED:g} of its prior {f.lever_arm_sigma:g} m): keep the configured value "
                                   f"{[round(float(v), 3) for v in self.lever]} m for {', '.join(bad)}")
-        if self.td >= 0 and math.sqrt(self.P[self.td, self.td]) > 0.5 * f.time_offset_sigma:
-            s.warnings.append(f"the motion did not observe the GNSS time offset (1-sigma still over half its prior "
-                              f"{f.time_offset_sigma:g} s): keep the configured gnss.time_offset")
+        if self.td >= 0 and math.sqrt(self.P[self.td, self.td]) > UNOBSERVED * f.time_offset_sigma:
+            s.warnings.append(f"the motion did not observe the GNSS time offset (1-sigma still over {UNOBSERVED:g} of "
+                              f"its prior {f.time_offset_sigma:g} s): keep the configured gnss.time_offset")
 
     def _axis_name(self, code: int) -> str:
         """``gnss_pos u`` of an R-scale event's code ``3 kind + component``."""
@@ -840,6 +847,7 @@ class Fusion:
                             f"the init time is outside the log")
 
 
+UNOBSERVED = 0.3            # an estimated parameter whose sigma stays over this share of its prior: not observed
 EXIT_QUANTILE = 4.605170185988091 / 2.0     # the 99 % quantile of chi-square(2) / 2: an exit's ratio
 
 
@@ -952,4 +960,5 @@ def run_fusion(imu: ImuLog, init: NavState, gnss: GnssLog, fopts: FusionOptions 
     traj = concat(chunks)
     if smooth:
         traj = f.smoothed()
+    traj = f.on_gnss_clock(traj)
     return traj, f.innovations(), f.summary(traj), f

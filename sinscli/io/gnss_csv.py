@@ -47,7 +47,7 @@ def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
     names = {c: mapping.get(c, c) for c in data}
     data = to_enu(data, frame, to_deg)
     limits_mod.check_time(path, data["time"], lim, names["time"], 2)
-    check_time(path, data["time"], allow_gaps=True, what=names["time"])
+    check_time(path, data["time"], allow_gaps=True, what=names["time"], warn_gaps=False)   # outages: the summary
     limits_mod.check_position(path, data["lat"], data["lon"], data["height"], lim,
                               (names["lat"], names["lon"], names["height"]), 2)
     if "vel_e" in data:
