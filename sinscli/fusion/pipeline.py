@@ -458,12 +458,13 @@ class Fusion:
         cv[kn.C_ITA:kn.C_ITA + 3] = m.inv_tau_a
         cv[kn.C_SFG] = m.sfmis_g * f.scale_factor_tau
         cv[kn.C_SFA] = m.sfmis_a * f.scale_factor_tau
-        cv[kn.C_SF_TAU] = f.scale_factor_tau
         cv[kn.C_REJ_RUN] = f.rejection_run
         cv[kn.C_RADAPT_N] = f.adapt_window if f.adapt else 0.0
         cv[kn.C_RADAPT_MAX] = f.adapt_max_scale
         cv[kn.C_RBASE:kn.C_RBASE + 3 * kn.NK] = self.r_base
-        nw = f.adapt_window
+        # consecutive differences share a measurement: the window's estimate has about 2/3 of its count's
+        # degrees of freedom
+        nw = max(int(round(f.adapt_window / 1.5)), 1)
         cv[kn.C_RADAPT_BAND] = chi2_ppf(1e-4, nw) / nw
         cv[kn.C_RADAPT_BAND + 1] = chi2_ppf(1.0 - 1e-4, nw) / nw
         cv[kn.C_QB_MAX] = f.adapt_max_bias_scale if f.adapt else 1.0
