@@ -126,10 +126,11 @@ def test_tactical_rtk_accuracy_and_outage(tactical):
 
 def test_tactical_attitude_floor_is_the_misalignment():
     """The tactical heading RMS (0.030 deg, target 0.02) is the floor of the preset's unmodelled 100 arcsec
-    (0.028 deg) misalignment: the same drive with misalignment_sigma 0 (IMU and filter) gives 0.0215 deg
-    (roll, pitch under 0.008): the misalignment's floor lifted, 0.0015 deg short of the target since the
-    unestimated scale factor acts on the low-passed rate (a walker's steps average out, docs/fusion.md;
-    0.0199 with the instantaneous rate)."""
+    (0.028 deg) misalignment: the same drive with misalignment_sigma 0 (IMU and filter) gives 0.022 deg
+    (roll, pitch under 0.008): the misalignment's floor lifted, 0.002 deg short of the target since the
+    unestimated scale factor acts on the rate low-passed over its correlation time (a walker's steps
+    average out) and the GNSS models on a rate low-passed over 0.05 s (a mount's vibration averages out):
+    docs/fusion.md; 0.0199 with the instantaneous rate."""
     from sinscli.sensors import preset_text
     sc = yaml.safe_load((ROOT / "configs/scenarios/tactical_rtk_drive.yaml").read_text())
     sens = yaml.safe_load(preset_text("tactical"))
@@ -140,7 +141,7 @@ def test_tactical_attitude_floor_is_the_misalignment():
     traj = run_fusion(sim.imu, sim.init, sim.gnss, _opts(sensor=sens), init_sigma=INIT_SIGMA)[0]
     _, _, phi = errors(traj, sim.truth)
     att = np.degrees(np.sqrt(np.mean(phi[traj.time > 120.0] ** 2, axis=0)))
-    assert np.all(att[:2] <= 0.01) and att[2] <= 0.022, att
+    assert np.all(att[:2] <= 0.01) and att[2] <= 0.0235, att
 
 
 def test_sigma_columns_positive_finite(tactical):

@@ -81,6 +81,7 @@ CV = Layout("fusion config", [
     ("robust", 3),          # IGG-III full-weight bound (NIS of 1, 2, 3 components; 0: off)
     ("arw2", 3), ("vrw2", 3), ("qbg", 3), ("qba", 3), ("itg", 3), ("ita", 3),
     ("sfg", 1), ("sfa", 1),     # sigma^2 tau_c of the unestimated scale factor + misalignment
+    ("sf_tau", 1),              # tau_c, s
     ("rej_run", 1),
     ("radapt_n", 1),        # measurements per R-adaptation window (0: off)
     ("radapt_max", 1),      # largest R variance scale
@@ -95,12 +96,13 @@ CV = Layout("fusion config", [
     ("zupt_maxv", 1),
     ("nhc_ax", 2),
     ("fwd", 1),             # the body's forward axis (0 x, 1 y): roll/pitch sigma
-], size=63)
+], size=64)
 C_NX, C_NCORE, C_LA, C_TD = CV.nx, CV.ncore, CV.la, CV.td
 C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT = CV.method, CV.order, CV.nsub, CV.every, CV.conv, CV.prop_dt
 C_GATE, C_ROBUST = CV.gate, CV.robust
 C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA = CV.arw2, CV.vrw2, CV.qbg, CV.qba, CV.itg, CV.ita, \
     CV.sfg, CV.sfa
+C_SF_TAU = CV.sf_tau
 C_REJ_RUN, C_RADAPT_N, C_RADAPT_MAX, C_RBASE = CV.rej_run, CV.radapt_n, CV.radapt_max, CV.rbase
 C_RADAPT_BAND = CV.radapt_band
 C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT = CV.qb_max, CV.qb_tau, CV.qb_thr, CV.qb_base, CV.outage_dt
@@ -152,8 +154,7 @@ V_X, V_H, V_HP, V_KT, V_Z, V_R = WV.x, WV.H, WV.HP, WV.KT, WV.z, WV.r
 # per-row variances written with every output row
 NVAR = 9             # pos E N U, vel E N U, roll, pitch, heading (heading < 0: not yet known)
 NREC = 11            # columns of an innovation record (_record)
-SUSTAINED = 1.0      # s: low-pass of the rate and acceleration the unestimated scale factor acts on
-ANTENNA_TAU = 0.01   # s: low-pass of the rate and specific force in the GNSS models (lever arm, time offset)
+ANTENNA_TAU = 0.05   # s: low-pass of the rate and specific force in the GNSS models (lever arm, time offset)
 NBIAS = 12           # b_g, b_a, s_g, s_a (SI)
 
 
@@ -292,10 +293,10 @@ def _do_propagate(st, fs, cv, P, mats, store):
     W = mats[W_W]
     propagate(P, W, fb, T, nx, ncore, itg, ita)
     g = gravity(np.sin(lat), h)
-    # the unestimated scale factor and misalignment act on the sustained rate and acceleration (a step, a
-    # wobble or a vibration averages out: its error is bounded, not a random walk): a first-order low-pass
-    # of time constant SUSTAINED, longer than a walker's steps, shorter than a vehicle's turns
-    a = min(T / SUSTAINED, 1.0)
+    # the unestimated scale factor and misalignment act on the sustained rate and acceleration: their means
+    # over the correlation time (a step, a wobble or a vibration averages out: its error is bounded, not a
+    # random walk); first-order low-pass of time constant scale_factor_tau
+    a = min(T / max(cv[C_SF_TAU], 1e-9), 1.0)
     for i in range(3):
         fs[F_LPW + i] += a * (w_b[i] - fs[F_LPW + i])
         fs[F_LPF + i] += a * ((f_n[i] - g if i == 2 else f_n[i]) - fs[F_LPF + i])

@@ -458,6 +458,7 @@ class Fusion:
         cv[kn.C_ITA:kn.C_ITA + 3] = m.inv_tau_a
         cv[kn.C_SFG] = m.sfmis_g * f.scale_factor_tau
         cv[kn.C_SFA] = m.sfmis_a * f.scale_factor_tau
+        cv[kn.C_SF_TAU] = f.scale_factor_tau
         cv[kn.C_REJ_RUN] = f.rejection_run
         cv[kn.C_RADAPT_N] = f.adapt_window if f.adapt else 0.0
         cv[kn.C_RADAPT_MAX] = f.adapt_max_scale
