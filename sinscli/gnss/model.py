@@ -64,9 +64,9 @@ def sat_earth_rate(eph, k):
 @njit(cache=True)
 def group_delay(eph, k, band, freq):
     """Group delay (s) of the signal in RINEX ``band`` at ``freq`` (Hz) relative to the broadcast clock's
-    reference, to be added to the satellite clock term: GPS/QZSS ``(f_L1/f)^2 TGD`` (L1: TGD, L2: gamma TGD;
-    L5 without its ISC); Galileo ``(f_E1/f)^2 BGD`` with BGD(E1,E5a) for an F/NAV ephemeris or E5a and
-    BGD(E1,E5b) otherwise; BeiDou B1I TGD1, B2I TGD2, B3I 0."""
+    reference, to be added to the satellite clock term: GPS/QZSS ``(f_L1/f)^2 TGD`` (L1: TGD, L2: gamma TGD); Galileo ``(f_E1/f)^2 BGD`` with BGD(E1,E5a) for an F/NAV ephemeris or E5a and
+    BGD(E1,E5b) otherwise; BeiDou B1I TGD1, B2I TGD2, B3I 0.  GPS/QZSS L5: TGD (IS-GPS-705 20.3.3.3.1.2:
+    the L5 clock correction is ``dt_sv - TGD + ISC_L5``; the ISC is not in LNAV and is taken as 0)."""
     sys = int(eph[k, SYS])
     if sys == SYS_BDS:
         if band == 2:
@@ -80,6 +80,8 @@ def group_delay(eph, k, band, freq):
         if band == 5 or fnav_only:
             return g * eph[k, TGD1]
         return g * eph[k, TGD2]
+    if band == 5:
+        return eph[k, TGD1]
     return g * eph[k, TGD1]
 
 

@@ -165,3 +165,37 @@ def run_spp(obs: ObsData, nav: NavData, systems=None, options=None, fde_alpha: f
                          obs.sys.astype(np.int64), obs.prn.astype(np.int64), sig.p1, sig.p2, sig.b1, sig.b2,
                          sig.f1, sig.f2, sig.cn0, sig.dop, x0)
     return SppResult(obs.time, *res, obs=obs, signals=sig, systems=systems)
+
+
+def run_spp_chunks(obs: ObsData, nav: NavData, systems, options, fde_alpha: float = 1e-3, progress=None,
+                   chunk: int = 2000) -> SppResult:
+    """:func:`run_spp` in chunks of epochs (``progress(n)`` after each), each starting from the last fix."""
+    if progress is None or len(obs) <= chunk:
+        res = run_spp(obs, nav, systems, options, fde_alpha)
+        if progress is not None:
+            progress(len(obs))
+        return res
+    sig = select_signals(obs)
+    sys_on = np.zeros(N_SYS, dtype=np.bool_)
+    sys_on[list(systems)] = True
+    ion = nav.ion_gps if nav.ion_gps is not None else nav.ion_bds
+    ion = np.zeros(8) if ion is None else np.asarray(ion, dtype=np.float64)
+    tab = S.chi2_table(fde_alpha)
+    parts = []
+    x0 = np.zeros(3)
+    sysr = obs.sys.astype(np.int64)
+    prnr = obs.prn.astype(np.int64)
+    for a in range(0, len(obs), chunk):
+        b = min(a + chunk, len(obs))
+        ra, rb = int(obs.start[a]), int(obs.start[b])
+        st = obs.start[a:b + 1] - ra
+        res = S.solve_epochs(nav.eph, ion, options, tab, sys_on, obs.time[a:b], st, sysr[ra:rb], prnr[ra:rb],
+                             sig.p1[ra:rb], sig.p2[ra:rb], sig.b1[ra:rb], sig.b2[ra:rb], sig.f1[ra:rb],
+                             sig.f2[ra:rb], sig.cn0[ra:rb], sig.dop[ra:rb], x0)
+        parts.append(res)
+        fixes = np.nonzero(res[0] == S.FIX)[0]
+        if fixes.size:
+            x0 = res[1][fixes[-1]].copy()
+        progress(b - a)
+    joined = [np.concatenate([p[i] for p in parts]) for i in range(len(parts[0]))]
+    return SppResult(obs.time, *joined, obs=obs, signals=sig, systems=list(systems))

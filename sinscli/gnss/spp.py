@@ -400,6 +400,17 @@ def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, 
             ddts[i] = ddt_s
             use[i] = True
             iono_used[i] = opts[O_IONO] == IONO_IFLC and pp2[i] == pp2[i] and ff2[i] > 0.0 and ff2[i] != ff1[i]
+        # the ionosphere-free combination only for a system all of whose satellites have two frequencies in
+        # this epoch: a receiver's inter-frequency code bias would otherwise enter as a per-satellite error
+        for s in range(N_SYS):
+            all_two = True
+            for i in range(nsat):
+                if use[i] and sysv[i] == s and not iono_used[i]:
+                    all_two = False
+            if not all_two:
+                for i in range(nsat):
+                    if sysv[i] == s:
+                        iono_used[i] = False
         cand = use.copy()
         for a in range(3 + N_SYS):
             x[a] = 0.0
