@@ -3,8 +3,7 @@ positioning and the tightly coupled filter.
 
 * time of transmission and the satellite state then (IS-GPS-200 20.3.3.3.3.1: ``t_sv = t_rx - P/c``, the
   satellite clock removed);
-* geometric range with the Sagnac (Earth rotation during the flight) term and its rate
-  (RTCM/RTKLIB form ``rho = |r_s - r_r| + w_e (x_s y_r - y_s x_r) / c``);
+* geometric range with the Earth's rotation during the flight (Sagnac) in closed form, and its rate;
 * group delays of the signal used (TGD, BGD, TGD1/TGD2: IS-GPS-200 20.3.3.3.3.2, OS-SIS-ICD 5.1.5,
   BDS-SIS-ICD 5.2.4.10);
 * geodetic latitude, longitude, height of the receiver and the satellite's azimuth and elevation.
@@ -38,22 +37,47 @@ def transmit_state(eph, k, t_rx, pr):
 
 
 @njit(cache=True)
-def geo_range(sx, sy, sz, rx, ry, rz, omge):
-    """Geometric range (m) from receiver ``r`` to satellite ``s`` (ECEF at transmission) with the Sagnac term,
-    and the unit line of sight from the receiver to the satellite.  Returns ``(rho, ex, ey, ez)``."""
+def to_reception_frame(sx, sy, sz, rx, ry, rz, omge):
+    """Satellite position (ECEF of the time of transmission) in the ECEF frame of the time of reception:
+    ``R_z(w_e tau) r_s`` with the flight time ``tau = |r_s - r_r| / c`` (the Earth's rotation during the flight,
+    the Sagnac effect, in closed form).  Returns ``(x, y, z, cos, sin)`` of the rotation."""
     dx = sx - rx
     dy = sy - ry
     dz = sz - rz
+    tau = math.sqrt(dx * dx + dy * dy + dz * dz) / C_LIGHT
+    c = math.cos(omge * tau)
+    s = math.sin(omge * tau)
+    return c * sx + s * sy, -s * sx + c * sy, sz, c, s
+
+
+@njit(cache=True)
+def geo_range(sx, sy, sz, rx, ry, rz, omge):
+    """Geometric range (m) from receiver ``r`` to satellite ``s`` (ECEF at transmission) with the Earth's rotation
+    during the flight (:func:`to_reception_frame`; to first order the usual ``w_e (x_s y_r - y_s x_r) / c``), and
+    the unit line of sight from the receiver to the satellite.  Returns ``(rho, ex, ey, ez)``."""
+    x, y, z, c, s = to_reception_frame(sx, sy, sz, rx, ry, rz, omge)
+    dx = x - rx
+    dy = y - ry
+    dz = z - rz
     r = math.sqrt(dx * dx + dy * dy + dz * dz)
-    return r + omge * (sx * ry - sy * rx) / C_LIGHT, dx / r, dy / r, dz / r
+    return r, dx / r, dy / r, dz / r
 
 
 @njit(cache=True)
 def range_rate(sx, sy, sz, svx, svy, svz, rx, ry, rz, rvx, rvy, rvz, ex, ey, ez, omge):
-    """Rate of the geometric range (m/s) with the Sagnac term's rate; ``e`` the line of sight of
-    :func:`geo_range`."""
-    return ((svx - rvx) * ex + (svy - rvy) * ey + (svz - rvz) * ez
-            + omge / C_LIGHT * (svy * rx + sy * rvx - svx * ry - sx * rvy))
+    """Rate (m/s) of the range of :func:`geo_range` (``e`` its line of sight), exact to first order in the flight
+    time's rate: ``d rho/dt = e.(R v_s - v_r) / (1 - e.(w_e R' r_s - R v_s)/c)`` with ``R = R_z(w_e tau)`` and
+    ``R'`` its derivative by the angle (the rotation's own rate and the transmission time moving with the
+    range).  The first-order Sagnac form leaves ~3 cm/s (the satellite's velocity across a line of sight turned
+    by ``w_e tau``)."""
+    x, y, z, c, s = to_reception_frame(sx, sy, sz, rx, ry, rz, omge)
+    vx = c * svx + s * svy
+    vy = -s * svx + c * svy
+    wx = omge * (-s * sx + c * sy)
+    wy = omge * (-c * sx - s * sy)
+    num = ex * (vx - rvx) + ey * (vy - rvy) + ez * (svz - rvz)
+    den = 1.0 - (ex * (wx - vx) + ey * (wy - vy) - ez * svz) / C_LIGHT
+    return num / den
 
 
 @njit(cache=True)
