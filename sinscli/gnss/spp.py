@@ -3,7 +3,9 @@
 Per epoch: satellite states at transmission (:mod:`orbits`, :mod:`model`), Klobuchar or the
 ionosphere-free combination, Saastamoinen troposphere, elevation and C/N0 weights, one receiver clock per
 system, iterated weighted least squares, chi-square fault detection excluding one satellite at a time, the
-covariance of the solution (scaled up by the a-posteriori variance factor when that exceeds 1), DOPs, then
+covariance of the solution (scaled up by the unit-weight variance pooled over recent epochs when that exceeds
+1: the chi-square test uses the same scale, so a noise model that is too optimistic neither excludes good
+satellites nor gives optimistic sigmas), DOPs, then
 weighted least squares on the Doppler range rates for velocity and clock drift.  Equations: docs/raw_gnss.md.
 """
 from __future__ import annotations
@@ -343,6 +345,12 @@ def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, 
     have_prev = x_init[0] ** 2 + x_init[1] ** 2 + x_init[2] ** 2 > 1e12
     clk_of = np.full(N_SYS, -1, np.int64)
     q = np.zeros((3 + N_SYS, 3 + N_SYS))
+    # unit-weight variance pooled over recent epochs (forgetting factor 0.98, ~50 epochs): the measurement
+    # noise model's scale as the data show it, for the chi-square test and the covariance
+    pool_t = 0.0
+    pool_d = 0.0
+    pool_tv = 0.0
+    pool_dv = 0.0
     for e in range(ne):
         a0 = start[e]
         nsat = start[e + 1] - a0
@@ -440,7 +448,10 @@ def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, 
         # chi-square test; exclude one satellite at a time while it fails
         excluded = np.zeros(nsat, np.bool_)
         n_excl = 0
-        passed = n - m < 1 or chi2 <= chi2_tab[min(n - m, chi2_tab.shape[0] - 1)]
+        lam = 1.0
+        if opts[O_VARFACTOR] > 0.0 and pool_d > 0.0 and pool_t / pool_d > 1.0:
+            lam = pool_t / pool_d
+        passed = n - m < 1 or chi2 / lam <= chi2_tab[min(n - m, chi2_tab.shape[0] - 1)]
         while not passed and opts[O_FDE] > 0.0 and n_excl < opts[O_MAX_EXCL] and n - m >= 2:
             best_i = -1
             best_t = np.inf
@@ -458,7 +469,7 @@ def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, 
                 okt, nt, mt, c2 = _lsq_position(eph, ion, opts, t, xt, rows, nsat, pp1, pp2, bb1, bb2, ff1, ff2,
                                                 cc, sysv, kk, sx, dts, trial, iono_used, elt, azt, qt, clk_t)
                 if okt and nt - mt >= 1:
-                    score = c2 / chi2_tab[min(nt - mt, chi2_tab.shape[0] - 1)]
+                    score = c2 / lam / chi2_tab[min(nt - mt, chi2_tab.shape[0] - 1)]
                     if score < best_t:
                         best_t = score
                         best_i = i
@@ -473,14 +484,17 @@ def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, 
                                            sysv, kk, sx, dts, use, iono_used, el, az, q, clk_of)
             if not ok:
                 break
-            passed = chi2 <= chi2_tab[min(n - m, chi2_tab.shape[0] - 1)]
+            passed = chi2 / lam <= chi2_tab[min(n - m, chi2_tab.shape[0] - 1)]
         if not ok:
             status[e] = NO_CONVERGENCE
             continue
         dof = n - m
+        if dof >= 1 and passed:
+            pool_t = 0.98 * pool_t + chi2
+            pool_d = 0.98 * pool_d + dof
         scale = 1.0
-        if opts[O_VARFACTOR] > 0.0 and dof >= 1 and chi2 / dof > 1.0:
-            scale = chi2 / dof
+        if opts[O_VARFACTOR] > 0.0 and pool_d > 0.0 and pool_t / pool_d > 1.0:
+            scale = pool_t / pool_d
         status[e] = FIX if passed else CHI2_FAILED
         for a in range(3):
             pos[e, a] = x[a]
@@ -549,9 +563,12 @@ def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, 
             c2 = 0.0
             for j in range(nd):
                 c2 += vd[j] * vd[j] * wd[j]
+            if nd > 4:
+                pool_tv = 0.98 * pool_tv + c2
+                pool_dv = 0.98 * pool_dv + (nd - 4)
             sc = 1.0
-            if opts[O_VARFACTOR] > 0.0 and nd > 4 and c2 / (nd - 4) > 1.0:
-                sc = c2 / (nd - 4)
+            if opts[O_VARFACTOR] > 0.0 and pool_dv > 0.0 and pool_tv / pool_dv > 1.0:
+                sc = pool_tv / pool_dv
             vel_ok[e] = True
             drift[e] = vx[3]
             for a in range(3):

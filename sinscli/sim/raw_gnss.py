@@ -93,9 +93,10 @@ def check_config(cfg: dict | None, src: str = "raw_gnss") -> dict:
 
 
 @njit(cache=True)
-def _geometry(eph, ion, t, pos, vel, sys_list, prn_list, freq, band):
+def _geometry(eph, ion, t, t_sel, pos, vel, sys_list, prn_list, freq, band):
     """Exact range, range rate and satellite terms of every (epoch, satellite): returns ``rho, rho_dot, el, az,
-    dts, ddts, gd1, iono1, tropo, ok`` (E, S)."""
+    dts, ddts, gd1, iono1, tropo, ok`` (E, S).  The ephemeris is the one nearest ``t_sel`` (the receiver's
+    time tag, as the solver picks it)."""
     ne = t.shape[0]
     ns = sys_list.shape[0]
     rho = np.full((ne, ns), np.nan)
@@ -118,7 +119,7 @@ def _geometry(eph, ion, t, pos, vel, sys_list, prn_list, freq, band):
                 age = 14400.0
             elif s == 3:
                 age = 21600.0
-            k = select_ephemeris(eph, s, prn_list[j], t[e], age, 0)
+            k = select_ephemeris(eph, s, prn_list[j], t_sel[e], age, 0)
             if k < 0:
                 continue
             omge = earth_rate(s)
@@ -195,7 +196,7 @@ def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> Ra
     dt = np.diff(t_true, prepend=t_true[0])
     drift = cfg["clock_drift"] + np.cumsum(rng.standard_normal(ne) * cfg["clock_walk"] * np.sqrt(dt))
     bias = cfg["clock_bias"] + np.concatenate([[0.0], np.cumsum(0.5 * (drift[1:] + drift[:-1]) * dt[1:])])
-    geo = [_geometry(nav.eph, np.asarray(ion, dtype=np.float64), t_true, pos, vel, sys_list, prn_list,
+    geo = [_geometry(nav.eph, np.asarray(ion, dtype=np.float64), t_true, t_true + bias, pos, vel, sys_list, prn_list,
                      np.ascontiguousarray(freqs[:, f]), np.ascontiguousarray(bands[:, f])) for f in range(nfreq)]
     rho, rdot, el, az, dts, ddts, _, iono_l1, trop, ok = geo[0]
     visible = ok & (el > math.radians(cfg["elevation_mask"]))

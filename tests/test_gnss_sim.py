@@ -1,0 +1,154 @@
+"""Single-point positioning on simulated raw observations with exact truth (sins simulate's raw GNSS):
+accuracy against the theoretical DOP x sigma, velocity likewise, honest 1-sigma, FDE, canyons, round trip
+through RINEX 3.04."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sinscli.gnss import spp as S
+from sinscli.gnss.pipeline import run_spp
+from sinscli.io.rinex import read_nav, read_obs, write_nav, write_obs
+from sinscli.nav.earth import ecef_to_lla, enu_rotation
+from sinscli.sim.raw_gnss import static_receiver
+
+SIGMA = 0.5          # m, code a = b
+DOP_SIGMA = 0.05     # m/s at the zenith
+
+
+def _exact_opts(**kw):
+    """The solver's weights equal to the simulated noise: no URA, iono or tropo residual terms."""
+    base = dict(elev_mask_deg=5.0, code_a=SIGMA, code_b=SIGMA, doppler_sigma=DOP_SIGMA, use_ura=False, iono_var=0.0,
+                tropo_sigma=0.0, iono="klobuchar", fde=False, variance_factor=False)
+    base.update(kw)
+    return S.spp_options(**base)
+
+
+@pytest.fixture(scope="module")
+def static_run():
+    sim = static_receiver(37.4, -122.2, 30.0, 3600, {"systems": "G", "code_sigma": SIGMA,
+                                                    "doppler_sigma": DOP_SIGMA}, seed=11)
+    return sim, run_spp(sim.obs, sim.nav, systems=[0], options=_exact_opts())
+
+
+def _theory_h(sim, res, what="pos"):
+    """sqrt(mean over epochs of the horizontal variance) of weighted least squares computed here with numpy
+    from the true geometry (true receiver and satellite positions) and the simulated noise model: the
+    theoretical HDOP x sigma."""
+    lat, lon, _ = ecef_to_lla(sim.pos[0])
+    out = []
+    opts = _exact_opts()
+    for e in range(0, len(sim.obs), 7):
+        r = np.arange(sim.obs.start[e], sim.obs.start[e + 1])
+        el, az = res.el[r], res.az[r]
+        cn0 = sim.obs.values[r, 3]
+        g = np.column_stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el), np.ones(r.size)])
+        var = np.array([(S.code_variance if what == "pos" else S.doppler_variance)(opts, a, c)
+                        for a, c in zip(el, cn0)])
+        q = np.linalg.inv(g.T @ (g / var[:, None]))
+        out.append(q[0, 0] + q[1, 1])
+    return float(np.sqrt(np.mean(out)))
+
+
+def test_spp_horizontal_rms_within_10pc_of_theory(static_run):
+    """An hour at 1 Hz, GPS geometry of the shipped broadcast file: horizontal RMS against the truth within 10 %
+    of the theoretical HDOP x sigma (measured 0.1 %), and the same for the Doppler velocity."""
+    sim, res = static_run
+    assert (res.status != S.TOO_FEW).all()
+    lat, lon, _ = ecef_to_lla(sim.pos[0])
+    rot = enu_rotation(lat, lon)
+    d = (res.pos - sim.pos) @ rot.T
+    rms_h = np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2))
+    theory = _theory_h(sim, res)
+    assert rms_h == pytest.approx(theory, rel=0.10), (rms_h, theory)
+    dv = (res.vel - sim.vel) @ rot.T
+    rms_v = np.sqrt(np.mean(dv[:, 0] ** 2 + dv[:, 1] ** 2))
+    theory_v = _theory_h(sim, res, "vel")
+    assert rms_v == pytest.approx(theory_v, rel=0.10), (rms_v, theory_v)
+    # the receiver clock and drift against the simulated ones; the solution time against the true time
+    c = 299792458.0
+    assert np.sqrt(np.mean((res.clk[:, 0] - sim.clock_bias * c) ** 2)) < 3.0 * SIGMA * 3
+    assert np.sqrt(np.mean((res.drift - sim.clock_drift * c) ** 2)) < 0.2
+    assert np.abs(res.solution_time() - sim.t_true).max() < 1e-7 * 20
+
+
+def test_spp_noise_free_is_exact():
+    """Without noise the solver's models equal the simulator's exact geometry: < 2 cm, < 3 mm/s."""
+    sim = static_receiver(-33.9, 151.2, 100.0, 120, {"systems": "G", "code_sigma": 1e-6, "doppler_sigma": 1e-7,
+                                                     "clock_drift": 1e-7}, seed=1)
+    res = run_spp(sim.obs, sim.nav, systems=[0], options=_exact_opts(code_a=1e-6, code_b=1e-6,
+                                                                     doppler_sigma=1e-7))
+    assert np.abs(res.pos - sim.pos).max() < 0.02
+    assert np.abs(res.vel - sim.vel).max() < 0.003
+
+
+@pytest.mark.parametrize("noise_factor", [1.0, 3.0])
+def test_spp_sigma_is_honest(noise_factor):
+    """3-sigma fraction of the position and velocity errors per axis: with the noise the solver assumes, and
+    with noise three times larger than it assumes (the a-posteriori variance factor scales the covariance)."""
+    sim = static_receiver(51.5, -0.1, 50.0, 1200, {"systems": "G", "code_sigma": SIGMA * noise_factor,
+                                                  "doppler_sigma": DOP_SIGMA * noise_factor}, seed=5)
+    res = run_spp(sim.obs, sim.nav, systems=[0], options=_exact_opts(variance_factor=True, fde=True))
+    ok = res.fix
+    assert ok.mean() > 0.98
+    for est, cov, truth in ((res.pos, res.cov, sim.pos), (res.vel, res.cov_vel, sim.vel)):
+        err = est[ok] - truth[ok]
+        sig = np.sqrt(np.einsum("eii->ei", cov[ok]))
+        frac = np.mean(np.abs(err) < 3.0 * sig)
+        nees = np.mean(np.einsum("ei,eij,ej->e", err, np.linalg.inv(cov[ok]), err))
+        assert frac > 0.97, frac
+        if noise_factor == 1.0:
+            assert 2.5 < nees < 3.6, nees          # chi-square(3) mean; the factor only ever inflates
+        assert np.all(sig > 0)
+
+
+def test_fde_excludes_a_faulty_satellite():
+    """A 60 m ramp on one satellite for 100 epochs: the chi-square test excludes exactly it, and the fixes stay
+    at the noise level."""
+    sim = static_receiver(37.4, -122.2, 30.0, 300, {"systems": "G", "code_sigma": SIGMA}, seed=3)
+    obs = sim.obs
+    victim = int(obs.prn[obs.start[0]])
+    ep = obs.epoch_of_record()
+    hit = (obs.prn == victim) & (ep >= 100) & (ep < 200)
+    obs.values[hit, 0] += 60.0
+    res = run_spp(obs, sim.nav, systems=[0], options=_exact_opts(fde=True, variance_factor=True))
+    excluded = res.rec_status == S.EXCLUDED
+    assert excluded[hit].mean() > 0.98
+    assert excluded[~hit].mean() < 0.005
+    text = res.excluded_text()
+    assert text[150] == f"G{victim:02d}"
+    d = np.linalg.norm(res.pos - sim.pos, axis=1)
+    assert np.sqrt(np.mean(d[100:200] ** 2)) < 6 * SIGMA * 3
+
+
+def test_urban_canyon_leaves_too_few_satellites():
+    """A 30 s canyon keeping 3 satellites and an azimuth mask: the epochs are written with 3 satellites and the
+    solver reports them unsolved (TOO_FEW) instead of a fix."""
+    cfg = {"systems": "G", "canyons": [{"start": 60, "duration": 30, "keep": 3}],
+           "azimuth_mask": [[0, 90, 40]]}
+    sim = static_receiver(37.4, -122.2, 30.0, 150, cfg, seed=2)
+    assert (sim.visible[60:90] == 3).all() and (sim.visible[:60] > 4).all()
+    res = run_spp(sim.obs, sim.nav, systems=[0], options=_exact_opts())
+    assert (res.status[60:90] == S.TOO_FEW).all()
+    assert (res.status[:60] != S.TOO_FEW).all()
+    # no satellite inside the masked sector below 40 deg
+    az, el = np.degrees(res.az), np.degrees(res.el)
+    assert not np.any((az < 90) & (el < 39.9) & ~np.isnan(az))
+
+
+def test_rinex_round_trip_of_simulated_data(tmp_path):
+    """RINEX 3.04 writer -> reader: the same observations (to the format's 1 mm / 0.001) and ephemerides (to
+    the 12 significant digits of the format), and the same solution."""
+    sim = static_receiver(37.4, -122.2, 30.0, 60, {"systems": "G", "frequencies": 2}, seed=4)
+    write_obs(tmp_path / "obs.rnx", sim.obs)
+    write_nav(tmp_path / "nav.rnx", sim.nav)
+    obs = read_obs(tmp_path / "obs.rnx")
+    nav = read_nav(tmp_path / "nav.rnx")
+    assert obs.types == sim.obs.types
+    np.testing.assert_array_equal(obs.prn, sim.obs.prn)
+    assert np.abs(obs.time - sim.obs.time).max() < 1e-7
+    np.testing.assert_allclose(obs.values, sim.obs.values, atol=6e-4, rtol=0)
+    np.testing.assert_allclose(nav.eph, sim.nav.eph, rtol=1e-11, atol=1e-20)
+    a = run_spp(sim.obs, sim.nav, systems=[0], options=_exact_opts())
+    b = run_spp(obs, nav, systems=[0], options=_exact_opts())
+    assert np.abs(a.pos - b.pos).max() < 0.01
