@@ -312,6 +312,29 @@ def from_trajectory(time_rel, lat, lon, h, vel_enu, cfg: dict, seed: int = 0) ->
     return simulate_raw(t0 + (tr - time_rel[0]), pos, vel, nav, cfg, seed)
 
 
+RAW_FILES = ("obs.rnx", "nav.rnx", "gnss_truth.csv")
+
+
+def simulate_from_result(result, cfg: dict, seed: int = 0) -> RawSim:
+    """Raw observations of the antenna of a ``sins simulate`` run (:class:`sinscli.sim.run.SimResult`): the
+    antenna truth of its GNSS fixes' model (lever arm included) at the IMU times, resampled at the raw rate."""
+    from .gnss import antenna_truth
+    tr = result.truth
+    lever = (result.scenario.gnss.get("lever_arm", [0.0, 0.0, 0.0]) if result.scenario is not None
+             else [0.0, 0.0, 0.0])
+    w = np.zeros((len(tr), 3))
+    lat, lon, h, v = tr.lat, tr.lon, tr.height, tr.vel_n
+    if np.any(np.asarray(lever, dtype=float)):
+        # body rates from consecutive attitudes (the antenna's velocity term w x l is small; mm/s)
+        dt = np.gradient(tr.time)
+        c = tr.Cbn
+        dc = np.gradient(c, axis=0) / dt[:, None, None]
+        wx = np.einsum("nji,njk->nik", c, dc)
+        w = np.stack([wx[:, 2, 1], wx[:, 0, 2], wx[:, 1, 0]], axis=1)
+        lat, lon, h, v = antenna_truth(tr.lat, tr.lon, tr.height, tr.vel_n, tr.Cbn, w, lever)
+    return from_trajectory(tr.time, lat, lon, h, v, cfg, seed)
+
+
 def write_raw(sim: RawSim, outdir) -> list[Path]:
     """``obs.rnx``, ``nav.rnx`` (RINEX 3.04) and ``gnss_truth.csv`` (true GPS time, antenna lat/lon/height,
     ENU velocity, receiver clock bias m and drift m/s) into ``outdir`` (each written atomically)."""
