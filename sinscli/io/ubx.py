@@ -1,0 +1,324 @@
+"""u-blox UBX logs: RXM-RAWX observations and RXM-SFRBX broadcast navigation words (GPS LNAV subframes 1-3)
+into the same tables as the RINEX readers.
+
+Messages are framed by pyubx2 (``UBXReader``, raw mode); each frame's Fletcher checksum is checked here, and the
+payloads are decoded with numpy (u-blox F9/M8 interface description: RXM-RAWX 16-byte header and 32 bytes per
+measurement; RXM-SFRBX words).  A truncated or corrupt message is skipped and counted (one warning line naming
+the file and the epoch after which it came).  Galileo I/NAV and BeiDou D1/D2 words are counted, not decoded
+(docs/raw_gnss.md: not done yet; give a RINEX navigation file with --nav for those systems).
+"""
+from __future__ import annotations
+
+import io
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SinsError
+from ..gnss import ephemeris as E
+from ..gnss.ephemeris import NavData, finish_table
+from ..gnss.observations import ObsData
+from ..gnss.signals import SYS_BDS, SYS_GAL, SYS_GLO, SYS_GPS, SYS_QZS, SYS_SBS, sat_name
+from ..gnss.timesys import SECONDS_PER_WEEK, epoch_text
+from .inputs import input_file
+from .rinex import report_skipped
+
+log = logging.getLogger("sins")
+
+# u-blox gnssId -> our system
+GNSS_ID = {0: SYS_GPS, 1: SYS_SBS, 2: SYS_GAL, 3: SYS_BDS, 5: SYS_QZS, 6: SYS_GLO}
+# (gnssId, sigId) -> RINEX band + attribute (u-blox F9 interface description, signal identifiers)
+SIG_CODE = {(0, 0): "1C", (0, 3): "2L", (0, 4): "2S", (0, 6): "5I", (0, 7): "5Q",
+            (1, 0): "1C",
+            (2, 0): "1C", (2, 1): "1B", (2, 3): "5I", (2, 4): "5Q", (2, 5): "7I", (2, 6): "7Q",
+            (3, 0): "2I", (3, 1): "2I", (3, 2): "7I", (3, 3): "7I", (3, 5): "1P", (3, 7): "5P",
+            (5, 0): "1C", (5, 4): "2S", (5, 5): "2L",
+            (6, 0): "1C", (6, 2): "2C"}
+PI = math.pi
+
+
+def _fletcher(buf: np.ndarray) -> tuple[int, int]:
+    """UBX checksum (8-bit Fletcher, RFC 1145) over class, id, length and payload."""
+    n = buf.size
+    a = int(buf.sum(dtype=np.int64)) & 0xFF
+    b = int(np.dot(np.arange(n, 0, -1, dtype=np.int64), buf.astype(np.int64))) & 0xFF
+    return a, b
+
+
+def frames(data: bytes, source: str, skipped: dict, last_epoch):
+    """``(class, id, payload)`` of each UBX message with a valid checksum, framed by pyubx2; corrupt and
+    truncated messages are recorded in ``skipped``."""
+    from pyubx2 import ERR_LOG, UBX_PROTOCOL, UBXReader
+    from pyubx2.ubxtypes_core import PARSE_NONE
+
+    errors = []
+    reader = UBXReader(io.BytesIO(data), protfilter=UBX_PROTOCOL, quitonerror=ERR_LOG, parsing=PARSE_NONE,
+                       errorhandler=errors.append)
+    while True:
+        try:
+            raw, _ = reader.read()
+        except Exception as exc:        # pyubx2's stream errors on a message cut at the end of the file
+            errors.append(exc)
+            raw = None
+        if errors:
+            for _ in errors:
+                skipped.setdefault("truncated", []).append(f"{source}: after {last_epoch()}")
+            errors.clear()
+        if raw is None:
+            break
+        buf = np.frombuffer(raw, dtype=np.uint8)
+        if buf.size < 8:
+            skipped.setdefault("truncated", []).append(f"{source}: after {last_epoch()}")
+            continue
+        length = int(buf[4]) | (int(buf[5]) << 8)
+        if buf.size != length + 8:
+            skipped.setdefault("truncated", []).append(f"{source}: after {last_epoch()}")
+            continue
+        a, b = _fletcher(buf[2:-2])
+        if a != buf[-2] or b != buf[-1]:
+            skipped.setdefault("checksum", []).append(f"{source}: after {last_epoch()}")
+            continue
+        yield int(buf[2]), int(buf[3]), buf[6:-2]
+
+
+def _bits(words: np.ndarray, nbits_word: int, take_from: int):
+    """Concatenate ``nbits_word`` bits of each word starting at bit ``take_from`` (from the MSB side) into a
+    Python int and its length."""
+    v = 0
+    for w in words:
+        v = (v << nbits_word) | ((int(w) >> take_from) & ((1 << nbits_word) - 1))
+    return v, nbits_word * len(words)
+
+
+def _field(v: int, total: int, start: int, n: int, signed: bool = False) -> int:
+    x = (v >> (total - start - n)) & ((1 << n) - 1)
+    if signed and x >> (n - 1):
+        x -= 1 << n
+    return x
+
+
+class _LnavCollector:
+    """GPS/QZSS LNAV subframes 1-3 (IS-GPS-200 20.3.3.3, 20.3.3.4) into ephemeris rows."""
+
+    def __init__(self, skipped, source):
+        self.sub: dict[tuple, dict] = {}
+        self.rows = []
+        self.skipped = skipped
+        self.source = source
+        self.seen = set()
+
+    def add(self, sys, prn, words, week_full, t_now):
+        if len(words) < 10:
+            return
+        v, tot = _bits(words[:10], 24, 6)            # 24 data bits of each 30-bit word (bits 29..6)
+        if _field(v, tot, 0, 8) != 0x8B:
+            return
+        sid = _field(v, tot, 43, 3)
+        if sid not in (1, 2, 3):
+            return
+        d = self.sub.setdefault((sys, prn), {})
+        d[sid] = v
+        if not all(k in d for k in (1, 2, 3)):
+            return
+        s1, s2, s3 = d[1], d[2], d[3]
+        iodc = (_field(s1, tot, 70, 2) << 8) | _field(s1, tot, 168, 8)
+        iode2 = _field(s2, tot, 48, 8)
+        iode3 = _field(s3, tot, 216, 8)
+        if not (iode2 == iode3 == (iodc & 0xFF)):
+            if iode2 == iode3:                   # subframe 1 of another issue: wait for its match
+                key = ("iode", sys, prn, iodc, iode2)
+                if key not in self.seen:
+                    self.seen.add(key)
+                    self.skipped.setdefault("iode", []).append(
+                        f"{self.source}: {sat_name(sys, prn)} subframes of {epoch_text(t_now)}: IODE {iode2} "
+                        f"does not match IODC {iodc}")
+            return
+        key = (sys, prn, iodc, _field(s2, tot, 216, 16))
+        if key in self.seen:
+            return
+        self.seen.add(key)
+        health = _field(s1, tot, 64, 6)
+        week10 = _field(s1, tot, 48, 10)
+        week = week_full - ((week_full - week10) % 1024) if week_full is not None else week10 + 2048
+        if (week_full - week) > 512:
+            week += 1024
+        toe_sow = _field(s2, tot, 216, 16) * 16.0
+        toc_sow = _field(s1, tot, 176, 16) * 16.0
+        row = np.zeros(E.NCOL)
+        row[E.SYS], row[E.PRN] = sys, prn
+        toe = week * SECONDS_PER_WEEK + toe_sow
+        toc = week * SECONDS_PER_WEEK + toc_sow
+        for name in ("toe", "toc"):            # the week of a toe/toc across a week boundary from t_now
+            val = toe if name == "toe" else toc
+            while val - t_now > SECONDS_PER_WEEK / 2:
+                val -= SECONDS_PER_WEEK
+            while t_now - val > SECONDS_PER_WEEK / 2:
+                val += SECONDS_PER_WEEK
+            if name == "toe":
+                toe = val
+            else:
+                toc = val
+        row[E.TOE], row[E.TOC], row[E.WEEK] = toe, toc, math.floor(toe / SECONDS_PER_WEEK)
+        row[E.TGD1] = _field(s1, tot, 160, 8, True) * 2.0 ** -31
+        row[E.AF2] = _field(s1, tot, 192, 8, True) * 2.0 ** -55
+        row[E.AF1] = _field(s1, tot, 200, 16, True) * 2.0 ** -43
+        row[E.AF0] = _field(s1, tot, 216, 22, True) * 2.0 ** -31
+        ura = _field(s1, tot, 60, 4)
+        row[E.URA] = [2.4, 3.4, 4.85, 6.85, 9.65, 13.65, 24.0, 48.0, 96.0, 192.0, 384.0, 768.0, 1536.0, 3072.0,
+                      6144.0, 6144.0][ura]
+        row[E.HEALTH], row[E.IODC], row[E.IODE] = health, iodc, iode2
+        row[E.CRS] = _field(s2, tot, 56, 16, True) * 2.0 ** -5
+        row[E.DELTAN] = _field(s2, tot, 72, 16, True) * 2.0 ** -43 * PI
+        row[E.M0] = ((_field(s2, tot, 88, 8) << 24 | _field(s2, tot, 96, 24)) - (1 << 32 if _field(s2, tot, 88, 1)
+                                                                                 else 0)) * 2.0 ** -31 * PI
+        row[E.CUC] = _field(s2, tot, 120, 16, True) * 2.0 ** -29
+        row[E.ECC] = (_field(s2, tot, 136, 8) << 24 | _field(s2, tot, 144, 24)) * 2.0 ** -33
+        row[E.CUS] = _field(s2, tot, 168, 16, True) * 2.0 ** -29
+        row[E.SQRTA] = (_field(s2, tot, 184, 8) << 24 | _field(s2, tot, 192, 24)) * 2.0 ** -19
+        row[E.CIC] = _field(s3, tot, 48, 16, True) * 2.0 ** -29
+        row[E.OMEGA0] = _signed32(_field(s3, tot, 64, 8) << 24 | _field(s3, tot, 72, 24)) * 2.0 ** -31 * PI
+        row[E.CIS] = _field(s3, tot, 96, 16, True) * 2.0 ** -29
+        row[E.I0] = _signed32(_field(s3, tot, 112, 8) << 24 | _field(s3, tot, 120, 24)) * 2.0 ** -31 * PI
+        row[E.CRC] = _field(s3, tot, 144, 16, True) * 2.0 ** -5
+        row[E.OMEGA] = _signed32(_field(s3, tot, 160, 8) << 24 | _field(s3, tot, 168, 24)) * 2.0 ** -31 * PI
+        row[E.OMEGADOT] = _field(s3, tot, 192, 24, True) * 2.0 ** -43 * PI
+        row[E.IDOT] = _field(s3, tot, 224, 14, True) * 2.0 ** -43 * PI
+        row[E.TTR] = t_now - math.floor(t_now / SECONDS_PER_WEEK) * SECONDS_PER_WEEK
+        if health != 0:
+            self.skipped.setdefault("health", []).append(
+                f"{self.source}: {sat_name(sys, prn)} ephemeris of {epoch_text(toc)}: health flag {health}")
+            return
+        self.rows.append(row)
+
+
+def _signed32(x: int) -> int:
+    return x - (1 << 32) if x >> 31 else x
+
+
+def read_ubx(path):
+    """``(ObsData, NavData)`` of a UBX log: every RXM-RAWX epoch, the ephemerides of its RXM-SFRBX."""
+    p = input_file(path, "UBX log")
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise SinsError(f"{p}: cannot read the UBX log ({exc.strerror or type(exc).__name__})") from None
+    skipped: dict[str, list] = {}
+    epochs = []                 # (t, rows start)
+    rec = {"sys": [], "prn": [], "code": [], "pr": [], "cp": [], "do": [], "cno": [], "lli": []}
+    last = {"t": None, "week": None}
+    lnav = _LnavCollector(skipped, str(p))
+    other_nav = {}
+    n_raw = 0
+
+    def last_epoch():
+        return epoch_text(last["t"]) if last["t"] is not None else "the start of the log"
+
+    meas_dtype = np.dtype([("pr", "<f8"), ("cp", "<f8"), ("do", "<f4"), ("gnss", "u1"), ("sv", "u1"),
+                           ("sig", "u1"), ("freq", "u1"), ("lock", "<u2"), ("cno", "u1"), ("prs", "u1"),
+                           ("cps", "u1"), ("dos", "u1"), ("trk", "u1"), ("res", "u1")])
+    for cls, mid, pl in frames(data, str(p), skipped, last_epoch):
+        if cls == 0x02 and mid == 0x15 and pl.size >= 16:            # RXM-RAWX
+            tow = float(pl[0:8].view("<f8")[0])
+            week = int(pl[8:10].view("<u2")[0])
+            nmeas = int(pl[11])
+            if pl.size != 16 + 32 * nmeas or not (0.0 <= tow < SECONDS_PER_WEEK + 1) or not math.isfinite(tow):
+                skipped.setdefault("truncated", []).append(f"{p}: after {last_epoch()}")
+                continue
+            t = week * SECONDS_PER_WEEK + tow
+            if last["t"] is not None and t <= last["t"]:
+                continue
+            last["t"], last["week"] = t, week
+            n_raw += 1
+            m = np.frombuffer(pl[16:].tobytes(), dtype=meas_dtype)
+            epochs.append(t)
+            for r in m:
+                gid, sig = int(r["gnss"]), int(r["sig"])
+                if gid not in GNSS_ID or (gid, sig) not in SIG_CODE:
+                    continue
+                trk = int(r["trk"])
+                rec["sys"].append(GNSS_ID[gid])
+                rec["prn"].append(int(r["sv"]) - (0 if gid != 1 else 100) if gid != 5 else int(r["sv"]))
+                rec["code"].append(SIG_CODE[(gid, sig)])
+                rec["pr"].append(float(r["pr"]) if trk & 1 else np.nan)
+                rec["cp"].append(float(r["cp"]) if trk & 2 else np.nan)
+                rec["do"].append(float(r["do"]))
+                rec["cno"].append(float(r["cno"]))
+                rec["lli"].append(1 if int(r["lock"]) == 0 else 0)
+                rec.setdefault("epoch", []).append(len(epochs) - 1)
+        elif cls == 0x02 and mid == 0x13 and pl.size >= 8:           # RXM-SFRBX
+            gid, sv, nwords = int(pl[0]), int(pl[1]), int(pl[4])
+            if pl.size != 8 + 4 * nwords:
+                skipped.setdefault("truncated", []).append(f"{p}: after {last_epoch()}")
+                continue
+            words = pl[8:].view("<u4")
+            if gid in (0, 5) and last["t"] is not None:
+                lnav.add(GNSS_ID[gid], sv, words, last["week"], last["t"])
+            else:
+                other_nav[gid] = other_nav.get(gid, 0) + 1
+    report_skipped(skipped, "UBX messages or ephemerides")
+    if not epochs:
+        raise SinsError(f"{p}: no UBX-RXM-RAWX message: the log has no raw measurements (enable RXM-RAWX and "
+                        f"RXM-SFRBX on the receiver)")
+    obs = _assemble(np.array(epochs), rec, str(p))
+    for gid, n in other_nav.items():
+        if gid in (2, 3):
+            log.warning("%s: %d %s RXM-SFRBX words not decoded (Galileo I/NAV and BeiDou D1/D2 decoding is not "
+                        "implemented): give a RINEX navigation file with --nav for them", p, n,
+                        "Galileo" if gid == 2 else "BeiDou")
+    nav = NavData(eph=finish_table(lnav.rows), source=str(p),
+                  skipped={k: (len(v), v[0]) for k, v in skipped.items()})
+    return obs, nav
+
+
+def _assemble(times, rec, source) -> ObsData:
+    """Records of (epoch, satellite, code) -> one row per (epoch, satellite) with C/L/D/S columns per code."""
+    ne = times.size
+    if not rec["sys"]:
+        return ObsData(time=times, start=np.zeros(ne + 1, np.int64), sys=np.zeros(0, np.int8),
+                       prn=np.zeros(0, np.int16), values=np.zeros((0, 1)), lli=np.zeros((0, 1), np.int8),
+                       types={}, source=source)
+    sys = np.array(rec["sys"], np.int64)
+    prn = np.array(rec["prn"], np.int64)
+    ep = np.array(rec["epoch"], np.int64)
+    codes = np.array(rec["code"])
+    types = {}
+    for s in np.unique(sys):
+        cs = sorted(set(codes[sys == s].tolist()), key=lambda c: (c[0], c[1]))
+        types[int(s)] = [k + c for c in cs for k in "CLDS"]
+    key = ep * 100000 + sys * 1000 + prn
+    uk, inv = np.unique(key, return_inverse=True)
+    ncol = max(len(v) for v in types.values())
+    values = np.full((uk.size, ncol), np.nan)
+    lli = np.zeros((uk.size, ncol), np.int8)
+    for i in range(sys.size):
+        row = inv[i]
+        t = types[int(sys[i])]
+        base = t.index("C" + codes[i])
+        values[row, base] = rec["pr"][i]
+        values[row, base + 1] = rec["cp"][i]
+        values[row, base + 2] = rec["do"][i]
+        values[row, base + 3] = rec["cno"][i]
+        lli[row, base + 1] = rec["lli"][i]
+    r_ep = uk // 100000
+    r_sys = (uk // 1000) % 100
+    r_prn = uk % 1000
+    counts = np.bincount(r_ep, minlength=ne)
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    obs = ObsData(time=times.astype(np.float64), start=start, sys=r_sys.astype(np.int8), prn=r_prn.astype(np.int16),
+                  values=values, lli=lli, types=types, flag=np.zeros(ne, np.int8),
+                  header={"version": 3.04, "marker": Path(source).stem, "receiver": "u-blox (UBX)"}, source=source)
+    # pseudoranges outside the physical window are a receiver's invalid values: dropped (the flag said valid)
+    for s, t in types.items():
+        for j, c in enumerate(t):
+            if c[0] == "C":
+                v = obs.values[:, j]
+                bad = (obs.sys == s) & ~np.isnan(v) & ((v < 1.0e7) | (v > 5.0e7))
+                v[bad] = np.nan
+    return obs
+
+
+def is_ubx_file(path) -> bool:
+    from ..gnss.raw_input import is_ubx
+    return is_ubx(path)
