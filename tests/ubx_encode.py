@@ -1,0 +1,75 @@
+"""Test helper: UBX bytes (RXM-RAWX, RXM-SFRBX GPS LNAV) from an observation table and ephemeris rows."""
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+
+from sinscli.gnss import ephemeris as E
+from sinscli.gnss.timesys import SECONDS_PER_WEEK
+
+PI = math.pi
+
+
+def frame(cls, mid, payload: bytes) -> bytes:
+    body = bytes([cls, mid]) + struct.pack("<H", len(payload)) + payload
+    a = b = 0
+    for x in body:
+        a = (a + x) & 0xFF
+        b = (b + a) & 0xFF
+    return b"\xb5\x62" + body + bytes([a, b])
+
+
+def rawx(t, sats, pr, cp, dop, cno) -> bytes:
+    week = int(t // SECONDS_PER_WEEK)
+    tow = t - week * SECONDS_PER_WEEK
+    out = struct.pack("<dHbBBB2x", tow, week, 18, len(sats), 1, 1)
+    for (gid, sv, sig), p, c, d, n in zip(sats, pr, cp, dop, cno):
+        trk = (0 if np.isnan(p) else 1) | (0 if np.isnan(c) else 2)
+        out += struct.pack("<ddfBBBBHBBBBBx", 0.0 if np.isnan(p) else p, 0.0 if np.isnan(c) else c,
+                           0.0 if np.isnan(d) else d, gid, sv, sig, 0, 1000, int(round(n)), 3, 3, 3, trk)
+    return frame(0x02, 0x15, out)
+
+
+def _put(fields):
+    v = 0
+    for val, n in fields:
+        v = (v << n) | (int(val) & ((1 << n) - 1))
+    return v
+
+
+def lnav_subframes(row, tow_next=0):
+    """Three 240-bit subframes (as ints) of an ephemeris row, IS-GPS-200 20.3.3.3 / 20.3.3.4 layout."""
+    week = int(math.floor(row[E.TOE] / SECONDS_PER_WEEK))
+    toe = row[E.TOE] - week * SECONDS_PER_WEEK
+    toc = row[E.TOC] - math.floor(row[E.TOC] / SECONDS_PER_WEEK) * SECONDS_PER_WEEK
+    iodc = int(row[E.IODC])
+    r = lambda x, s: int(round(x / s))
+    tlm = [(0x8B, 8), (0, 16)]
+    how = lambda sid: [(tow_next, 17), (0, 2), (sid, 3), (0, 2)]
+    s1 = tlm + how(1) + [(week % 1024, 10), (1, 2), (0, 4), (int(row[E.HEALTH]), 6), (iodc >> 8, 2),
+                          (0, 24), (0, 24), (0, 24), (0, 16), (r(row[E.TGD1], 2.0 ** -31), 8),
+                          (iodc & 0xFF, 8), (r(toc, 16), 16), (r(row[E.AF2], 2.0 ** -55), 8),
+                          (r(row[E.AF1], 2.0 ** -43), 16), (r(row[E.AF0], 2.0 ** -31), 22), (0, 2)]
+    m0 = r(row[E.M0] / PI, 2.0 ** -31)
+    e = r(row[E.ECC], 2.0 ** -33)
+    sa = r(row[E.SQRTA], 2.0 ** -19)
+    s2 = tlm + how(2) + [(int(row[E.IODE]), 8), (r(row[E.CRS], 2.0 ** -5), 16), (r(row[E.DELTAN] / PI, 2.0 ** -43), 16),
+                          (m0 >> 24, 8), (m0, 24), (r(row[E.CUC], 2.0 ** -29), 16), (e >> 24, 8), (e, 24),
+                          (r(row[E.CUS], 2.0 ** -29), 16), (sa >> 24, 8), (sa, 24), (r(toe, 16), 16), (0, 1),
+                          (0, 5), (0, 2)]
+    om0 = r(row[E.OMEGA0] / PI, 2.0 ** -31)
+    i0 = r(row[E.I0] / PI, 2.0 ** -31)
+    w = r(row[E.OMEGA] / PI, 2.0 ** -31)
+    s3 = tlm + how(3) + [(r(row[E.CIC], 2.0 ** -29), 16), (om0 >> 24, 8), (om0, 24), (r(row[E.CIS], 2.0 ** -29), 16),
+                          (i0 >> 24, 8), (i0, 24), (r(row[E.CRC], 2.0 ** -5), 16), (w >> 24, 8), (w, 24),
+                          (r(row[E.OMEGADOT] / PI, 2.0 ** -43), 24), (int(row[E.IODE]), 8),
+                          (r(row[E.IDOT] / PI, 2.0 ** -43), 14), (0, 2)]
+    return [_put(s) for s in (s1, s2, s3)]
+
+
+def sfrbx_lnav(prn, sub: int) -> bytes:
+    words = [((sub >> (240 - 24 * (i + 1))) & 0xFFFFFF) << 6 for i in range(10)]
+    payload = struct.pack("<BBBBBBBx", 0, prn, 0, 0, 10, 0, 2) + b"".join(struct.pack("<I", w) for w in words)
+    return frame(0x02, 0x13, payload)
