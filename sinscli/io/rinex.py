@@ -306,7 +306,7 @@ def check_obs(obs: ObsData) -> None:
                 window = PR_WINDOW_HIGH if hi[r] else PR_WINDOW_MEO
                 raise SinsError(f"{obs.source}: line {line}, column {col}: epoch {epoch_text(obs.time[ep[r]])}, "
                                 f"{sat_name(s, int(obs.prn[r]))} {code}: pseudorange {v[r]:.3f} m is outside "
-                                f"{window[0] / 1e6:,.0f}-{window[1] / 1e6:,.0f} thousand km")
+                                f"{window[0] / 1e3:,.0f}-{window[1] / 1e3:,.0f} km")
 
 
 # --- navigation -----------------------------------------------------------------------------------------------
