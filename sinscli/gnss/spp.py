@@ -15,6 +15,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ..align.fit import cholesky_inverse
 from .corrections import klobuchar, mapping_mops, tropo_delay
 from .ephemeris import TOE, URA, select_ephemeris
 from .model import azel, ecef_to_geodetic, geo_range, group_delay, range_rate, transmit_state
@@ -36,48 +37,9 @@ MAX_SAT = 128
 
 
 def chi2_quantile(p: float, dof: int) -> float:
-    """Quantile of the chi-square distribution (``P[X <= x] = p``) by bisection on the regularized lower
-    incomplete gamma function (series / continued fraction, Numerical Recipes 6.2)."""
-    a = dof / 2.0
-
-    def gammp(x):
-        if x <= 0.0:
-            return 0.0
-        gln = math.lgamma(a)
-        if x < a + 1.0:
-            ap, s, d = a, 1.0 / a, 1.0 / a
-            for _ in range(1000):
-                ap += 1.0
-                d *= x / ap
-                s += d
-                if abs(d) < abs(s) * 1e-15:
-                    break
-            return s * math.exp(-x + a * math.log(x) - gln)
-        b = x + 1.0 - a
-        c = 1e300
-        d = 1.0 / b
-        h = d
-        for i in range(1, 1000):
-            an = -i * (i - a)
-            b += 2.0
-            d = an * d + b
-            d = 1e-300 if abs(d) < 1e-300 else d
-            c = b + an / c
-            c = 1e-300 if abs(c) < 1e-300 else c
-            d = 1.0 / d
-            h *= d * c
-            if abs(d * c - 1.0) < 1e-15:
-                break
-        return 1.0 - math.exp(-x + a * math.log(x) - gln) * h
-
-    lo, hi = 0.0, max(10.0, dof * 10.0 + 100.0)
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if gammp(mid / 2.0) < p:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
+    """Quantile of the chi-square distribution (the fusion filter's gate function, one implementation)."""
+    from ..fusion.pipeline import chi2_ppf
+    return chi2_ppf(p, dof)
 
 
 def chi2_table(alpha: float, n: int = MAX_SAT) -> np.ndarray:
@@ -128,28 +90,10 @@ def _solve_normal(h, w, v, n, m):
     for a in range(m):
         if nmat[a, a] <= 0.0:
             return rhs, nmat, False
-    # Cholesky
-    lmat = np.zeros((m, m))
+    linv, _ = cholesky_inverse(nmat)
     for a in range(m):
-        s = nmat[a, a]
-        for k in range(a):
-            s -= lmat[a, k] * lmat[a, k]
-        if s <= nmat[a, a] * 1e-12:
+        if not (abs(linv[a, a]) < 1e6):          # singular geometry (a clock without a satellite, ...)
             return rhs, nmat, False
-        lmat[a, a] = math.sqrt(s)
-        for b in range(a + 1, m):
-            s2 = nmat[b, a]
-            for k in range(a):
-                s2 -= lmat[b, k] * lmat[a, k]
-            lmat[b, a] = s2 / lmat[a, a]
-    linv = np.zeros((m, m))
-    for a in range(m):
-        linv[a, a] = 1.0 / lmat[a, a]
-        for b in range(a + 1, m):
-            s3 = 0.0
-            for k in range(a, b):
-                s3 -= lmat[b, k] * linv[k, a]
-            linv[b, a] = s3 / lmat[b, b]
     q = linv.T @ linv
     dx = q @ rhs
     return dx, q, True
