@@ -73,3 +73,49 @@ def sfrbx_lnav(prn, sub: int) -> bytes:
     words = [((sub >> (240 - 24 * (i + 1))) & 0xFFFFFF) << 6 for i in range(10)]
     payload = struct.pack("<BBBBBBBx", 0, prn, 0, 0, 10, 0, 2) + b"".join(struct.pack("<I", w) for w in words)
     return frame(0x02, 0x13, payload)
+
+
+def inav_words(row):
+    """The 128-bit I/NAV word types 1-5 of a Galileo ephemeris row (OS-SIS-ICD 4.3.5)."""
+    r = lambda x, s: int(round(x / s))
+    week = int(math.floor(row[E.TOE] / SECONDS_PER_WEEK))
+    toe = row[E.TOE] - week * SECONDS_PER_WEEK
+    toc = row[E.TOC] - math.floor(row[E.TOC] / SECONDS_PER_WEEK) * SECONDS_PER_WEEK
+    iod = int(row[E.IODE])
+    w1 = [(1, 6), (iod, 10), (r(toe, 60), 14), (r(row[E.M0] / PI, 2.0 ** -31), 32), (r(row[E.ECC], 2.0 ** -33), 32),
+          (r(row[E.SQRTA], 2.0 ** -19), 32), (0, 2)]
+    w2 = [(2, 6), (iod, 10), (r(row[E.OMEGA0] / PI, 2.0 ** -31), 32), (r(row[E.I0] / PI, 2.0 ** -31), 32),
+          (r(row[E.OMEGA] / PI, 2.0 ** -31), 32), (r(row[E.IDOT] / PI, 2.0 ** -43), 14), (0, 2)]
+    w3 = [(3, 6), (iod, 10), (r(row[E.OMEGADOT] / PI, 2.0 ** -43), 24), (r(row[E.DELTAN] / PI, 2.0 ** -43), 16),
+          (r(row[E.CUC], 2.0 ** -29), 16), (r(row[E.CUS], 2.0 ** -29), 16), (r(row[E.CRC], 2.0 ** -5), 16),
+          (r(row[E.CRS], 2.0 ** -5), 16), (107, 8)]
+    w4 = [(4, 6), (iod, 10), (int(row[E.PRN]), 6), (r(row[E.CIC], 2.0 ** -29), 16), (r(row[E.CIS], 2.0 ** -29), 16),
+          (r(toc, 60), 14), (r(row[E.AF0], 2.0 ** -34), 31), (r(row[E.AF1], 2.0 ** -46), 21),
+          (r(row[E.AF2], 2.0 ** -59), 6), (0, 2)]
+    w5 = [(5, 6), (0, 11), (0, 11), (0, 14), (0, 5), (r(row[E.TGD1], 2.0 ** -32), 10), (r(row[E.TGD2], 2.0 ** -32), 10),
+          (0, 2), (0, 2), (0, 1), (0, 1), (week - 1024, 12), (0, 20), (0, 23)]
+    return [_put(w) for w in (w1, w2, w3, w4, w5)]
+
+
+def _crc24q(data: bytes) -> int:
+    crc = 0
+    for byte in data:
+        crc ^= byte << 16
+        for _ in range(8):
+            crc <<= 1
+            if crc & 0x1000000:
+                crc ^= 0x1864CFB
+    return crc & 0xFFFFFF
+
+
+def sfrbx_inav(prn, word: int) -> bytes:
+    """An E1-B page pair carrying one 128-bit word, as RXM-SFRBX (8 words: even page bits 0-127, odd 128-255)."""
+    even = (0 << 127) | (0 << 126) | ((word >> 16) << 14)                 # even/odd 0, page 0, 112 data bits
+    odd_head = (1 << 81) | (0 << 80) | ((word & 0xFFFF) << 64)            # 82 bits: odd 1, page 0, 16 data bits
+    crc_in = ((even >> 14) << 82) | odd_head                              # 114 + 82 bits
+    crc = _crc24q(crc_in.to_bytes(25, "big"))
+    odd = (odd_head << 46) | (crc << 22)
+    bits = (even << 128) | odd
+    words = [(bits >> (256 - 32 * (i + 1))) & 0xFFFFFFFF for i in range(8)]
+    payload = struct.pack("<BBBBBBBx", 2, prn, 1, 0, 8, 0, 2) + b"".join(struct.pack("<I", w) for w in words)
+    return frame(0x02, 0x13, payload)

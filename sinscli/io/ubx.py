@@ -1,11 +1,11 @@
-"""u-blox UBX logs: RXM-RAWX observations and RXM-SFRBX broadcast navigation words (GPS LNAV subframes 1-3)
-into the same tables as the RINEX readers.
+"""u-blox UBX logs: RXM-RAWX observations and RXM-SFRBX broadcast navigation words (GPS/QZSS LNAV subframes
+1-3, Galileo I/NAV word types 1-5) into the same tables as the RINEX readers.
 
 Messages are framed by pyubx2 (``UBXReader``, raw mode); each frame's Fletcher checksum is checked here, and the
 payloads are decoded with numpy (u-blox F9/M8 interface description: RXM-RAWX 16-byte header and 32 bytes per
 measurement; RXM-SFRBX words).  A truncated or corrupt message is skipped and counted (one warning line naming
-the file and the epoch after which it came).  Galileo I/NAV and BeiDou D1/D2 words are counted, not decoded
-(docs/raw_gnss.md: not done yet; give a RINEX navigation file with --nav for those systems).
+the file and the epoch after which it came).  BeiDou D1/D2 words are counted, not decoded (docs/raw_gnss.md:
+not done yet; give a RINEX navigation file with --nav for BeiDou).
 """
 from __future__ import annotations
 
@@ -193,6 +193,106 @@ class _LnavCollector:
         self.rows.append(row)
 
 
+def crc24q(data: bytes) -> int:
+    """CRC-24Q (polynomial 0x1864CFB), the checksum of Galileo I/NAV pages (OS-SIS-ICD 4.3.2.3)."""
+    crc = 0
+    for byte in data:
+        crc ^= byte << 16
+        for _ in range(8):
+            crc <<= 1
+            if crc & 0x1000000:
+                crc ^= 0x1864CFB
+    return crc & 0xFFFFFF
+
+
+class _InavCollector:
+    """Galileo I/NAV word types 1-5 (OS-SIS-ICD 4.3.5) from E1-B/E5b-I page pairs into ephemeris rows."""
+
+    def __init__(self, skipped, source):
+        self.words: dict[int, dict] = {}
+        self.rows = []
+        self.skipped = skipped
+        self.source = source
+        self.seen = set()
+
+    def add(self, prn, words, t_now):
+        if len(words) < 8:
+            return
+        v, tot = _bits(words[:8], 32, 0)                  # even page bits 0-127, odd page 128-255
+        if _field(v, tot, 1, 1) or _field(v, tot, 129, 1):
+            return                                        # alert pages
+        if _field(v, tot, 0, 1) != 0 or _field(v, tot, 128, 1) != 1:
+            return
+        crc_bits = (_field(v, tot, 0, 114) << 82) | _field(v, tot, 128, 82)      # 196 bits, 4 zero bits ahead
+        if crc24q(crc_bits.to_bytes(25, "big")) != _field(v, tot, 128 + 82, 24):
+            self.skipped.setdefault("checksum", []).append(f"{self.source}: E{prn:02d} I/NAV page of "
+                                                           f"{epoch_text(t_now)}")
+            return
+        word = (_field(v, tot, 2, 112) << 16) | _field(v, tot, 130, 16)       # the 128-bit data word
+        wtype = word >> 122
+        if not 1 <= wtype <= 5:
+            return
+        d = self.words.setdefault(prn, {})
+        d[wtype] = word
+        if not all(k in d for k in range(1, 6)):
+            return
+        f = lambda w, a, n, sgn=False: _field(d[w], 128, a, n, sgn)      # noqa: E731
+        iod = [f(k, 6, 10) for k in (1, 2, 3, 4)]
+        if len(set(iod)) != 1:
+            return                                        # words of two issues: wait for the rest
+        key = (prn, iod[0], f(1, 16, 14))
+        if key in self.seen:
+            return
+        self.seen.add(key)
+        row = np.zeros(E.NCOL)
+        row[E.SYS], row[E.PRN] = SYS_GAL, prn
+        week = f(5, 73, 12) + 1024                          # GST week -> GPS week
+        toe = _near(week * SECONDS_PER_WEEK + f(1, 16, 14) * 60.0, t_now)
+        toc = _near(week * SECONDS_PER_WEEK + f(4, 54, 14) * 60.0, t_now)
+        row[E.TOE], row[E.TOC], row[E.WEEK] = toe, toc, math.floor(toe / SECONDS_PER_WEEK)
+        row[E.M0] = f(1, 30, 32, True) * 2.0 ** -31 * PI
+        row[E.ECC] = f(1, 62, 32) * 2.0 ** -33
+        row[E.SQRTA] = f(1, 94, 32) * 2.0 ** -19
+        row[E.OMEGA0] = f(2, 16, 32, True) * 2.0 ** -31 * PI
+        row[E.I0] = f(2, 48, 32, True) * 2.0 ** -31 * PI
+        row[E.OMEGA] = f(2, 80, 32, True) * 2.0 ** -31 * PI
+        row[E.IDOT] = f(2, 112, 14, True) * 2.0 ** -43 * PI
+        row[E.OMEGADOT] = f(3, 16, 24, True) * 2.0 ** -43 * PI
+        row[E.DELTAN] = f(3, 40, 16, True) * 2.0 ** -43 * PI
+        row[E.CUC] = f(3, 56, 16, True) * 2.0 ** -29
+        row[E.CUS] = f(3, 72, 16, True) * 2.0 ** -29
+        row[E.CRC] = f(3, 88, 16, True) * 2.0 ** -5
+        row[E.CRS] = f(3, 104, 16, True) * 2.0 ** -5
+        sisa = f(3, 120, 8)
+        row[E.URA] = sisa / 100.0 if sisa < 50 else (0.5 + (sisa - 50) * 0.02 if sisa < 75 else
+                                                     (1.0 + (sisa - 75) * 0.04 if sisa < 100 else 6.0))
+        row[E.CIC] = f(4, 22, 16, True) * 2.0 ** -29
+        row[E.CIS] = f(4, 38, 16, True) * 2.0 ** -29
+        row[E.AF0] = f(4, 68, 31, True) * 2.0 ** -34
+        row[E.AF1] = f(4, 99, 21, True) * 2.0 ** -46
+        row[E.AF2] = f(4, 120, 6, True) * 2.0 ** -59
+        row[E.TGD1] = f(5, 47, 10, True) * 2.0 ** -32
+        row[E.TGD2] = f(5, 57, 10, True) * 2.0 ** -32
+        health = (f(5, 67, 2) << 7) | (f(5, 71, 1) << 6) | (f(5, 69, 2) << 1) | f(5, 72, 1)
+        row[E.HEALTH], row[E.IODE], row[E.IODC] = health, iod[0], iod[0]
+        row[E.SOURCE] = 513                                  # I/NAV E1-B, af0-af2 and toc for E5b,E1
+        row[E.TTR] = t_now - math.floor(t_now / SECONDS_PER_WEEK) * SECONDS_PER_WEEK
+        if health != 0:
+            self.skipped.setdefault("health", []).append(
+                f"{self.source}: E{prn:02d} ephemeris of {epoch_text(toc)}: health flag {health}")
+            return
+        self.rows.append(row)
+
+
+def _near(t: float, t_now: float) -> float:
+    """``t`` moved by whole weeks to within half a week of ``t_now``."""
+    while t - t_now > SECONDS_PER_WEEK / 2:
+        t -= SECONDS_PER_WEEK
+    while t_now - t > SECONDS_PER_WEEK / 2:
+        t += SECONDS_PER_WEEK
+    return t
+
+
 def _signed32(x: int) -> int:
     return x - (1 << 32) if x >> 31 else x
 
@@ -209,6 +309,7 @@ def read_ubx(path):
     rec = {"sys": [], "prn": [], "code": [], "pr": [], "cp": [], "do": [], "cno": [], "lli": []}
     last = {"t": None, "week": None}
     lnav = _LnavCollector(skipped, str(p))
+    inav = _InavCollector(skipped, str(p))
     other_nav = {}
     n_raw = 0
 
@@ -255,6 +356,8 @@ def read_ubx(path):
             words = pl[8:].view("<u4")
             if gid in (0, 5) and last["t"] is not None:
                 lnav.add(GNSS_ID[gid], sv, words, last["week"], last["t"])
+            elif gid == 2 and last["t"] is not None and int(pl[2]) in (1, 5):     # E1-B or E5b-I I/NAV
+                inav.add(sv, words, last["t"])
             else:
                 other_nav[gid] = other_nav.get(gid, 0) + 1
     report_skipped(skipped, "UBX messages or ephemerides")
@@ -263,11 +366,10 @@ def read_ubx(path):
                         f"RXM-SFRBX on the receiver)")
     obs = _assemble(np.array(epochs), rec, str(p))
     for gid, n in other_nav.items():
-        if gid in (2, 3):
-            log.warning("%s: %d %s RXM-SFRBX words not decoded (Galileo I/NAV and BeiDou D1/D2 decoding is not "
-                        "implemented): give a RINEX navigation file with --nav for them", p, n,
-                        "Galileo" if gid == 2 else "BeiDou")
-    nav = NavData(eph=finish_table(lnav.rows), source=str(p),
+        if gid == 3:
+            log.warning("%s: %d BeiDou RXM-SFRBX messages not decoded (BeiDou D1/D2 decoding is not implemented): "
+                        "give a RINEX navigation file with --nav for BeiDou", p, n)
+    nav = NavData(eph=finish_table(lnav.rows + inav.rows), source=str(p),
                   skipped={k: (len(v), v[0]) for k, v in skipped.items()})
     return obs, nav
 
