@@ -1,11 +1,12 @@
 """u-blox UBX logs: RXM-RAWX observations and RXM-SFRBX broadcast navigation words (GPS/QZSS LNAV subframes
-1-3, Galileo I/NAV word types 1-5) into the same tables as the RINEX readers.
+1-3, Galileo I/NAV word types 1-5, BeiDou D1 subframes 1-3 and D2 pages 1-10) into the same tables as the RINEX
+readers.
 
 Messages are framed by pyubx2 (``UBXReader``, raw mode); each frame's Fletcher checksum is checked here, and the
 payloads are decoded with numpy (u-blox F9/M8 interface description: RXM-RAWX 16-byte header and 32 bytes per
 measurement; RXM-SFRBX words).  A truncated or corrupt message is skipped and counted (one warning line naming
-the file and the epoch after which it came).  BeiDou D1/D2 words are counted, not decoded (docs/raw_gnss.md:
-not done yet; give a RINEX navigation file with --nav for BeiDou).
+the file and the epoch after which it came).  Field positions: IS-GPS-200 20.3.3, OS-SIS-ICD 4.3.5, BDS-SIS-ICD
+5.2.4 and 5.3.3 (the same positions as RTKLIB's ``decode_bds_d1``/``decode_bds_d2``).
 """
 from __future__ import annotations
 
@@ -284,6 +285,152 @@ class _InavCollector:
         self.rows.append(row)
 
 
+class _Bits:
+    """Fields of a 300-bit BeiDou subframe/page (10 words of 30 bits, parity bits in place; BDS-SIS-ICD 5.2.4)."""
+
+    def __init__(self, words):
+        self.v, self.tot = _bits(words[:10], 30, 0)
+
+    def u(self, *parts):
+        """Unsigned value of the concatenated (position, length) parts."""
+        x = 0
+        for pos, n in zip(parts[::2], parts[1::2]):
+            x = (x << n) | _field(self.v, self.tot, pos, n)
+        return x
+
+    def s(self, *parts):
+        n = sum(parts[1::2])
+        x = self.u(*parts)
+        return x - (1 << n) if x >> (n - 1) else x
+
+
+def _signed(x: int, n: int) -> int:
+    return x - (1 << n) if x >> (n - 1) else x
+
+
+URA_M = [2.4, 3.4, 4.85, 6.85, 9.65, 13.65, 24.0, 48.0, 96.0, 192.0, 384.0, 768.0, 1536.0, 3072.0, 6144.0, 6144.0]
+
+
+class _BdsCollector:
+    """BeiDou D1 subframes 1-3 (MEO/IGSO, BDS-SIS-ICD 5.2.4) and D2 subframe 1 pages 1-10 (GEO, 5.3.3) into
+    ephemeris rows (BDT -> GPST + 14 s)."""
+
+    def __init__(self, skipped, source):
+        self.d1: dict[int, dict] = {}
+        self.d2: dict[int, dict] = {}
+        self.rows = []
+        self.skipped = skipped
+        self.source = source
+        self.seen = set()
+
+    def add(self, prn, words, t_now):
+        if len(words) < 10:
+            return
+        b = _Bits(np.asarray(words[:10], dtype=np.int64) & 0x3FFFFFFF)
+        frame_id = b.u(15, 3)
+        geo = prn <= 5 or prn >= 59
+        if not geo:
+            if frame_id not in (1, 2, 3):
+                return
+            d = self.d1.setdefault(prn, {})
+            d[frame_id] = b
+            if frame_id == 3 and all(k in d for k in (1, 2, 3)):
+                self._d1(prn, d[1], d[2], d[3], t_now)
+            return
+        if frame_id != 1:
+            return
+        page = b.u(42, 4)
+        if not 1 <= page <= 10:
+            return
+        d = self.d2.setdefault(prn, {})
+        d[page] = b
+        if page == 10 and all(k in d for k in (1, 3, 4, 5, 6, 7, 8, 9, 10)):
+            self._d2(prn, d, t_now)
+
+    def _finish(self, prn, row, week, toe_sow, toc_sow, health, t_now):
+        toe = _near((week + 1356) * SECONDS_PER_WEEK + toe_sow + 14.0, t_now)
+        toc = _near((week + 1356) * SECONDS_PER_WEEK + toc_sow + 14.0, t_now)
+        key = (prn, toe, row[E.IODE])
+        if key in self.seen:
+            return
+        self.seen.add(key)
+        row[E.SYS], row[E.PRN] = SYS_BDS, prn
+        row[E.TOE], row[E.TOC], row[E.WEEK] = toe, toc, math.floor(toe / SECONDS_PER_WEEK)
+        row[E.HEALTH] = health
+        row[E.TTR] = t_now - math.floor(t_now / SECONDS_PER_WEEK) * SECONDS_PER_WEEK
+        if health != 0:
+            self.skipped.setdefault("health", []).append(
+                f"{self.source}: C{prn:02d} ephemeris of {epoch_text(toc)}: health flag {health}")
+            return
+        self.rows.append(row)
+
+    def _d1(self, prn, s1, s2, s3, t_now):
+        sow = [x.u(18, 8, 30, 12) for x in (s1, s2, s3)]
+        if sow[1] != sow[0] + 6 or sow[2] != sow[1] + 6:
+            return
+        toe_sow = ((s2.u(290, 2) << 15) | s3.u(42, 10, 60, 5)) * 8.0
+        toc_sow = s1.u(73, 9, 90, 8) * 8.0
+        if toe_sow != toc_sow:
+            return
+        row = np.zeros(E.NCOL)
+        row[E.URA] = URA_M[s1.u(48, 4)]
+        row[E.IODC], row[E.IODE] = s1.u(43, 5), s1.u(287, 5)
+        row[E.TGD1] = s1.s(98, 10) * 0.1e-9
+        row[E.TGD2] = s1.s(108, 4, 120, 6) * 0.1e-9
+        row[E.AF2] = s1.s(214, 11) * 2.0 ** -66
+        row[E.AF0] = s1.s(225, 7, 240, 17) * 2.0 ** -33
+        row[E.AF1] = s1.s(257, 5, 270, 17) * 2.0 ** -50
+        row[E.DELTAN] = s2.s(42, 10, 60, 6) * 2.0 ** -43 * PI
+        row[E.CUC] = s2.s(66, 16, 90, 2) * 2.0 ** -31
+        row[E.M0] = s2.s(92, 20, 120, 12) * 2.0 ** -31 * PI
+        row[E.ECC] = s2.u(132, 10, 150, 22) * 2.0 ** -33
+        row[E.CUS] = s2.s(180, 18) * 2.0 ** -31
+        row[E.CRC] = s2.s(198, 4, 210, 14) * 2.0 ** -6
+        row[E.CRS] = s2.s(224, 8, 240, 10) * 2.0 ** -6
+        row[E.SQRTA] = s2.u(250, 12, 270, 20) * 2.0 ** -19
+        row[E.I0] = s3.s(65, 17, 90, 15) * 2.0 ** -31 * PI
+        row[E.CIC] = s3.s(105, 7, 120, 11) * 2.0 ** -31
+        row[E.OMEGADOT] = s3.s(131, 11, 150, 13) * 2.0 ** -43 * PI
+        row[E.CIS] = s3.s(163, 9, 180, 9) * 2.0 ** -31
+        row[E.IDOT] = s3.s(189, 13, 210, 1) * 2.0 ** -43 * PI
+        row[E.OMEGA0] = s3.s(211, 21, 240, 11) * 2.0 ** -31 * PI
+        row[E.OMEGA] = s3.s(251, 11, 270, 21) * 2.0 ** -31 * PI
+        self._finish(prn, row, s1.u(60, 13), toe_sow, toc_sow, s1.u(42, 1), t_now)
+
+    def _d2(self, prn, p, t_now):
+        sow = [p[k].u(18, 8, 30, 12) for k in (1, 3, 4, 5, 6, 7, 8, 9, 10)]
+        if sow[1] != sow[0] + 6 or any(sow[i + 1] != sow[i] + 3 for i in range(1, 8)):
+            return
+        toe_sow = p[7].u(80, 2, 90, 15) * 8.0
+        toc_sow = p[1].u(77, 5, 90, 12) * 8.0
+        if toe_sow != toc_sow:
+            return
+        row = np.zeros(E.NCOL)
+        row[E.URA] = URA_M[p[1].u(60, 4)]
+        row[E.IODC], row[E.IODE] = p[1].u(47, 5), p[4].u(91, 5)
+        row[E.TGD1] = p[1].s(102, 10) * 0.1e-9
+        row[E.TGD2] = p[1].s(120, 10) * 0.1e-9
+        row[E.AF0] = p[3].s(100, 12, 120, 12) * 2.0 ** -33
+        row[E.AF1] = _signed((p[3].u(132, 4) << 18) | p[4].u(46, 6, 60, 12), 22) * 2.0 ** -50
+        row[E.AF2] = p[4].s(72, 10, 90, 1) * 2.0 ** -66
+        row[E.DELTAN] = p[4].s(96, 16) * 2.0 ** -43 * PI
+        row[E.CUC] = _signed((p[4].u(120, 14) << 4) | p[5].u(46, 4), 18) * 2.0 ** -31
+        row[E.M0] = p[5].s(50, 2, 60, 22, 90, 8) * 2.0 ** -31 * PI
+        row[E.CUS] = p[5].s(98, 14, 120, 4) * 2.0 ** -31
+        row[E.ECC] = ((p[5].u(124, 10) << 22) | p[6].u(46, 6, 60, 16)) * 2.0 ** -33
+        row[E.SQRTA] = p[6].u(76, 6, 90, 22, 120, 4) * 2.0 ** -19
+        row[E.CIC] = _signed((p[6].u(124, 10) << 8) | p[7].u(46, 6, 60, 2), 18) * 2.0 ** -31
+        row[E.CIS] = p[7].s(62, 18) * 2.0 ** -31
+        row[E.I0] = _signed((p[7].u(105, 7, 120, 14) << 11) | p[8].u(46, 6, 60, 5), 32) * 2.0 ** -31 * PI
+        row[E.CRC] = p[8].s(65, 17, 90, 1) * 2.0 ** -6
+        row[E.CRS] = p[8].s(91, 18) * 2.0 ** -6
+        row[E.OMEGADOT] = _signed((p[8].u(109, 3, 120, 16) << 5) | p[9].u(46, 5), 24) * 2.0 ** -43 * PI
+        row[E.OMEGA0] = p[9].s(51, 1, 60, 22, 90, 9) * 2.0 ** -31 * PI
+        row[E.OMEGA] = _signed((p[9].u(99, 13, 120, 14) << 5) | p[10].u(46, 5), 32) * 2.0 ** -31 * PI
+        row[E.IDOT] = p[10].s(51, 1, 60, 13) * 2.0 ** -43 * PI
+        self._finish(prn, row, p[1].u(64, 13), toe_sow, toc_sow, p[1].u(46, 1), t_now)
+
+
 def _near(t: float, t_now: float) -> float:
     """``t`` moved by whole weeks to within half a week of ``t_now``."""
     while t - t_now > SECONDS_PER_WEEK / 2:
@@ -310,6 +457,7 @@ def read_ubx(path):
     last = {"t": None, "week": None}
     lnav = _LnavCollector(skipped, str(p))
     inav = _InavCollector(skipped, str(p))
+    bds = _BdsCollector(skipped, str(p))
     other_nav = {}
     n_raw = 0
 
@@ -358,6 +506,8 @@ def read_ubx(path):
                 lnav.add(GNSS_ID[gid], sv, words, last["week"], last["t"])
             elif gid == 2 and last["t"] is not None and int(pl[2]) in (1, 5):     # E1-B or E5b-I I/NAV
                 inav.add(sv, words, last["t"])
+            elif gid == 3 and last["t"] is not None:
+                bds.add(sv, words, last["t"])
             else:
                 other_nav[gid] = other_nav.get(gid, 0) + 1
     report_skipped(skipped, "UBX messages or ephemerides")
@@ -365,11 +515,7 @@ def read_ubx(path):
         raise SinsError(f"{p}: no UBX-RXM-RAWX message: the log has no raw measurements (enable RXM-RAWX and "
                         f"RXM-SFRBX on the receiver)")
     obs = _assemble(np.array(epochs), rec, str(p))
-    for gid, n in other_nav.items():
-        if gid == 3:
-            log.warning("%s: %d BeiDou RXM-SFRBX messages not decoded (BeiDou D1/D2 decoding is not implemented): "
-                        "give a RINEX navigation file with --nav for BeiDou", p, n)
-    nav = NavData(eph=finish_table(lnav.rows + inav.rows), source=str(p),
+    nav = NavData(eph=finish_table(lnav.rows + inav.rows + bds.rows), source=str(p),
                   skipped={k: (len(v), v[0]) for k, v in skipped.items()})
     return obs, nav
 
