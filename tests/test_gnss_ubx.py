@@ -16,7 +16,7 @@ from sinscli.io.rinex import read_nav, read_obs
 from sinscli.io.ubx import read_ubx
 from sinscli.sim.raw_gnss import static_receiver
 
-from ubx_encode import bds_frames, inav_words, lnav_subframes, rawx, sfrbx_bds, sfrbx_inav, sfrbx_lnav
+from ubx_encode import bds_frames, inav_words, lnav_ion_page, lnav_subframes, rawx, sfrbx_bds, sfrbx_inav, sfrbx_lnav
 
 
 def _log(sim, every_subframes=30):
@@ -33,6 +33,7 @@ def _log(sim, every_subframes=30):
                 row = rows[np.argmin(np.abs(rows[:, E.TOE] - t))]
                 for sub in lnav_subframes(row):
                     out.append(sfrbx_lnav(prn, sub))
+            out.append(sfrbx_lnav(int(obs.prn[r[0]]), lnav_ion_page(nav.ion_gps)))
         sats = [(0, int(obs.prn[i]), 0) for i in r]
         out.append(rawx(obs.time[e], sats, obs.values[r, c1c], obs.values[r, l1c], obs.values[r, d1c],
                         obs.values[r, s1c]))
@@ -65,7 +66,7 @@ def test_ubx_decodes_observations_and_lnav(sim, tmp_path):
         assert row[E.IODE] == r0[E.IODE] and row[E.TOC] == r0[E.TOC]
     # the same weights on both sides (the LNAV URA index and the integer C/N0 of RAWX change them)
     opts = S.spp_options(iono="klobuchar", elev_mask_deg=5.0, use_ura=False, cn0_ref=0.0)
-    nav.ion_gps = sim.nav.ion_gps
+    np.testing.assert_allclose(nav.ion_gps, sim.nav.ion_gps, rtol=1e-3)   # RINEX prints 4 digits
     a = run_spp(obs, nav, systems=[0], options=opts)
     b = run_spp(sim.obs, sim.nav, systems=[0], options=opts)
     ok = a.fix & b.fix

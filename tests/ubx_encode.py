@@ -198,3 +198,12 @@ def bds_frames(row, sow0):
 def sfrbx_bds(prn, words) -> bytes:
     payload = struct.pack("<BBBBBBBx", 3, prn, 0, 0, 10, 0, 2) + b"".join(struct.pack("<I", w) for w in words)
     return frame(0x02, 0x13, payload)
+
+
+def lnav_ion_page(ion):
+    """GPS subframe 4 page 18 (SV ID 56) with the Klobuchar coefficients (IS-GPS-200 20.3.3.5.1.7)."""
+    scale = (2.0 ** -30, 2.0 ** -27, 2.0 ** -24, 2.0 ** -24, 2.0 ** 11, 2.0 ** 14, 2.0 ** 16, 2.0 ** 16)
+    fields = [(0x8B, 8), (0, 16), (0, 17), (0, 2), (4, 3), (0, 2), (1, 2), (56, 6)]
+    fields += [(int(round(a / s)), 8) for a, s in zip(ion, scale)]
+    fields += [(0, 240 - 120)]
+    return _put(fields)

@@ -109,6 +109,7 @@ class _LnavCollector:
         self.skipped = skipped
         self.source = source
         self.seen = set()
+        self.ion = None                                   # Klobuchar alpha0-3, beta0-3 of subframe 4 page 18
 
     def add(self, sys, prn, words, week_full, t_now):
         if len(words) < 10:
@@ -117,6 +118,10 @@ class _LnavCollector:
         if _field(v, tot, 0, 8) != 0x8B:
             return
         sid = _field(v, tot, 43, 3)
+        if sid == 4 and _field(v, tot, 50, 6) == 56 and sys == SYS_GPS:   # page 18: ionosphere (20.3.3.5.1.7)
+            scale = (2.0 ** -30, 2.0 ** -27, 2.0 ** -24, 2.0 ** -24, 2.0 ** 11, 2.0 ** 14, 2.0 ** 16, 2.0 ** 16)
+            self.ion = np.array([_field(v, tot, 56 + 8 * i, 8, True) * scale[i] for i in range(8)])
+            return
         if sid not in (1, 2, 3):
             return
         d = self.sub.setdefault((sys, prn), {})
@@ -516,7 +521,7 @@ def read_ubx(path):
                         f"RXM-SFRBX on the receiver)")
     obs = _assemble(np.array(epochs), rec, str(p))
     nav = NavData(eph=finish_table(lnav.rows + inav.rows + bds.rows), source=str(p),
-                  skipped={k: (len(v), v[0]) for k, v in skipped.items()})
+                  skipped={k: (len(v), v[0]) for k, v in skipped.items()}, ion_gps=lnav.ion)
     return obs, nav
 
 
