@@ -152,3 +152,69 @@ def test_rinex_round_trip_of_simulated_data(tmp_path):
     a = run_spp(sim.obs, sim.nav, systems=[0], options=_exact_opts())
     b = run_spp(obs, nav, systems=[0], options=_exact_opts())
     assert np.abs(a.pos - b.pos).max() < 0.01
+
+
+def test_two_systems_with_an_inter_system_bias():
+    """GPS and a second Keplerian constellation (the GPS orbits turned by 60 deg in node and 1 rad in anomaly,
+    labelled Galileo) with a 20 ns receiver inter-system bias: one clock per system takes it (their
+    difference is 20 ns x c within its noise), the position stays at the noise level; a single clock could
+    not (the position error would be metres)."""
+    from sinscli.gnss import ephemeris as E
+    from sinscli.gnss.ephemeris import NavData, finish_table
+    from sinscli.sim.raw_gnss import load_nav_for_sim, check_config
+    nav = load_nav_for_sim(check_config({}))
+    gal = nav.eph.copy()
+    gal[:, E.SYS], gal[:, E.SOURCE] = 2, 513
+    gal[:, E.OMEGA0] += np.radians(60.0)
+    gal[:, E.M0] += 1.0
+    gal[:, E.TGD1], gal[:, E.TGD2] = 2e-9, 3e-9
+    both = NavData(eph=finish_table(np.concatenate([nav.eph, gal])), ion_gps=nav.ion_gps, source="two")
+    cfg = {"systems": "GE", "code_sigma": SIGMA, "system_bias": {"E": 20e-9}}
+    sim = static_receiver(37.4, -122.2, 30.0, 600, cfg, seed=9, nav=both)
+    assert set(np.unique(sim.obs.sys)) == {0, 2}
+    res = run_spp(sim.obs, sim.nav, systems=[0, 2], options=_exact_opts())
+    assert res.fix.mean() > 0.98
+    isb = (res.clk[:, 2] - res.clk[:, 0]) / 299792458.0
+    assert np.mean(isb) == pytest.approx(20e-9, abs=0.3e-9)
+    lat, lon, _ = ecef_to_lla(sim.pos[0])
+    d = (res.pos - sim.pos) @ enu_rotation(lat, lon).T
+    assert np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) < 1.5
+    assert np.abs(np.mean(d, axis=0)).max() < 0.2                  # no bias from the ISB
+
+
+def test_simulate_cli_moving_receiver(tmp_path):
+    """`sins simulate SCENARIO --raw-gnss RAW.yaml` on the vehicle drive: `sins gnss spp` on its obs.rnx/nav.rnx
+    against gnss_truth.csv (the antenna's exact track): horizontal error and Doppler velocity at the noise level,
+    and the 30 s canyon of the config has no fix."""
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from sinscli.cli import main
+    from sinscli.io.gnss_csv import read_gnss_csv
+    from sinscli.nav.earth import lla_to_ecef
+    root = Path(__file__).resolve().parents[1]
+    raw = tmp_path / "raw.yaml"
+    raw.write_text("systems: G\ncode_sigma: 0.5\ndoppler_sigma: 0.05\nelevation_mask: 5\n"
+                   "canyons: [{start: 20, duration: 10, keep: 3}]\n")
+    out = tmp_path / "sim"
+    r = CliRunner().invoke(main, ["simulate", str(root / "configs/scenarios/vehicle_drive.yaml"), "-o", str(out),
+                                  "--duration", "60", "--raw-gnss", str(raw), "-q"])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["gnss", "spp", str(out / "obs.rnx"), "--nav", str(out / "nav.rnx"), "-o",
+                                  str(out / "spp.csv"), "--elev-mask", "5", "--code-sigma", "0.5", "-q"])
+    assert r.exit_code == 0, r.output
+    fix = read_gnss_csv(out / "spp.csv")
+    truth = np.loadtxt(out / "gnss_truth.csv", delimiter=",", skiprows=1)
+    k = np.searchsorted(truth[:, 0], fix.time - 1e-6)
+    assert np.abs(truth[k, 0] - fix.time).max() < 1e-6            # the solution time is the true time
+    a = lla_to_ecef(np.radians(fix.lat), np.radians(fix.lon), fix.height)
+    b = lla_to_ecef(np.radians(truth[k, 1]), np.radians(truth[k, 2]), truth[k, 3])
+    lat0, lon0 = np.radians(truth[0, 1]), np.radians(truth[0, 2])
+    d = (a - b) @ enu_rotation(lat0, lon0).T
+    assert np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) < 3.0
+    assert np.sqrt(np.mean(np.sum((fix.vel_n[:, :2] - truth[k, 4:6]) ** 2, axis=1))) < 0.3
+    t_rel = truth[k, 0] - truth[0, 0]
+    assert not np.any((t_rel >= 20) & (t_rel < 30))
+    assert len(fix) >= 45
+    assert np.all(np.abs(d) < 3.5 * fix.std_pos)

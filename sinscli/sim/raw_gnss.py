@@ -47,6 +47,7 @@ DEFAULTS = {
     "clock_bias": 1.0e-4,        # s at the start
     "clock_drift": 2.0e-8,       # s/s
     "clock_walk": 0.0,           # random walk of the drift, (s/s)/sqrt(s)
+    "system_bias": {},           # receiver inter-system bias per system letter, s (e.g. {E: 5.0e-9})
     "iono_error": 0.0,           # relative error of the Klobuchar model (the residual the solver sees)
     "tropo_error": 0.0,
     "elevation_mask": 5.0,       # deg: below it no satellite is tracked
@@ -76,6 +77,10 @@ def check_config(cfg: dict | None, src: str = "raw_gnss") -> dict:
         v = out[k]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise SinsError(f"{src}: {k}: expected a number; got {v!r}")
+    if not isinstance(out["system_bias"], dict) or any(
+            k not in "GECJ" or isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+            for k, v in out["system_bias"].items()):
+        raise SinsError(f"{src}: system_bias: expected {{letter: seconds}} with letters of G, E, C, J")
     if out["frequencies"] not in (1, 2):
         raise SinsError(f"{src}: frequencies: expected 1 or 2; got {out['frequencies']!r}")
     for c in str(out["systems"]):
@@ -242,7 +247,8 @@ def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> Ra
         i_f = iono_l1[rows_e, rows_j] * scale_i * (1.0 + cfg["iono_error"])
         tr = trop[rows_e, rows_j] * (1.0 + cfg["tropo_error"])
         rr = rho[rows_e, rows_j]
-        clock = C_LIGHT * (bias[rows_e] - dts[rows_e, rows_j])
+        isb = np.array([float(cfg["system_bias"].get(SYS_CHARS[s], 0.0)) for s in sys_list])[rows_j]
+        clock = C_LIGHT * (bias[rows_e] + isb - dts[rows_e, rows_j])
         code_noise = rng.standard_normal(nr) * np.sqrt(var_code[rows_e, rows_j])
         pr = rr + clock + C_LIGHT * gd + i_f + tr + code_noise
         carrier = (rr + clock - i_f + tr + rng.standard_normal(nr) * cfg["carrier_sigma"]) / lam \
