@@ -34,11 +34,14 @@ def gnss_group():
               help="Pseudorange noise a = b (m) of sigma^2 = a^2 + b^2/sin^2(el), scaled up below C/N0 45 dB-Hz.")
 @click.option("--doppler-sigma", type=click.FloatRange(min=0.001, max=100.0), default=0.1, show_default=True,
               help="Range-rate noise at the zenith (m/s).")
+@click.option("--smooth-code", type=click.FloatRange(0.0, 3600.0), default=100.0, show_default=True,
+              help="Carrier smoothing of the pseudoranges (Hatch filter, RTCA DO-229's 100 s) over SECONDS; 0: "
+                   "raw snapshot pseudoranges.")
 @click.option("--time", "time_base", type=click.Choice(["gps", "tow"]), default="gps", show_default=True,
               help="Output time: GPS seconds since 1980-01-06, or seconds of the GPS week.")
 @quiet_option
 def spp_cmd(obs_path, nav_paths, output, systems, elev_mask, iono, no_tropo, no_fde, fde_alpha, code_sigma,
-            doppler_sigma, time_base, quiet):
+            doppler_sigma, smooth_code, time_base, quiet):
     """Single-point positions and Doppler velocities of every epoch of OBS (RINEX 2.11/3.x observations,
     gzip or Hatanaka compressed, or a u-blox UBX log) with the broadcast ephemerides of NAV, written as a
     FORMATS.md GNSS CSV that `sins navigate --gnss` fuses as it is.
@@ -66,7 +69,7 @@ def spp_cmd(obs_path, nav_paths, output, systems, elev_mask, iono, no_tropo, no_
                          code_b=code_sigma, doppler_sigma=doppler_sigma, fde=not no_fde)
     from ..gnss.pipeline import run_spp_chunks
     with progress(len(obs), "spp", quiet) as bar:
-        res = run_spp_chunks(obs, nav, sys_list, opts, fde_alpha, bar.update)
+        res = run_spp_chunks(obs, nav, sys_list, opts, fde_alpha, bar.update, smooth=smooth_code)
     ok = res.fix
     if not ok.any():
         counts = np.bincount(res.rec_status, minlength=7)

@@ -27,6 +27,10 @@ class SignalArrays:
     cn0: np.ndarray
     dop: np.ndarray
     code1: dict = field(default_factory=dict)      # sys -> primary code chosen most often
+    l1: np.ndarray | None = None                   # carrier (cycles) and its LLI of the primary signal
+    lli1: np.ndarray | None = None
+    l2: np.ndarray | None = None                   # the same of the second-frequency signal
+    lli2: np.ndarray | None = None
     code2: dict = field(default_factory=dict)
 
 
@@ -40,7 +44,9 @@ def select_signals(obs: ObsData) -> SignalArrays:
     SECONDARY_CODES), the C/N0 (``S``) and Doppler (``D``) of the primary signal."""
     n = obs.n_records
     out = SignalArrays(*(np.full(n, np.nan) for _ in range(2)), np.zeros(n, np.int64), np.zeros(n, np.int64),
-                       np.zeros(n), np.zeros(n), np.full(n, np.nan), np.full(n, np.nan))
+                       np.zeros(n), np.zeros(n), np.full(n, np.nan), np.full(n, np.nan),
+                       l1=np.full(n, np.nan), lli1=np.zeros(n, np.int64), l2=np.full(n, np.nan),
+                       lli2=np.zeros(n, np.int64))
     for s in KEPLER_SYSTEMS:
         if s not in obs.types:
             continue
@@ -59,11 +65,14 @@ def select_signals(obs: ObsData) -> SignalArrays:
                     continue
                 bv[sel] = _band(s, code)
                 fv[sel] = frequency(s, code)
-                if key == "code1":
-                    for kind, dst in (("S", out.cn0), ("D", out.dop)):
-                        other = kind + code[1:]
-                        if other in types:
-                            dst[sel] = obs.values[sel, types.index(other)]
+                first = key == "code1"
+                lv, llv = (out.l1, out.lli1) if first else (out.l2, out.lli2)
+                for kind, dst in ((("S", out.cn0), ("D", out.dop), ("L", lv)) if first else (("L", lv),)):
+                    other = kind + code[1:]
+                    if other in types:
+                        dst[sel] = obs.values[sel, types.index(other)]
+                        if kind == "L":
+                            llv[sel] = obs.lli[sel, types.index(other)]
     # a second frequency equal to the first (C1C with C1W) is no combination
     same = out.f2 == out.f1
     out.p2[same] = np.nan
@@ -150,12 +159,27 @@ def parse_systems(text: str | None, obs: ObsData | None = None) -> list[int]:
     return out
 
 
+def smooth_signals(obs: ObsData, sig: SignalArrays, window: float) -> None:
+    """Replace the pseudoranges of both frequencies by carrier-smoothed ones (:func:`sinscli.gnss.spp.hatch_smooth`,
+    each with its own carrier) over ``window`` seconds."""
+    if window <= 0.0 or len(obs) < 2:
+        return
+    step = float(np.median(np.diff(obs.time)))
+    n_max = max(1, int(round(window / step)))
+    for p, l, lli, f in ((sig.p1, sig.l1, sig.lli1, sig.f1), (sig.p2, sig.l2, sig.lli2, sig.f2)):
+        lam = np.where(f > 0, C_LIGHT / np.where(f > 0, f, 1.0), 0.0)
+        p[:] = S.hatch_smooth(obs.time, obs.start, obs.sys.astype(np.int64), obs.prn.astype(np.int64), p, l,
+                              lli, lam, n_max, 2.5 * step, 30.0)
+
+
 def run_spp(obs: ObsData, nav: NavData, systems=None, options=None, fde_alpha: float = 1e-3,
-            x_init=None) -> SppResult:
-    """Single-point positioning of every epoch of ``obs`` with the ephemerides of ``nav``."""
+            x_init=None, smooth: float = 0.0) -> SppResult:
+    """Single-point positioning of every epoch of ``obs`` with the ephemerides of ``nav`` (``smooth``: the
+    Hatch filter's window, s; 0 none)."""
     systems = list(KEPLER_SYSTEMS) if systems is None else list(systems)
     opts = S.spp_options() if options is None else options
     sig = select_signals(obs)
+    smooth_signals(obs, sig, smooth)
     sys_on = np.zeros(N_SYS, dtype=np.bool_)
     sys_on[systems] = True
     ion = nav.ion_gps if nav.ion_gps is not None else nav.ion_bds
@@ -168,14 +192,15 @@ def run_spp(obs: ObsData, nav: NavData, systems=None, options=None, fde_alpha: f
 
 
 def run_spp_chunks(obs: ObsData, nav: NavData, systems, options, fde_alpha: float = 1e-3, progress=None,
-                   chunk: int = 2000) -> SppResult:
+                   chunk: int = 2000, smooth: float = 0.0) -> SppResult:
     """:func:`run_spp` in chunks of epochs (``progress(n)`` after each), each starting from the last fix."""
     if progress is None or len(obs) <= chunk:
-        res = run_spp(obs, nav, systems, options, fde_alpha)
+        res = run_spp(obs, nav, systems, options, fde_alpha, smooth=smooth)
         if progress is not None:
             progress(len(obs))
         return res
     sig = select_signals(obs)
+    smooth_signals(obs, sig, smooth)
     sys_on = np.zeros(N_SYS, dtype=np.bool_)
     sys_on[list(systems)] = True
     ion = nav.ion_gps if nav.ion_gps is not None else nav.ion_bds

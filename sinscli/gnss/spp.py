@@ -542,3 +542,50 @@ def spp_options(elev_mask_deg=15.0, iono="auto", tropo=True, code_a=0.3, code_b=
 
 
 __all__ = ["solve_epochs", "spp_options", "chi2_table", "code_variance", "doppler_variance", "TOE"]
+
+
+@njit(cache=True)
+def hatch_smooth(t, start, rsys, rprn, pr, carrier, lli, wavelength, n_max, max_gap, max_jump):
+    """Carrier-smoothed pseudoranges (Hatch filter; RTCA DO-229 J.2.2): per satellite
+    ``P_s,k = P_k / n + (n-1)/n (P_s,k-1 + lambda (L_k - L_k-1))`` with ``n = min(k, n_max)``, restarted at a
+    loss-of-lock flag, a gap over ``max_gap`` s, a missing carrier, or when the raw pseudorange is more than
+    ``max_jump`` m from the smoothed prediction (a cycle slip the receiver missed).  Returns the smoothed
+    pseudoranges (R,) (the raw value where no carrier)."""
+    nr = pr.shape[0]
+    out = pr.copy()
+    key_n = 8 * 1024
+    last_t = np.full(key_n, -1e300)
+    last_p = np.zeros(key_n)
+    last_l = np.zeros(key_n)
+    count = np.zeros(key_n, np.int64)
+    for e in range(t.shape[0]):
+        for r in range(start[e], start[e + 1]):
+            k = int(rsys[r]) * 1024 + int(rprn[r])
+            if k < 0 or k >= key_n:
+                continue
+            p = pr[r]
+            l = carrier[r]
+            if not (p == p):
+                count[k] = 0
+                continue
+            if not (l == l) or wavelength[r] <= 0.0:
+                count[k] = 0
+                continue
+            restart = count[k] == 0 or (lli[r] & 1) != 0 or t[e] - last_t[k] > max_gap
+            pred = 0.0
+            if not restart:
+                pred = last_p[k] + wavelength[r] * (l - last_l[k])
+                if abs(p - pred) > max_jump:
+                    restart = True
+            if restart:
+                count[k] = 1
+                ps = p
+            else:
+                n = min(count[k] + 1, n_max)
+                count[k] = n
+                ps = p / n + (n - 1.0) / n * pred
+            out[r] = ps
+            last_p[k] = ps
+            last_l[k] = l
+            last_t[k] = t[e]
+    return out
