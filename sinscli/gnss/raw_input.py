@@ -11,7 +11,8 @@ from .ephemeris import NavData, finish_table
 
 
 def is_ubx(path) -> bool:
-    """A UBX log starts with the sync characters 0xB5 0x62 within its first bytes (or is named .ubx)."""
+    """A UBX log: named ``.ubx``, or a whole UBX frame with a valid checksum starting within its first 64 bytes
+    (a log may begin with the tail of a message or NMEA text)."""
     p = Path(path)
     if p.suffix.lower() == ".ubx":
         return True
@@ -20,7 +21,20 @@ def is_ubx(path) -> bool:
             head = f.read(4096)
     except OSError:
         return False
-    return b"\xb5\x62" in head[:64]
+    k = head.find(b"\xb5\x62", 0, 64)
+    while 0 <= k < 64:
+        if k + 6 <= len(head):
+            n = head[k + 4] | (head[k + 5] << 8)
+            frame = head[k + 2:k + 6 + n]
+            if k + 8 + n <= len(head):
+                a = b = 0
+                for x in frame:
+                    a = (a + x) & 0xFF
+                    b = (b + a) & 0xFF
+                if head[k + 6 + n] == a and head[k + 7 + n] == b:
+                    return True
+        k = head.find(b"\xb5\x62", k + 1, 64)
+    return False
 
 
 def merge_nav(navs: list[NavData]) -> NavData:
