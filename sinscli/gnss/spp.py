@@ -94,8 +94,20 @@ def _solve_normal(h, w, v, n, m):
     for a in range(m):
         if not (abs(linv[a, a]) < 1e6):          # singular geometry (a clock without a satellite, ...)
             return rhs, nmat, False
-    q = linv.T @ linv
-    dx = q @ rhs
+    q = np.zeros((m, m))                        # Q = L^-T L^-1 and dx = Q rhs by loops: numba's @ needs scipy
+    for a in range(m):
+        for b in range(a, m):
+            acc = 0.0
+            for k in range(b, m):
+                acc += linv[k, a] * linv[k, b]
+            q[a, b] = acc
+            q[b, a] = acc
+    dx = np.zeros(m)
+    for a in range(m):
+        acc = 0.0
+        for b in range(m):
+            acc += q[a, b] * rhs[b]
+        dx[a] = acc
     return dx, q, True
 
 

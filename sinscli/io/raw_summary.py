@@ -76,7 +76,7 @@ def format_raw_summary(s: dict) -> str:
         for k, v in s.get("skipped", {}).items():
             lines.append(f"  skipped ({k}): {v}")
     if "RXM" in s["format"]:
-        lines.append("messages used: RXM-RAWX (observations), RXM-SFRBX (GPS LNAV ephemerides)")
+        lines.append("messages used: RXM-RAWX (observations), RXM-SFRBX (GPS/QZSS LNAV, Galileo I/NAV, BeiDou D1/D2)")
     return "\n".join(lines)
 
 
