@@ -2,7 +2,6 @@
 against its coordinates and against Debian's RTKLIB (`rnx2rtkp`, single mode) as an outside oracle."""
 from __future__ import annotations
 
-import os
 import re
 import shutil
 import subprocess

@@ -28,7 +28,6 @@ def _log(sim, every_subframes=30):
         if e % every_subframes == 0:
             t = obs.time[e]
             for prn in sorted(set(obs.prn[r].tolist())):
-                k = E.SYS  # noqa: F841
                 rows = nav.eph[(nav.eph[:, E.PRN] == prn)]
                 row = rows[np.argmin(np.abs(rows[:, E.TOE] - t))]
                 for sub in lnav_subframes(row):

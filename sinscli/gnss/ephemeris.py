@@ -30,6 +30,16 @@ GAL_FNAV_BIT = 0b010
 MAX_AGE = {SYS_GPS: 7200.0, SYS_QZS: 7200.0, SYS_GAL: 14400.0, SYS_BDS: 21600.0}
 
 
+@njit(cache=True)
+def max_age(sys):
+    """:data:`MAX_AGE` of a system, for kernels."""
+    if sys == SYS_GAL:
+        return 14400.0
+    if sys == SYS_BDS:
+        return 21600.0
+    return 7200.0
+
+
 @dataclass
 class NavData:
     """Broadcast navigation data: the ephemeris table and the header's ionosphere and time parameters."""

@@ -17,7 +17,7 @@ from numba import njit
 
 from ..align.fit import cholesky_inverse
 from .corrections import klobuchar, mapping_mops, tropo_delay
-from .ephemeris import TOE, URA, select_ephemeris
+from .ephemeris import URA, max_age, select_ephemeris
 from .model import azel, ecef_to_geodetic, geo_range, group_delay, range_rate, transmit_state
 from .orbits import earth_rate
 from .signals import C_LIGHT, N_SYS, SYS_GAL
@@ -340,15 +340,10 @@ def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, 
             if not (pp1[i] == pp1[i]) or ff1[i] <= 0.0:
                 rec_status[r] = NO_OBS
                 continue
-            from_age = 7200.0
-            if s == SYS_GAL:
-                from_age = 14400.0
-            elif s == 3:
-                from_age = 21600.0
             pref = 0
             if s == SYS_GAL:
                 pref = 0b010 if bb1[i] == 5 else 0b101
-            k = select_ephemeris(eph, s, int(rprn[r]), t, from_age, pref)
+            k = select_ephemeris(eph, s, int(rprn[r]), t, max_age(s), pref)
             if k < 0:
                 rec_status[r] = NO_EPH
                 continue
@@ -553,7 +548,7 @@ def spp_options(elev_mask_deg=15.0, iono="auto", tropo=True, code_a=0.3, code_b=
     return o
 
 
-__all__ = ["solve_epochs", "spp_options", "chi2_table", "code_variance", "doppler_variance", "TOE"]
+__all__ = ["solve_epochs", "spp_options", "chi2_table", "code_variance", "doppler_variance", "hatch_smooth"]
 
 
 @njit(cache=True)
@@ -563,7 +558,6 @@ def hatch_smooth(t, start, rsys, rprn, pr, carrier, lli, wavelength, n_max, max_
     loss-of-lock flag, a gap over ``max_gap`` s, a missing carrier, or when the raw pseudorange is more than
     ``max_jump`` m from the smoothed prediction (a cycle slip the receiver missed).  Returns the smoothed
     pseudoranges (R,) (the raw value where no carrier)."""
-    nr = pr.shape[0]
     out = pr.copy()
     key_n = 8 * 1024
     last_t = np.full(key_n, -1e300)

@@ -4,7 +4,6 @@ position and velocity) with three more columns per fix: ``nsat`` (satellites use
 as it is (the three columns are known and ignored: :data:`SPP_COLUMNS`)."""
 from __future__ import annotations
 
-import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pacsv
 

@@ -24,7 +24,7 @@ from numba import njit
 from ..errors import SinsError
 from ..gnss import spp as S
 from ..gnss.corrections import klobuchar, tropo_delay
-from ..gnss.ephemeris import MAX_AGE, NavData, select_ephemeris
+from ..gnss.ephemeris import NavData, max_age, select_ephemeris
 from ..gnss.model import azel, ecef_to_geodetic, group_delay
 from ..gnss.observations import ObsData
 from ..gnss.orbits import earth_rate, sat_state
@@ -119,12 +119,7 @@ def _geometry(eph, ion, t, t_sel, pos, vel, sys_list, prn_list, freq, band):
         tow = t[e] - math.floor(t[e] / 604800.0) * 604800.0
         for j in range(ns):
             s = sys_list[j]
-            age = 7200.0
-            if s == 2:
-                age = 14400.0
-            elif s == 3:
-                age = 21600.0
-            k = select_ephemeris(eph, s, prn_list[j], t_sel[e], age, 0)
+            k = select_ephemeris(eph, s, prn_list[j], t_sel[e], max_age(s), 0)
             if k < 0:
                 continue
             omge = earth_rate(s)
