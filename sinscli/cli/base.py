@@ -21,7 +21,7 @@ COMMANDS = {"navigate": "navigate", "align": "align", "simulate": "simulate", "c
             "info": "info", "convert": "convert", "allan": "allan", "gnss": "gnss"}
 
 # commands that run numba kernels: the first compile in a process says so (sinscli/_numba_cache.py)
-COMPILING_COMMANDS = frozenset({"navigate", "align", "simulate", "compare", "allan"})
+COMPILING_COMMANDS = frozenset({"navigate", "align", "simulate", "compare", "allan", "spp"})
 
 # The first paragraph of each command's help, for the listing of `sins --help`: with it the
 # listing imports no command module (numpy, numba, the simulator, the ROS readers), so it takes
@@ -106,7 +106,8 @@ class _Command(click.Command):
             if self.name not in COMPILING_COMMANDS or ctx.params.get("quiet"):
                 return super().invoke(ctx)
             from .._numba_cache import announce_compiles
-            note = f"sins: compiling the kernels of sins {self.name} (first run only; later runs load them)"
+            path = ctx.command_path.split(" ", 1)[1] if " " in ctx.command_path else self.name   # "gnss spp"
+            note = f"sins: compiling the kernels of sins {path} (first run only; later runs load them)"
             with announce_compiles(lambda text: click.echo(text, err=True), note):
                 return super().invoke(ctx)
         finally:
