@@ -7,6 +7,7 @@ import struct
 import numpy as np
 
 from sinscli.gnss import ephemeris as E
+from sinscli.io.ubx import crc24q
 from sinscli.gnss.timesys import SECONDS_PER_WEEK
 
 PI = math.pi
@@ -97,23 +98,12 @@ def inav_words(row):
     return [_put(w) for w in (w1, w2, w3, w4, w5)]
 
 
-def _crc24q(data: bytes) -> int:
-    crc = 0
-    for byte in data:
-        crc ^= byte << 16
-        for _ in range(8):
-            crc <<= 1
-            if crc & 0x1000000:
-                crc ^= 0x1864CFB
-    return crc & 0xFFFFFF
-
-
 def sfrbx_inav(prn, word: int) -> bytes:
     """An E1-B page pair carrying one 128-bit word, as RXM-SFRBX (8 words: even page bits 0-127, odd 128-255)."""
     even = (0 << 127) | (0 << 126) | ((word >> 16) << 14)                 # even/odd 0, page 0, 112 data bits
     odd_head = (1 << 81) | (0 << 80) | ((word & 0xFFFF) << 64)            # 82 bits: odd 1, page 0, 16 data bits
     crc_in = ((even >> 14) << 82) | odd_head                              # 114 + 82 bits
-    crc = _crc24q(crc_in.to_bytes(25, "big"))
+    crc = crc24q(crc_in.to_bytes(25, "big"))
     odd = (odd_head << 46) | (crc << 22)
     bits = (even << 128) | odd
     words = [(bits >> (256 - 32 * (i + 1))) & 0xFFFFFFFF for i in range(8)]

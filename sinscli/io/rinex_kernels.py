@@ -124,6 +124,28 @@ def _valid_date(year, month, day, hour, minute, sec):
 
 
 @njit(cache=True)
+def _alloc(max_rows, nmax):
+    """The output arrays of the body parsers (rows: an upper bound, the line count)."""
+    return (np.empty(max_rows), np.empty(max_rows, np.int8), np.full(max_rows, np.nan), np.empty(max_rows, np.int64),
+            np.zeros(max_rows + 1, np.int64), np.empty(max_rows, np.uint8), np.empty(max_rows, np.int16),
+            np.empty(max_rows, np.int64), np.full((max_rows, nmax), np.nan), np.zeros((max_rows, nmax), np.int8))
+
+
+@njit(cache=True)
+def _obs_field(buf, a, e, vals, lli, r, j):
+    """One observation field (F14.3, then the loss-of-lock digit) at byte ``a`` of a line ending at ``e`` into
+    ``vals[r, j]``/``lli[r, j]``; returns the status of :func:`parse_number`."""
+    v, st = parse_number(buf, a, min(a + 14, e))
+    if st > 0:
+        vals[r, j] = v
+        if a + 14 < e:
+            ch = buf[a + 14]
+            if 48 <= ch <= 57:
+                lli[r, j] = ch - 48
+    return st
+
+
+@njit(cache=True)
 def parse_obs3(buf, pos, line0, ntypes, nmax, max_rows):
     """RINEX 3 observation body from byte ``pos`` (line number ``line0``).  ``ntypes[c]`` is the number of
     observation types of the system with ASCII letter c (-1: not in the header).
@@ -131,16 +153,7 @@ def parse_obs3(buf, pos, line0, ntypes, nmax, max_rows):
     Returns ``(err, err_line, err_col, err_val, n_ep, n_rec, ep_time, ep_flag, ep_clk, ep_line, ep_start,
     rec_sys, rec_prn, rec_line, vals, lli)``."""
     n = buf.shape[0]
-    ep_time = np.empty(max_rows)
-    ep_flag = np.empty(max_rows, np.int8)
-    ep_clk = np.full(max_rows, np.nan)
-    ep_line = np.empty(max_rows, np.int64)
-    ep_start = np.zeros(max_rows + 1, np.int64)
-    rec_sys = np.empty(max_rows, np.uint8)
-    rec_prn = np.empty(max_rows, np.int16)
-    rec_line = np.empty(max_rows, np.int64)
-    vals = np.full((max_rows, nmax), np.nan)
-    lli = np.zeros((max_rows, nmax), np.int8)
+    ep_time, ep_flag, ep_clk, ep_line, ep_start, rec_sys, rec_prn, rec_line, vals, lli = _alloc(max_rows, nmax)
     ne = 0
     nr = 0
     line = line0
@@ -212,17 +225,9 @@ def parse_obs3(buf, pos, line0, ntypes, nmax, max_rows):
                 a = p + 3 + 16 * j
                 if a >= e2:
                     break
-                b = min(a + 14, e2)
-                v, stv = parse_number(buf, a, b)
-                if stv < 0:
+                if _obs_field(buf, a, e2, vals, lli, nr, j) < 0:
                     return (E_NUMBER, line, 4 + 16 * j, 0.0, ne, nr, ep_time, ep_flag, ep_clk, ep_line, ep_start,
                             rec_sys, rec_prn, rec_line, vals, lli)
-                if stv > 0:
-                    vals[nr, j] = v
-                    if a + 14 < e2:
-                        ch = buf[a + 14]
-                        if 48 <= ch <= 57:
-                            lli[nr, j] = ch - 48
             nr += 1
             p = nxt2
             line += 1
@@ -240,16 +245,7 @@ def parse_obs2(buf, pos, line0, ntypes, default_sys, known, max_rows):
     n = buf.shape[0]
     nmax = max(ntypes, 1)
     nl = (ntypes + 4) // 5
-    ep_time = np.empty(max_rows)
-    ep_flag = np.empty(max_rows, np.int8)
-    ep_clk = np.full(max_rows, np.nan)
-    ep_line = np.empty(max_rows, np.int64)
-    ep_start = np.zeros(max_rows + 1, np.int64)
-    rec_sys = np.empty(max_rows, np.uint8)
-    rec_prn = np.empty(max_rows, np.int16)
-    rec_line = np.empty(max_rows, np.int64)
-    vals = np.full((max_rows, nmax), np.nan)
-    lli = np.zeros((max_rows, nmax), np.int8)
+    ep_time, ep_flag, ep_clk, ep_line, ep_start, rec_sys, rec_prn, rec_line, vals, lli = _alloc(max_rows, nmax)
     sats_c = np.empty(512, np.uint8)
     sats_p = np.empty(512, np.int64)
     ne = 0
@@ -352,17 +348,9 @@ def parse_obs2(buf, pos, line0, ntypes, default_sys, known, max_rows):
                     a = p + 16 * jj
                     if a >= e2:
                         break
-                    b = min(a + 14, e2)
-                    v, stv = parse_number(buf, a, b)
-                    if stv < 0:
+                    if _obs_field(buf, a, e2, vals, lli, nr, j) < 0:
                         return (E_NUMBER, line, 1 + 16 * jj, 0.0, ne, nr, ep_time, ep_flag, ep_clk, ep_line,
                                 ep_start, rec_sys, rec_prn, rec_line, vals, lli)
-                    if stv > 0:
-                        vals[nr, j] = v
-                        if a + 14 < e2:
-                            ch = buf[a + 14]
-                            if 48 <= ch <= 57:
-                                lli[nr, j] = ch - 48
                 p = nxt2
                 line += 1
             nr += 1
