@@ -124,6 +124,16 @@ def _valid_date(year, month, day, hour, minute, sec):
 
 
 @njit(cache=True)
+def _skip_lines(buf, p, n, k):
+    """``(position, lines skipped)`` after skipping up to ``k`` lines from byte ``p``."""
+    done = 0
+    while done < k and p < n:
+        _, p = _line_end(buf, p, n)
+        done += 1
+    return p, done
+
+
+@njit(cache=True)
 def _alloc(max_rows, nmax):
     """The output arrays of the body parsers (rows: an upper bound, the line count)."""
     return (np.empty(max_rows), np.empty(max_rows, np.int8), np.full(max_rows, np.nan), np.empty(max_rows, np.int64),
@@ -191,13 +201,11 @@ def parse_obs3(buf, pos, line0, ntypes, nmax, max_rows):
         p = nxt
         line += 1
         if flag >= 2:                             # event records / cycle-slip records: skipped
-            for _ in range(nsat):
-                if p >= n:
-                    return (E_TRUNC, line, 1, nsat, ne, nr, ep_time, ep_flag, ep_clk, ep_line, ep_start, rec_sys,
-                            rec_prn, rec_line, vals, lli)
-                e2, nxt2 = _line_end(buf, p, n)
-                p = nxt2
-                line += 1
+            p, skipped = _skip_lines(buf, p, n, nsat)
+            line += skipped
+            if skipped < nsat:
+                return (E_TRUNC, line, 1, nsat, ne, nr, ep_time, ep_flag, ep_clk, ep_line, ep_start, rec_sys,
+                        rec_prn, rec_line, vals, lli)
             continue
         ep_time[ne] = _epoch_time(year, month, day, hour, minute, sec)
         ep_flag[ne] = flag
@@ -280,13 +288,11 @@ def parse_obs2(buf, pos, line0, ntypes, default_sys, known, max_rows):
         p = nxt
         line += 1
         if flag >= 2 and flag <= 5:
-            for _ in range(nsat):
-                if p >= n:
-                    return (E_TRUNC, line, 1, nsat, ne, nr, ep_time, ep_flag, ep_clk, ep_line, ep_start, rec_sys,
-                            rec_prn, rec_line, vals, lli)
-                e2, nxt2 = _line_end(buf, p, n)
-                p = nxt2
-                line += 1
+            p, skipped = _skip_lines(buf, p, n, nsat)
+            line += skipped
+            if skipped < nsat:
+                return (E_TRUNC, line, 1, nsat, ne, nr, ep_time, ep_flag, ep_clk, ep_line, ep_start, rec_sys,
+                        rec_prn, rec_line, vals, lli)
             continue
         if not (ok1 and ok2 and ok3 and ok4 and ok5 and st == 1):
             return (E_NUMBER, eline, 1, 0.0, ne, nr, ep_time, ep_flag, ep_clk, ep_line, ep_start, rec_sys, rec_prn,
@@ -321,12 +327,8 @@ def parse_obs2(buf, pos, line0, ntypes, default_sys, known, max_rows):
             sats_c[i] = c
             sats_p[i] = prn
         if flag == 6:                             # cycle-slip records: skipped
-            for _ in range(nsat * nl):
-                if p >= n:
-                    break
-                e2, nxt2 = _line_end(buf, p, n)
-                p = nxt2
-                line += 1
+            p, skipped = _skip_lines(buf, p, n, nsat * nl)
+            line += skipped
             continue
         ep_time[ne] = _epoch_time(year, month, day, hour, minute, sec)
         ep_flag[ne] = flag
