@@ -50,21 +50,27 @@ def test_gzip_and_hatanaka_read_the_same(tmp_path):
 
 
 def _rinex2(obs, path):
-    """A RINEX 2.11 GPS file of the GPS records of ``obs`` (C1, L1, S1): written here in the 2.11 layout."""
-    lines = [f"{2.11:9.2f}{'':11}{'OBSERVATION DATA':<20}{'G (GPS)':<20}RINEX VERSION / TYPE",
+    """A mixed RINEX 2.11 file (C1, L1, S1 of GPS, GLONASS, Galileo; 20-25 satellites an epoch, so the satellite
+    list continues on a second line) written here in the 2.11 layout, with an event record (flag 4) inside."""
+    lines = [f"{2.11:9.2f}{'':11}{'OBSERVATION DATA':<20}{'M (MIXED)':<20}RINEX VERSION / TYPE",
              f"{'     3    C1    L1    S1':<60}# / TYPES OF OBSERV", f"{'':60}END OF HEADER"]
     from sinscli.gnss.timesys import calendar
-    j = [obs.types[0].index(c) for c in ("C1C", "L1C", "S1C")]
+    cols = {s: [obs.types[s].index(c) for c in codes] for s, codes in
+            ((0, ("C1C", "L1C", "S1C")), (1, ("C1C", "L1C", "S1C")), (2, ("C1X", "L1X", "S1X")))}
+    letters = "GRE"
     for e in range(len(obs)):
-        r = [i for i in range(obs.start[e], obs.start[e + 1]) if obs.sys[i] == 0]
+        r = list(range(obs.start[e], obs.start[e + 1]))
         y, mo, d, h, mi, s = calendar(obs.time[e])
-        sats = "".join(f"G{int(obs.prn[i]):02d}" for i in r)
+        sats = "".join(f"{letters[obs.sys[i]]}{int(obs.prn[i]):02d}" for i in r)
         head = f" {y % 100:02d} {mo:2d} {d:2d} {h:2d} {mi:2d}{s:11.7f}  0{len(r):3d}"
         lines.append(head + sats[:36])
         for k in range(36, len(sats), 36):
             lines.append(" " * 32 + sats[k:k + 36])
         for i in r:
-            lines.append("".join(f"{obs.values[i, jj]:14.3f}  " for jj in j).rstrip())
+            lines.append("".join(f"{obs.values[i, jj]:14.3f}  " for jj in cols[int(obs.sys[i])]).rstrip())
+        if e == 3:
+            lines.append(f"{'':26}  4  2")
+            lines += [f"{'an event record':<60}COMMENT", f"{'another':<60}COMMENT"]
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -72,11 +78,25 @@ def test_rinex211_reads_like_the_rinex3(tmp_path):
     ref = read_obs(OBS)
     _rinex2(ref, tmp_path / "a.20o")
     o = read_obs(tmp_path / "a.20o")
-    g = ref.sys == 0
-    assert o.types[0] == ["C1C", "L1C", "S1C"]
-    np.testing.assert_array_equal(o.prn, ref.prn[g])
-    np.testing.assert_array_equal(o.values[:, 0], ref.values[g, 0])
+    assert o.types[0] == ["C1C", "L1C", "S1C"] and o.types[2] == ["C1X", "L1X", "S1X"]
+    assert np.diff(ref.start).max() > 12                    # continuation lines of the satellite list
+    np.testing.assert_array_equal(o.prn, ref.prn)
+    np.testing.assert_array_equal(o.sys, ref.sys)
+    for s, code in ((0, "C1C"), (1, "C1C"), (2, "C1X")):
+        m = ref.sys == s
+        np.testing.assert_array_equal(o.values[m, 0], ref.values[m, ref.types[s].index(code)])
     np.testing.assert_array_equal(o.time, ref.time)
+
+
+def test_rinex3_event_records_are_skipped(tmp_path):
+    text = OBS.read_text()
+    k = text.index("> 2020 05 14 22 00 30.0000000")
+    p = tmp_path / "ev.20o"
+    p.write_text(text[:k] + "> 2020 05 14 22 00 15.0000000  4  2\n" + f"{'event':<60}COMMENT\n"
+                 + f"{'more':<60}COMMENT\n" + text[k:])
+    a, b = read_obs(OBS), read_obs(p)
+    np.testing.assert_array_equal(a.values, b.values)
+    np.testing.assert_array_equal(a.time, b.time)
 
 
 def _corrupt(tmp_path, old, new, count=1):
