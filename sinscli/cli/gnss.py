@@ -37,11 +37,13 @@ def gnss_group():
 @click.option("--smooth-code", type=click.FloatRange(0.0, 3600.0), default=100.0, show_default=True,
               help="Carrier smoothing of the pseudoranges (Hatch filter, RTCA DO-229's 100 s) over SECONDS; 0: "
                    "raw snapshot pseudoranges.")
+@click.option("--time-offset", type=float, default=0.0, show_default=True,
+              help="Seconds added to every output time (e.g. minus the GPS time of a simulated scenario's start).")
 @click.option("--time", "time_base", type=click.Choice(["gps", "tow"]), default="gps", show_default=True,
               help="Output time: GPS seconds since 1980-01-06, or seconds of the GPS week.")
 @quiet_option
 def spp_cmd(obs_path, nav_paths, output, systems, elev_mask, iono, no_tropo, no_fde, fde_alpha, code_sigma,
-            doppler_sigma, smooth_code, time_base, quiet):
+            doppler_sigma, smooth_code, time_offset, time_base, quiet):
     """Single-point positions and Doppler velocities of every epoch of OBS (RINEX 2.11/3.x observations,
     gzip or Hatanaka compressed, or a u-blox UBX log) with the broadcast ephemerides of NAV, written as a
     FORMATS.md GNSS CSV that `sins navigate --gnss` fuses as it is.
@@ -80,6 +82,7 @@ def spp_cmd(obs_path, nav_paths, output, systems, elev_mask, iono, no_tropo, no_
     t = res.solution_time()
     if time_base == "tow":
         t = t - np.floor(res.time / SECONDS_PER_WEEK) * SECONDS_PER_WEEK
+    t = t + time_offset
     data = {"time": t[ok], "lat": lat[ok], "lon": lon[ok], "height": h[ok]}
     with_vel = bool(res.vel_ok[ok].all())
     if with_vel:

@@ -52,6 +52,10 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet, raw_gnss):
         from ..sim.raw_gnss import simulate_from_result, write_raw
         raw = simulate_from_result(result, raw_cfg, seed if seed is not None else result.seed)
         paths += write_raw(raw, outdir)
+        if not quiet:
+            click.echo(f"raw GNSS: {len(raw.obs)} epochs in {outdir / 'obs.rnx'} at GPS time = scenario time + "
+                       f"{raw.gps_offset:.0f} s (sins gnss spp ... --time-offset {-raw.gps_offset:.0f} gives the "
+                       f"scenario's time base)", err=True)
     log.info("wrote %s", ", ".join(str(p) for p in paths))
     if not quiet:
         click.echo(f"simulated {sc.name}: {len(result.imu)} IMU samples at {sc.imu_rate:g} Hz, "

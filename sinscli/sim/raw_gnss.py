@@ -173,6 +173,7 @@ class RawSim:
     clock_drift: np.ndarray            # (E,) s/s
     visible: np.ndarray                # (E,) satellites written per epoch
     config: dict = field(default_factory=dict)
+    gps_offset: float = 0.0            # GPS time - scenario time (s)
 
 
 def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> RawSim:
@@ -310,7 +311,9 @@ def from_trajectory(time_rel, lat, lon, h, vel_enu, cfg: dict, seed: int = 0) ->
     pos = h00 * xyz[idx] + h10 * hh * v_ecef[idx] + h01 * xyz[idx + 1] + h11 * hh * v_ecef[idx + 1]
     d00, d10, d01, d11 = 6 * s ** 2 - 6 * s, 3 * s ** 2 - 4 * s + 1, -6 * s ** 2 + 6 * s, 3 * s ** 2 - 2 * s
     vel = (d00 * xyz[idx] + d10 * hh * v_ecef[idx] + d01 * xyz[idx + 1] + d11 * hh * v_ecef[idx + 1]) / hh
-    return simulate_raw(t0 + (tr - time_rel[0]), pos, vel, nav, cfg, seed)
+    sim = simulate_raw(t0 + (tr - time_rel[0]), pos, vel, nav, cfg, seed)
+    sim.gps_offset = t0 - float(time_rel[0])
+    return sim
 
 
 RAW_FILES = ("obs.rnx", "nav.rnx", "gnss_truth.csv")
