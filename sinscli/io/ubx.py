@@ -489,8 +489,8 @@ def read_ubx(path):
             epochs.append(t)
             for r in m:
                 gid, sig = int(r["gnss"]), int(r["sig"])
-                if gid not in GNSS_ID or (gid, sig) not in SIG_CODE:
-                    continue
+                if gid not in GNSS_ID or (gid, sig) not in SIG_CODE or (gid == 6 and int(r["sv"]) > 32):
+                    continue                      # other systems / signals; a GLONASS slot not yet known (255)
                 trk = int(r["trk"])
                 rec["sys"].append(GNSS_ID[gid])
                 rec["prn"].append(int(r["sv"]) - (0 if gid != 1 else 100) if gid != 5 else int(r["sv"]))
