@@ -18,10 +18,10 @@ log = logging.getLogger("sins")
 # command name -> module under sinscli.cli that defines it; imported on first use, so that
 # `sins navigate` does not pay for the simulator, reports or alignment at start-up.
 COMMANDS = {"navigate": "navigate", "align": "align", "simulate": "simulate", "compare": "compare",
-            "info": "info", "convert": "convert", "allan": "allan"}
+            "info": "info", "convert": "convert", "allan": "allan", "gnss": "gnss"}
 
 # commands that run numba kernels: the first compile in a process says so (sinscli/_numba_cache.py)
-COMPILING_COMMANDS = frozenset({"navigate", "align", "simulate", "compare", "allan"})
+COMPILING_COMMANDS = frozenset({"navigate", "align", "simulate", "compare", "allan", "spp"})
 
 # The first paragraph of each command's help, for the listing of `sins --help`: with it the
 # listing imports no command module (numpy, numba, the simulator, the ROS readers), so it takes
@@ -38,6 +38,7 @@ SHORT_HELP = {
     "info": "Show the topics, message types, counts, rates, time span and gaps of a ROS 1 bag, ROS 2 bag "
             "(directory or .db3) or MCAP LOG, and for Imu topics the mean specific force and angular rate "
             "at the start (a quick look at units and mounting).",
+    "gnss": "Raw GNSS observations: single-point positioning (see docs/raw_gnss.md).",
     "navigate": "Navigate IMU increments from an initial state and write the trajectory.",
     "simulate": "Simulate SCENARIO.yaml: IMU increments, GNSS fixes and the exact truth (see docs/simulate.md).",
 }
@@ -105,7 +106,8 @@ class _Command(click.Command):
             if self.name not in COMPILING_COMMANDS or ctx.params.get("quiet"):
                 return super().invoke(ctx)
             from .._numba_cache import announce_compiles
-            note = f"sins: compiling the kernels of sins {self.name} (first run only; later runs load them)"
+            path = ctx.command_path.split(" ", 1)[1] if " " in ctx.command_path else self.name   # "gnss spp"
+            note = f"sins: compiling the kernels of sins {path} (first run only; later runs load them)"
             with announce_compiles(lambda text: click.echo(text, err=True), note):
                 return super().invoke(ctx)
         finally:

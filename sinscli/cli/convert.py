@@ -42,6 +42,12 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
       sins convert husky_imu_gps.bag -o husky/ --time header
     """
     prepare_output(outdir, directory=True)
+    from ..io.raw_summary import convert_ubx, raw_kind
+    if raw_kind(log_path) == "ubx":                 # u-blox log -> RINEX 3.04 obs/nav (docs/raw_gnss.md)
+        paths, obs, nav = convert_ubx(log_path, outdir)
+        click.echo(f"wrote {', '.join(str(p) for p in paths)}: {len(obs)} epochs, {len(nav)} ephemerides from "
+                   f"{log_path} (RINEX 3.04, read back and checked)", err=True)
+        return
     topics = ros.log_topics(log_path)
     types = set(topics.values())
     want_imu = imu_topic is not None or ros.IMU_TYPE in types

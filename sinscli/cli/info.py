@@ -68,6 +68,11 @@ def info_cmd(log, as_json, imu_window, config_path):
       sins info husky_imu_gps.bag
       sins info imu.csv --config nav.yaml
     """
+    from ..io.raw_summary import format_raw_summary, raw_kind, raw_summary
+    if raw_kind(log) is not None:                  # RINEX observations/navigation, UBX logs
+        s = raw_summary(log)
+        click.echo(json.dumps(s, indent=2) if as_json else format_raw_summary(s))
+        return
     from ..io.readers import _is_log
     if _is_log(log):
         from ..io.ros import log_summary

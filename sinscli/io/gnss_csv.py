@@ -40,6 +40,8 @@ def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
         for name in NED_NAMES:
             cols.setdefault(name, file_name(name, frame))
         section["columns"] = cols
+    from .spp_csv import SPP_COLUMNS    # the extra columns of `sins gnss spp` output: known, not read
+    section["ignore_columns"] = list(section.get("ignore_columns") or []) + list(SPP_COLUMNS)
     data, mapping = read_mapped_columns(
         path, section, GNSS_NAMES, REQUIRED, list(GROUPS.values()),
         f"expected {', '.join(GNSS_NAMES)} (map other names with the config's gnss.columns)",
