@@ -295,7 +295,7 @@ def test_cli_sample_data_fused_and_smoothed(tmp_path):
     from sinscli.io.trajectory import read_trajectory
     S = ROOT / "sample_data"
     r = _sins(["navigate", str(S / "imu.csv"), "--gnss", str(S / "gnss.csv"), "--init", str(S / "init.yaml"),
-               "--config", str(ROOT / "configs/fusion/sample.yaml"), "--smooth", "--innovations", "inn.csv", "-o", "fused.csv", "-q"], tmp_path)
+               "--config", str(ROOT / "configs/fusion/sample.yaml"), "--vehicle", "car", "--smooth", "--innovations", "inn.csv", "-o", "fused.csv", "-q"], tmp_path)
     assert r.returncode == 0, r.stderr
     assert "GNSS fixes 180 of 180 used" in r.stderr and "residual RMS" in r.stderr
     traj = read_trajectory(tmp_path / "fused.csv")

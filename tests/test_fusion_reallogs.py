@@ -169,7 +169,7 @@ def test_unknown_vehicle_is_refused(car):
 def test_ground_vehicle_hint_without_vehicle(car):
     d, st, truth = car
     err, _ = _fuse(d, "novehicle", _config(st))
-    assert "hint: the log looks like a ground vehicle's" in err and "--vehicle car" in err, err
+    assert "hint: the log looks like a ground platform's" in err and "--vehicle car or robot" in err, err
 
 
 # ------------------------------------------------------------------ the geometry a user does not know
@@ -282,3 +282,47 @@ def test_heading_never_initialized_warns_why(walker, tmp_path):
     assert r.returncode == 0, r.stderr
     assert re.search(r"WARNING: fusion: the heading was never initialized: the best GNSS course had a 1-sigma of "
                      r"[0-9.]+ deg", r.stderr), r.stderr
+
+
+# ------------------------------------------------------------------ --align inside the fused run
+def test_align_static_inside_the_fused_run(car):
+    """``--align static`` on the consumer car (it starts at rest with its engine running): roll, pitch and
+    the biases from the first standstill, the heading (unobservable from a consumer gyro at rest) left to
+    the heading from motion instead of a refusal, the output from the log's start; the drive's outages
+    stay within the true description's figures."""
+    d, st, truth = car
+    cfg = _config(st)
+    (d / "cfg_al.yaml").write_text(yaml.safe_dump(cfg))
+    r = _sins(["navigate", "imu.csv", "--gnss", "gnss.csv", "--align", "static", "--config", "cfg_al.yaml",
+               "--vehicle", "car", "-o", "al.csv"], d)
+    assert r.returncode == 0, r.stderr
+    assert re.search(r"heading from the GNSS course \((velocity|displacement)\) at \+", r.stderr), r.stderr
+    traj = read_trajectory(d / "al.csv")
+    imu_t0 = float(open(d / "imu.csv").readlines()[1].split(",")[0])
+    assert abs(traj.time[0] - imu_t0) < 0.05, (traj.time[0], imu_t0)
+    rms, cov, free = _outage_metrics(traj, truth, st)
+    assert rms < 0.5 and min(cov) >= 0.9 and free < 0.05, (rms, cov, free)
+
+
+def test_align_static_refused_on_a_log_that_starts_moving(car, tmp_path):
+    """The same drive cut to start while driving: ``--align static`` needs a standstill there, and says so
+    in one line (exit 2, nothing written); ``--align gnss-inertial`` runs."""
+    d, st, truth = car
+    t0 = truth.time[0] + 130.0
+    for name in ("imu.csv", "gnss.csv"):
+        lines = (d / name).read_text().splitlines()
+        keep = [ln for ln in lines[1:] if float(ln.split(",")[0]) >= t0]
+        (tmp_path / name).write_text("\n".join([lines[0], *keep]) + "\n")
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump(_config(st)))
+    r = _sins(["navigate", "imu.csv", "--gnss", "gnss.csv", "--align", "static", "--config", "c.yaml",
+               "--vehicle", "car", "-o", "o.csv", "-q"], tmp_path)
+    assert r.returncode == 2, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "--align static needs the log to start at rest" in lines[0], r.stderr
+    assert not (tmp_path / "o.csv").exists()
+    r = _sins(["navigate", "imu.csv", "--gnss", "gnss.csv", "--align", "gnss-inertial", "--config", "c.yaml",
+               "--vehicle", "car", "-o", "o.csv", "-q"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    traj = read_trajectory(tmp_path / "o.csv")
+    m, dr, dv, phi = errors_at(traj, truth)
+    assert np.sqrt(np.mean(dr[-1000:, 0] ** 2 + dr[-1000:, 1] ** 2)) < 0.1

@@ -4,6 +4,7 @@ Kept apart from :mod:`sinscli.cli.navigate` so that plain navigation does not im
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -16,6 +17,7 @@ from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
 from ..io.readers import read_body_velocity, read_gnss, read_imu
 from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
+from ..nav.earth import radii_py
 from ..types import ImuLog
 from .base import log, progress, summary_line
 
@@ -249,6 +251,20 @@ def _align(imu, gnss, method, cfg, config_path, conv, fopts):
     sig = {"attitude": np.array([res.sigma[0], res.sigma[1], head_sigma])}
     k = int(np.clip(np.searchsorted(gnss.time, res.state.time), 0, len(gnss) - 1))
     sig["position"] = np.maximum(gnss.position_sigma(fopts.gnss_pos_sigma)[k], 0.01) * 2.0
+    # the IMU's position from the antenna's fix, whatever the method took (static and inertial take the
+    # fix as it is): the lever arm through the aligned attitude; with the heading unknown its horizontal
+    # part points anywhere (variance |l_h|^2 / 2 per axis)
+    arm = np.asarray(fopts.lever_arm if fopts.lever_arm is not None else cfg["gnss"]["lever_arm"], float)
+    st = res.state
+    lat = math.radians(float(np.interp(st.time, gnss.time, gnss.lat)))
+    lon = float(np.interp(st.time, gnss.time, np.unwrap(np.radians(gnss.lon))))
+    lon = (lon + math.pi) % (2.0 * math.pi) - math.pi
+    h = float(np.interp(st.time, gnss.time, gnss.height))
+    d = st.Cbn @ arm
+    rm, rn = radii_py(math.sin(lat))
+    st.lat, st.lon, st.height = lat - d[1] / (rm + h), lon - d[0] / ((rn + h) * math.cos(lat)), h - d[2]
+    if not np.isfinite(head_sigma):
+        sig["position"][:2] = np.hypot(sig["position"][:2], math.hypot(d[0], d[1]) / math.sqrt(2.0))
     bias = None
     if res.gyro_bias is not None:
         bias = {"gyro": res.gyro_bias, "accel": res.accel_bias}

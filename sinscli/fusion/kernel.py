@@ -370,6 +370,43 @@ def _heading_from_course(row, st, fs, cv, P, nx, evs, n_evs):
     rpy = dcm_to_euler(ca, conv)
     course, ve, vn, csig, svh = row[RW_Z], row[RW_Z + 1], row[RW_Z + 2], row[RW_S], row[RW_S + 1]
     c_new = euler_to_dcm(rpy[0], rpy[1], course, conv)
+    # the antenna stays where the fixes put it: the IMU moves by (C_old - C_new) l
+    lever = (fs[F_LEVER], fs[F_LEVER + 1], fs[F_LEVER + 2])
+    d = np.zeros(3)
+    for i in range(3):
+        for j in range(3):
+            d[i] += (ca[i, j] - c_new[i, j]) * lever[j]
+    lat, h = st[sd.S_LAT], st[sd.S_H]
+    rm, rn = radii(np.sin(lat))
+    st[sd.S_LAT] = lat + d[1] / (rm + h)
+    st[sd.S_LON] = st[sd.S_LON] + d[0] / ((rn + h) * np.cos(lat))
+    st[sd.S_H] = h + d[2]
+    for i in range(3):
+        st[sd.S_PLO + i] = 0.0
+    # the tilt error, in navigation axes, turns with the estimate (T = C_new C_old^T, about the vertical):
+    # its covariance with the biases was built under the old heading
+    T = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            for k in range(3):
+                T[i, j] += c_new[i, k] * ca[j, k]
+    for b in (PHI, V):
+        tmp = np.zeros((3, nx))
+        for i in range(3):
+            for j in range(nx):
+                for k in range(3):
+                    tmp[i, j] += T[i, k] * P[b + k, j]
+        for i in range(3):
+            for j in range(nx):
+                P[b + i, j] = tmp[i, j]
+        tmp2 = np.zeros((nx, 3))
+        for i in range(nx):
+            for j in range(3):
+                for k in range(3):
+                    tmp2[i, j] += P[i, b + k] * T[j, k]
+        for i in range(nx):
+            for j in range(3):
+                P[i, b + j] = tmp2[i, j]
     _set_attitude(st, ((c_new[0, 0], c_new[0, 1], c_new[0, 2]), (c_new[1, 0], c_new[1, 1], c_new[1, 2]),
                        (c_new[2, 0], c_new[2, 1], c_new[2, 2])))
     st[sd.S_VEL] = ve
@@ -510,6 +547,11 @@ def _model(row, kind, st, fs, cv, nx, H, z, r):
     for a in range(m):
         s = row[RW_S + ax[a]] if kind == MT_NHC else row[RW_S + a]
         r[a] = s * s
+    if kind == MT_GNSS_POS and not head_known:
+        # the heading is held out of the filter: the horizontal lever arm points anywhere (l_h^2 / 2 per axis)
+        lh2 = 0.5 * (lever[0] * lever[0] + lever[1] * lever[1])
+        r[0] += lh2
+        r[1] += lh2
     return m, axis0, ax[0], ax[1], ax[2]
 
 

@@ -759,7 +759,7 @@ class Fusion:
                     f"segments (beyond 3 sigma on {100 * hc.beyond_3sigma:.0f} %, sigma {hc.median_sigma:.2g} deg): "
                     f"the IMU's mounting yaw is likely off by that much (imu.mounting, or imu.mounting: auto)")
         if f.vehicle == "none":
-            hint = ground_vehicle_hint(self.gnss, sum(b - a for a, b in s.standstill))
+            hint = ground_vehicle_hint(self.gnss)
             if hint:
                 s.hints.append(hint)
         return s

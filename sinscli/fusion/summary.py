@@ -195,7 +195,7 @@ def heading_course_check(traj: Trajectory, gnss: GnssLog, fwd: int, heading_std_
     return out
 
 
-def ground_vehicle_hint(gnss: GnssLog, standstill_s: float) -> str | None:
+def ground_vehicle_hint(gnss: GnssLog) -> str | None:
     """A suggestion of ``--vehicle`` for a log fused without one that looks like a ground vehicle's: its
     height stays within a few metres of a smooth profile while it travels, at road or walking speeds."""
     if len(gnss) < 10:
@@ -212,9 +212,13 @@ def ground_vehicle_hint(gnss: GnssLog, standstill_s: float) -> str | None:
     climb = float(np.max(gnss.height) - np.min(gnss.height))
     if speed > 45.0 or climb > 0.2 * dist + 30.0:
         return None
-    kind = "pedestrian" if speed < 2.0 and standstill_s < 0.5 * (t[-1] - t[0]) else "car|robot"
-    return (f"the log looks like a ground vehicle's ({dist:.0f} m at {speed:.1f} m/s on average, height range "
-            f"{climb:.0f} m): --vehicle {kind} adds the constraints of such a platform (NHC, ZUPT at rest)")
+    if speed < 2.0:     # walking speed: a walker or a small robot, the log cannot tell which
+        which = ("--vehicle robot (NHC, ZUPT/ZARU at rest) or --vehicle pedestrian (ZUPT at true rest, "
+                 "no NHC) adds the constraints of the platform")
+    else:
+        which = "--vehicle car or robot adds the constraints of such a platform (NHC, ZUPT/ZARU at rest)"
+    return (f"the log looks like a ground platform's ({dist:.0f} m at {speed:.1f} m/s on average, height "
+            f"range {climb:.0f} m): {which}")
 
 
 @dataclass
