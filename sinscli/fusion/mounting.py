@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SinsError
-from ..nav.earth import radii_py
+from ..nav.earth import local_en
 from ..nav.rotation import conv_to_flu
 from ..types import GnssLog, ImuLog, Trajectory
 from .standstill import StandstillDetector, gnss_still
@@ -94,11 +94,7 @@ def mounting_angles(C: np.ndarray) -> np.ndarray:
 
 
 def _enu(gnss: GnssLog):
-    lat, lon = np.radians(gnss.lat), np.radians(gnss.lon)
-    rm, rn = radii_py(np.sin(lat[0]))
-    e = (np.mod(lon - lon[0] + math.pi, 2 * math.pi) - math.pi) * (rn + gnss.height[0]) * math.cos(lat[0])
-    n = (lat - lat[0]) * (rm + gnss.height[0])
-    return e, n
+    return local_en(gnss.lat, gnss.lon, gnss.height)
 
 
 def _epoch_velocity(gnss: GnssLog, span: float):

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import SinsError
 from ..nav import strapdown as sd
-from ..nav.earth import gravity, radii_py
+from ..nav.earth import gravity, local_en
 from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
 from ..nav.rotation import conv_to_flu
 from ..sensors import G0, load_sensor
@@ -261,11 +261,7 @@ def course_rows(gnss: GnssLog, fopts: FusionOptions, sp: np.ndarray, t_min: floa
                                           csig[k] + f.heading_sigma_floor, svh[k], np.zeros(k.size),
                                           np.full(k.size, COURSE_FROM_VELOCITY), np.zeros(k.size)]))
     # displacement baselines: ENU offsets of the fixes from the first (small-angle: a few km at most apart)
-    lat, lon = np.radians(gnss.lat), np.radians(gnss.lon)
-    rm, rn = radii_py(np.sin(lat[0]))
-    dlon = np.mod(lon - lon[0] + math.pi, 2 * math.pi) - math.pi
-    e = dlon * (rn + gnss.height[0]) * math.cos(lat[0])
-    nn = (lat - lat[0]) * (rm + gnss.height[0])
+    e, nn = local_en(gnss.lat, gnss.lon, gnss.height)
     sh = np.hypot(sp[:, 0], sp[:, 1]) / math.sqrt(2.0)
     t = gnss.time
     i0 = np.searchsorted(t, t - f.heading_max_baseline_time, side="left")

@@ -189,11 +189,8 @@ def gnss_still(gnss, t0, t1, min_span: float = 10.0):
         for k in np.nonzero(have)[0]:
             out[k] = 0 if cm[j[k] + 1] - cm[i[k]] > 0 else 1
         return out
-    from ..nav.earth import radii_py
-    lat, lon = np.radians(gnss.lat), np.radians(gnss.lon)
-    rm, rn = radii_py(np.sin(lat[0]))
-    e = (np.mod(lon - lon[0] + np.pi, 2 * np.pi) - np.pi) * (rn + gnss.height[0]) * np.cos(lat[0])
-    n = (lat - lat[0]) * (rm + gnss.height[0])
+    from ..nav.earth import local_en
+    e, n = local_en(gnss.lat, gnss.lon, gnss.height)
     sp = gnss.position_sigma([1.5, 1.5, 3.0])
     sh = np.hypot(sp[:, 0], sp[:, 1]) / np.sqrt(2.0)
     two = have & (j > i)

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..nav.earth import radii_py
+from ..nav.earth import local_en, radii_py
 from ..types import GnssLog, Trajectory
 
 DEG = math.pi / 180.0
@@ -150,10 +150,7 @@ def heading_course_check(traj: Trajectory, gnss: GnssLog, fwd: int, heading_std_
     if len(gnss) < 5 or len(traj) < 2:
         return out
     t = gnss.time
-    lat, lon = np.radians(gnss.lat), np.radians(gnss.lon)
-    rm, rn = radii_py(np.sin(lat[0]))
-    e = (np.mod(lon - lon[0] + math.pi, 2 * math.pi) - math.pi) * (rn + gnss.height[0]) * math.cos(lat[0])
-    n = (lat - lat[0]) * (rm + gnss.height[0])
+    e, n = local_en(gnss.lat, gnss.lon, gnss.height)
     sp = gnss.position_sigma([1.5, 1.5, 3.0])
     sh = np.hypot(sp[:, 0], sp[:, 1]) / math.sqrt(2.0)
     head = forward_heading(traj, fwd)
@@ -201,10 +198,7 @@ def ground_vehicle_hint(gnss: GnssLog) -> str | None:
     if len(gnss) < 10:
         return None
     t = gnss.time
-    lat, lon = np.radians(gnss.lat), np.radians(gnss.lon)
-    rm, rn = radii_py(np.sin(lat[0]))
-    e = (np.mod(lon - lon[0] + math.pi, 2 * math.pi) - math.pi) * (rn + gnss.height[0]) * math.cos(lat[0])
-    n = (lat - lat[0]) * (rm + gnss.height[0])
+    e, n = local_en(gnss.lat, gnss.lon, gnss.height)
     dist = float(np.sum(np.hypot(np.diff(e), np.diff(n))))
     if dist < 20.0:
         return None

@@ -27,6 +27,16 @@ def radii_py(sin_lat):
     return rm, rn
 
 
+def local_en(lat_deg, lon_deg, h):
+    """East and north offsets (m) of points (deg, deg, m) from the first one: small-angle, with the
+    radii at the first point (points a few km apart at most), the longitude difference modulo a turn."""
+    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
+    rm, rn = radii_py(np.sin(lat[0]))
+    e = (np.mod(lon - lon[0] + np.pi, 2 * np.pi) - np.pi) * (rn + h[0]) * np.cos(lat[0])
+    n = (lat - lat[0]) * (rm + h[0])
+    return e, n
+
+
 def gravity_py(sin_lat, h):
     """Normal gravity magnitude of FORMATS.md, m/s^2, acting along -Up.
 
