@@ -38,7 +38,7 @@ DEFAULTS = {
         "ignore_columns": [],
         "lever_arm": [0.0, 0.0, 0.0],   # antenna position in body axes, m
         "time_offset": 0.0,             # s added to every GNSS time on reading (e.g. -18: GPS time -> UTC)
-        "frame": "enu",                 # enu | ned: velocity columns (NED: vel_d, std_d, std_vel_d; io/frames.py)
+        "frame": "enu",                 # enu | ned: velocity columns (NED: vel_d, std_d, std_vel_d; frames.py)
         "units": {"angle": "deg"},      # lat, lon in deg | rad
     },
     "init": {                     # the --init file (init YAML or trajectory)
@@ -118,7 +118,7 @@ def load_config(path=None, extra_sections=STAGE_SECTIONS) -> dict:
         cfg[name] = None
     if path is None:
         return cfg
-    from .io.inputs import load_yaml
+    from .inputs import load_yaml
     path = Path(path)
     data = load_yaml(path, "config file")
     if data is None:
@@ -235,7 +235,7 @@ def validate(cfg: dict, src: str) -> None:
         if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
             _fail(src, f"{section}.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the "
                                                  f"config's limits.time), got {off!r}")
-    from .io.frames import validate_section
+    from .frames import validate_section
     for section in ("gnss", "init", "truth"):
         validate_section(cfg[section], section, lambda key, msg: _fail(src, key, msg))
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import yaml
 
-from ..errors import SinsError, quote
+from .errors import SinsError, quote
 
 MAX_YAML_BYTES = 4 << 20          # a config, scenario or batch file is a few kB
 MAX_YAML_DEPTH = 64               # nesting of mappings and lists
@@ -38,7 +38,7 @@ def input_file(path, what: str = "file", allow_dir: bool = False) -> Path:
         raise SinsError(f"{p}: cannot read the {what} ({exc.strerror or type(exc).__name__})") from None
     if stat.S_ISDIR(st.st_mode):
         if allow_dir:
-            from .atomic import note_input
+            from .io.atomic import note_input
             note_input(p)
             return p
         raise SinsError(f"{p}: is a directory, expected a {what}")
@@ -47,7 +47,7 @@ def input_file(path, what: str = "file", allow_dir: bool = False) -> Path:
         raise SinsError(f"{p}: is {kind}, expected a regular {what} (a FIFO or device is not read)")
     if not os.access(p, os.R_OK):
         raise SinsError(f"{p}: cannot read the {what} (permission denied)")
-    from .atomic import note_input
+    from .io.atomic import note_input
     note_input(p)                    # no output of this command may overwrite it (atomic.check_not_input)
     return p
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SinsError, num, quote
-from .io.inputs import load_yaml, parse_yaml
+from .inputs import load_yaml, parse_yaml
 
 DEG = np.pi / 180.0
 G0 = 9.80665                      # m/s^2 per g (unit conversion only)

@@ -20,7 +20,7 @@ import yaml
 from click.testing import CliRunner
 
 from sinscli.cli import main
-from sinscli.report.jobs import FINGERPRINT
+from sinscli.batch.jobs import FINGERPRINT
 
 from batchutil import assert_same_report, start_sins, stop, write_batch
 
@@ -126,8 +126,8 @@ def test_interrupted_1000_job_batch_resumes_to_the_same_report(tmp_path):
     """1,000 tiny jobs (1,000 seeds x 1 method, in this process); interrupted after 400 finished,
     the folder holds exactly those; ``--resume`` runs the other 600 and writes the report of an
     uninterrupted run, byte for byte."""
-    from sinscli.report.batch import load_batch, run_batch
-    from sinscli.report.jobs import StudyInterrupted
+    from sinscli.batch.compare import load_batch, run_batch
+    from sinscli.batch.jobs import StudyInterrupted
 
     batch = write_batch(tmp_path / "b", seeds=1000, duration=0.5,
                         methods=[{"name": "quat2", "attitude": "quat", "coning": 2}])

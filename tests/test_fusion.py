@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from sinscli.fusion import kernel as kn
-from sinscli.fusion.evaluate import errors, horizontal_rms
+from sinscli.evaluate.fusion import errors, horizontal_rms
 from sinscli.fusion.options import build_fusion_options
 from sinscli.fusion.pipeline import SIGMA_COLUMNS, chi2_ppf, run_fusion
 from sinscli.sim.run import simulate

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from sinscli.nav.pipeline import NavOptions, navigate
-from sinscli.report.errors import compare_trajectories
+from sinscli.evaluate.errors import compare_trajectories
 from sinscli.sim import simulate
 
 SCEN = Path(__file__).resolve().parents[1] / "configs" / "scenarios"

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError
-from .digest import digest, tail_table
-from .errors import compare_trajectories
+from ..report.digest import digest, tail_table
+from ..evaluate.errors import compare_trajectories
 from .exec import where
 
 BODY_CODES = {"flu": 0, "rfu": 1, "frd": 2}
@@ -87,7 +87,7 @@ def prepare_data(ds, seed: int | None) -> Prepared:
 def gnss_arrays(gnss, truth) -> dict[str, np.ndarray]:
     """A run's GNSS fixes for the plan view (``gnss.time``, ``gnss.east``, ``gnss.north``: local ENU at the
     truth's first point; see :func:`sinscli.report.compare_page.gnss_overlay`)."""
-    from .compare_page import gnss_overlay
+    from ..report.compare_page import gnss_overlay
     g = gnss_overlay(gnss, truth, "")
     return {"gnss.time": g.time, "gnss.east": g.east, "gnss.north": g.north}
 

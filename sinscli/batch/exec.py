@@ -156,7 +156,7 @@ def pool_worker_init() -> None:
 
 
 def dask_setup(worker=None) -> None:
-    """Preload hook of the LocalCluster's workers (``preload=['sinscli.report.exec']``)."""
+    """Preload hook of the LocalCluster's workers (``preload=['sinscli.batch.exec']``)."""
     ignore_terminal_signals()
 
 
@@ -315,7 +315,7 @@ class DaskBackend(Backend):
                     self.cluster = distributed.LocalCluster(
                         n_workers=value, threads_per_worker=1, processes=True, host="127.0.0.1",
                         dashboard_address="127.0.0.1:8787", silence_logs=logging.WARNING if verbose else logging.ERROR,
-                        preload=["sinscli.report.exec"])
+                        preload=["sinscli.batch.exec"])
                     self.client = distributed.Client(self.cluster, set_as_default=False)
                 link = self.cluster.dashboard_link if self._has_dashboard() else "none (install bokeh)"
                 self.description = (f"a Dask LocalCluster of {value} worker processes at "

@@ -126,7 +126,7 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
     if series is not None:
         _write_series(series, res, eul, conv)
     if plot is not None:
-        from ..align.figures import plot_series
+        from ..report.align_figures import plot_series
         final = np.degrees(dcm_to_euler_many(res.state.Cbn[None], conv)[0])
         plot_series(plot, res.series.time - res.t0, eul,
                     title=f"Alignment of {Path(imu).name} (--method {res.method}), heading from {res.heading_source}",
@@ -152,7 +152,7 @@ def _write_series(path, res, eul, conv):
 
 
 def _monte_carlo(scenario, runs, seed, outdir, quiet, jobs, scheduler, resume, figures):
-    from ..report.mc_study import run_mc_study
+    from ..batch.mc_study import run_mc_study
 
     def on_error(msg):
         click.echo(f"\nsins: error: {msg}", err=True)

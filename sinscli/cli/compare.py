@@ -119,7 +119,7 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
                         "is given alone, without --truth")
     mopts = None
     if metrics is not None or any(_is_tum(p) for p in (truth, *inputs)):
-        from ..report.compare_metrics import MetricOptions, parse_metrics
+        from ..evaluate.compare_metrics import MetricOptions, parse_metrics
         mopts = MetricOptions(parse_metrics(metrics or "ate,rpe"), align_traj, rpe_delta, rpe_unit, rpe_pairs)
     elif (align_traj, rpe_delta, rpe_unit, rpe_pairs) != ("none", 1.0, "s", "ref"):
         raise SinsError("--align-traj and --rpe-* set how the trajectory metrics are computed: "
@@ -142,9 +142,9 @@ def _read(path: Path, section=None):
     angle units."""
     if _is_tum(path):
         from ..io.tum import read_tum
-        from ..report.compare_metrics import TumTrack
+        from ..evaluate.compare_metrics import TumTrack
         return TumTrack(*read_tum(path), source=str(path))
-    from ..io.frames import convention
+    from ..frames import convention
     from ..io.trajectory import read_trajectory
     return read_trajectory(path, None, *convention(section))
 
@@ -168,7 +168,7 @@ def default_title(truth_path: Path, legend: dict[str, str]) -> str:
 
 def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts, gnss_path=None,
             window=None, truth_cfg=None):
-    from ..report.errors import compare_trajectories
+    from ..evaluate.errors import compare_trajectories
     from ..report.report import write_report
     from ..types import Trajectory
 
@@ -196,7 +196,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
     series, results, frame = {}, {}, ""
     with progress(len(navs) + 1, "compare", quiet) as bar:
         if mopts is not None:
-            from ..report.compare_metrics import common_frame, compute_metrics
+            from ..evaluate.compare_metrics import common_frame, compute_metrics
             ref, poses, frame = common_frame(truth, trajs, conv)
         for k, (name, path, nav) in enumerate(zip(names, navs, trajs)):
             if full:
@@ -209,7 +209,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         if interpolate:
             notes.append("The truth was interpolated at the navigation epochs.")
         if mopts is not None:
-            from ..report.compare_metrics import describe
+            from ..evaluate.compare_metrics import describe
             notes.append(describe(mopts, frame))
         if not full:
             notes.append("TUM inputs hold no latitude, longitude or velocity: the seed-000 rows (DCM elements, "
@@ -221,7 +221,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
     at = "" if table.epoch is None else f" at t = {float(table.epoch)!r} s"
     click.echo(f"sins: compare: {len(navs)} method(s){at} -> {outdir}/index.html", err=True)
     if results:
-        from ..report.compare_metrics import summary_lines
+        from ..evaluate.compare_metrics import summary_lines
         for line in summary_lines(results, mopts):
             click.echo(f"sins: compare: {line}", err=True)
 
@@ -262,7 +262,7 @@ def _apply_window(truth, truth_path, trajs, navs, window, time_offset) -> list[s
         for nav, path in zip(trajs, navs):
             cut_track(nav, window, str(path))
         notes.append(f"Window: {window.text()} (tables, maxima and figures cover it only).")
-    for nav, path in zip(trajs, navs):                  # (without an offset report/errors.py diagnoses it)
+    for nav, path in zip(trajs, navs):                  # (without an offset evaluate/errors.py diagnoses it)
         if time_offset and (nav.time[-1] < truth.time[0] or nav.time[0] > truth.time[-1]):
             shift = f" after the truth time offset of {num(float(time_offset))} s (--time-offset, truth.time_offset)"
             raise SinsError(f"{path}: no epoch in common with the truth {truth_path}{shift} (navigation "
@@ -272,7 +272,7 @@ def _apply_window(truth, truth_path, trajs, navs, window, time_offset) -> list[s
 
 
 def _batch(batch_path, outdir, jobs, scheduler, resume, figures, quiet, ctx):
-    from ..report.batch import count_jobs, load_batch, run_batch
+    from ..batch.compare import count_jobs, load_batch, run_batch
 
     spec = load_batch(batch_path)
 

@@ -74,6 +74,6 @@ def info_cmd(log, as_json, imu_window, config_path):
         s = log_summary(log, imu_window=imu_window)
     else:
         from ..config import load_config
-        from ..io.imu_summary import csv_summary
+        from ..evaluate.imu_summary import csv_summary
         s = csv_summary(log, load_config(config_path), imu_window=imu_window)
     click.echo(json.dumps(s, indent=2) if as_json else format_summary(s))

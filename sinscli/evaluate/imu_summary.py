@@ -51,7 +51,7 @@ def rest_windows(time, dtheta_b, dvel_b, t0: float) -> list[list[float]]:
 def csv_summary(path, cfg: dict, imu_window: float = 1.0) -> dict:
     """The :func:`~sinscli.io.ros.summary.log_summary` dict of an IMU CSV (read with the config: columns,
     units, mounting), plus ``rest``: the windows at rest."""
-    from .readers import read_imu
+    from ..io.readers import read_imu
     imu = read_imu(path, cfg, allow_gaps=True)
     t = np.asarray(imu.time, dtype=np.float64)
     t0 = imu.t0 if imu.t0 is not None else float(t[0] - (t[1] - t[0]) if t.size > 1 else t[0])

@@ -22,7 +22,7 @@ _NO_SPACE = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS)
 
 
 # The inputs of the running command: its path arguments and options (registered by the CLI,
-# ``sinscli/cli/base.py``) and every file a reader opened (``sinscli/io/inputs.input_file``).  Every output
+# ``sinscli/cli/base.py``) and every file a reader opened (``sinscli/inputs.input_file``).  Every output
 # (``prepare_output``, and each file ``staged_dir`` moves into place) is checked against them, so that no
 # ``-o`` ever overwrites a log, a config or a truth it reads (issue 10).
 # Only while a command runs (library code that reads a file and writes it back is not refused).

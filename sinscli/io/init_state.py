@@ -13,8 +13,8 @@ from ..nav.rotation import dcm_to_euler, euler_to_dcm
 from ..types import NavState, time_tolerance
 from .atomic import atomic_path, check_finite
 from . import limits as limits_mod
-from .frames import convention, file_name, to_enu
-from .inputs import input_file, load_yaml
+from ..frames import convention, file_name, to_enu
+from ..inputs import input_file, load_yaml
 
 INIT_KEYS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading"]
 
@@ -27,7 +27,7 @@ def read_init(path, t_start: float | None = None, conv: int = 0, limits=None, se
     the IMU start ``t_start``: the last row at or before it, its attitude turned
     from the file's body axes (its marker or its angles) into those of ``conv``.  Values beyond the
     physical ``limits`` (the config's section) are refused naming the key or row.  ``section`` (the
-    config's ``init`` section) may say the file is NED or in radians (:mod:`sinscli.io.frames`).
+    config's ``init`` section) may say the file is NED or in radians (:mod:`sinscli.frames`).
     """
     path = input_file(path, "init file")
     lim = limits_mod.resolve(limits)

@@ -16,7 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..io.atomic import atomic_path
-from .errors import ErrorSeries
+from ..evaluate.errors import ErrorSeries
 
 MAX_POINTS = 4000          # envelope bins per line
 _DEG = float(np.degrees(1.0))

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..io.atomic import staged_dir  # noqa: F401  (re-exported: the batch runner writes reports through it)
 from .digest import SeriesDigest, digest
-from .errors import ErrorSeries, ErrorTable, build_table, consistency_table
+from ..evaluate.errors import ErrorSeries, ErrorTable, build_table, consistency_table
 from .figures import plot_all, plot_metrics
 from .tables import write_errors_csv, write_errors_md, write_metric_series_csv, write_timeseries_csv
 
@@ -71,7 +71,7 @@ def write_report(outdir, series: dict[str, ErrorSeries], title: str, epoch: floa
     table = build_table(series, epoch) if series else None
     summary = []
     if metrics:
-        from .compare_metrics import summary_lines, with_metric_rows
+        from ..evaluate.compare_metrics import summary_lines, with_metric_rows
         table = with_metric_rows(table, metrics, metric_options)
         summary = summary_lines(metrics, metric_options)
     with staged_dir(outdir) as tmp:

@@ -11,7 +11,7 @@ import csv
 import numpy as np
 
 from ..io.atomic import atomic_path, check_finite
-from .errors import CONSISTENCY_UNITS, METRIC_STATISTICS, ROW_UNITS, ConsistencyTable, ErrorSeries, ErrorTable
+from ..evaluate.errors import CONSISTENCY_UNITS, METRIC_STATISTICS, ROW_UNITS, ConsistencyTable, ErrorSeries, ErrorTable
 
 #: How Tables 1-2 of seed 000 name each row (subscript g = truth, n = navigation).
 ROW_LABELS = dict(
