@@ -23,7 +23,7 @@ from sinscli.cli import main
 from sinscli.errors import SinsError
 from sinscli.report.digest import TAIL_EPOCHS, table_from_tails, tail_table
 from sinscli.evaluate.errors import ROWS, build_table, compare_trajectories
-from sinscli.batch.stats import describe, row_statistics
+from sinscli.evaluate.stats import describe, row_statistics
 
 from batchutil import SINS, write_batch
 from test_report_errors import displaced, make_truth

@@ -102,7 +102,7 @@ def test_monte_carlo_table_rms_and_max():
 
     from sinscli.batch.compare_report import mc_table
     from sinscli.evaluate.errors import ROW_UNITS, ROWS
-    from sinscli.batch.stats import row_statistics
+    from sinscli.evaluate.stats import row_statistics
     vals = np.zeros((len(ROWS), 4))
     pos_e, max_att = ROWS.index("pos_E"), ROWS.index("max_att_deg")
     vals[pos_e] = [3.0, -4.0, 1.0, 1.0]          # a#s0, a#s1, b#s0, b#s1

@@ -35,7 +35,7 @@ from ..evaluate.errors import ROW_UNITS, ROWS, ErrorTable
 from ..report.compare_page import overlay_from_arrays
 from ..report.report import write_report_files
 from .results import ResultsWriter
-from .stats import pivot, row_statistics
+from ..evaluate.stats import pivot, row_statistics
 from ..report.stats_render import plot_boxes, stats_html, write_stats_csv, write_stats_md
 from ..report.tables import ROW_LABELS, write_errors_csv, write_errors_md
 

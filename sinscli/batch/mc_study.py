@@ -41,7 +41,7 @@ from .compare_job import describe
 from .exec import where
 from .jobs import JobStore, file_digest, run_study
 from .results import ResultsWriter
-from .stats import row_statistics
+from ..evaluate.stats import row_statistics
 from ..report.stats_render import plot_boxes, stats_html, write_stats_csv, write_stats_md
 
 PER_RUN_MAX = 20          # runs drawn one by one (and series kept whole) up to this count

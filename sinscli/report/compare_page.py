@@ -3,7 +3,7 @@
 It draws what the report's other files hold (:class:`~.digest.SeriesDigest` lines, the
 :class:`~.errors.ErrorTable`), so the single ``sins compare`` and a batch's per-run pages are the
 same page.  Rendering only: every number comes from :mod:`sinscli.evaluate.errors`,
-:mod:`sinscli.batch.stats` and :mod:`sinscli.evaluate.metrics`.
+:mod:`sinscli.evaluate.stats` and :mod:`sinscli.evaluate.metrics`.
 """
 from __future__ import annotations
 
@@ -222,7 +222,7 @@ def plan_view(page: Page, lines: dict, legend: dict[str, str], gnss: GnssOverlay
 def add_box_plots(page: Page, stats, group: str, quantities: list[str], labels: dict, units: dict,
                   prefix: str) -> None:
     """One box plot per quantity, a box per ``group`` value (method, variant): p25-p75 box, median line,
-    p5-p95 whiskers, min and max as points (from :func:`sinscli.batch.stats.row_statistics`)."""
+    p5-p95 whiskers, min and max as points (from :func:`sinscli.evaluate.stats.row_statistics`)."""
     for q in quantities:
         sub = stats[stats["quantity"] == q]
         if sub.empty:
