@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from ..align.coarse import block_means
+from .imu_stats import block_means
 from ..config import mounting_angles
 from ..conventions import FRD
 from .rotation import rotvec_to_dcm
