@@ -93,7 +93,7 @@ class _Command(click.Command):
     before it runs, so that an output naming one of them is refused, whatever the command."""
 
     def invoke(self, ctx):
-        from ..io.atomic import end_inputs, reset_inputs
+        from ..inputs import end_inputs, reset_inputs
         paths = []
         for param in self.params:
             if param.name in OUTPUT_PARAMS or not isinstance(param.type, click.Path):
