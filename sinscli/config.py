@@ -13,10 +13,11 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SinsError, num, quote
+from .units import DEG, DEG_PER_H, G0, MG
 
-GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
-ACCEL_UNITS = {"m/s^2": 1.0, "g": 9.80665, "mg": 9.80665e-3}
-ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
+GYRO_UNITS = {"rad/s": 1.0, "deg/s": DEG, "deg/h": DEG_PER_H}
+ACCEL_UNITS = {"m/s^2": 1.0, "g": G0, "mg": MG}
+ANGLE_UNITS = {"rad": 1.0, "deg": DEG}
 VEL_UNITS = {"m/s": 1.0}
 IMU_NAMES = ["time", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z",
              "dtheta_x", "dtheta_y", "dtheta_z", "dvel_x", "dvel_y", "dvel_z"]

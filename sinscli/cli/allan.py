@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from .base import main, progress, quiet_option
+from ..units import UG
 
 
 @main.command("allan")
@@ -70,7 +71,7 @@ def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir,
         g = [f.white for f in res.fits[:3]]
         a = [f.white for f in res.fits[3:]]
         click.echo(f"sins: allan: {res.n} samples, {res.duration:.6g} s; ARW {np.degrees(np.mean(g)) * 60:.4g} "
-                   f"deg/sqrt(h), VRW {np.mean(a) / 9.80665e-6:.4g} micro-g/sqrt(Hz) (axis means) -> "
+                   f"deg/sqrt(h), VRW {np.mean(a) / UG:.4g} micro-g/sqrt(Hz) (axis means) -> "
                    f"{outdir}/sensor.yaml", err=True)
         names = {"quantization": "quantization", "white": "random walk (ARW/VRW)",
                  "gauss_markov": "bias instability (Gauss-Markov)", "rate_random_walk": "rate random walk"}

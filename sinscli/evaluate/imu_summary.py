@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from ..nav.imu_stats import start_means, time_stats
+from ..units import G0
 
-G0 = 9.80665          # m/s^2: the rest detector's gravity (its 0.3 m/s^2 tolerance covers any latitude)
 
 
 def rest_windows(time, dtheta_b, dvel_b, t0: float) -> list[list[float]]:
@@ -18,7 +18,7 @@ def rest_windows(time, dtheta_b, dvel_b, t0: float) -> list[list[float]]:
     from ..fusion.standstill import StandstillDetector
     o = FusionOptions()
     det = StandstillDetector(o.standstill_window, o.standstill_rate_std, o.standstill_accel_std,
-                             o.standstill_accel_mag, G0)
+                             o.standstill_accel_mag, G0)     # g's magnitude: the 0.3 m/s^2 tolerance covers any latitude
     det.feed(time, dtheta_b, dvel_b, t_start=t0)
     return [[float(a), float(b)] for a, b in det.intervals]
 
