@@ -55,10 +55,6 @@ def file_stamp(path) -> list:
     return [str(path), st.st_size, st.st_mtime_ns]
 
 
-def key_name(key: tuple) -> str:
-    return "/".join(str(k) for k in key)
-
-
 class StudyInterrupted(Interrupted):
     """A batch stopped by a signal: ``finished`` of ``total`` jobs are kept in ``outdir/jobs``."""
 
