@@ -4,7 +4,8 @@ innovation records and a summary.  No file I/O: readers and writers are the CLI'
 ``Fusion(init, nav_opts, fopts, gnss, ...)`` prepares the measurement rows, the filter model from one
 sensor description (:func:`filter_model`) and the initial covariance; ``feed(block)`` runs the numba
 kernel (:func:`sinscli.fusion.kernel.fuse`) on a block and returns its output rows;
-``finish()`` runs the smoother when asked (:mod:`sinscli.fusion.smoother`) and the summary.
+``finish()`` checks that the log had a sample after the initial time; ``smoothed()`` runs the smoother
+(:mod:`sinscli.fusion.smoother`) when asked, ``summary(traj)`` the summary.
 """
 from __future__ import annotations
 
@@ -42,11 +43,6 @@ SIGMA_COLUMNS = ["pos_e_std", "pos_n_std", "pos_u_std", "vel_e_std", "vel_n_std"
                  "roll_std", "pitch_std", "heading_std"]
 BIAS_COLUMNS = ["gyro_bias_x", "gyro_bias_y", "gyro_bias_z", "accel_bias_x", "accel_bias_y", "accel_bias_z"]
 SF_COLUMNS = ["gyro_sf_x", "gyro_sf_y", "gyro_sf_z", "accel_sf_x", "accel_sf_y", "accel_sf_z"]
-
-
-def fusion_columns(states: int) -> list[str]:
-    """The extra trajectory columns of a fused trajectory (FORMATS.md aided-trajectory columns)."""
-    return SIGMA_COLUMNS + BIAS_COLUMNS + (SF_COLUMNS if states == 21 else [])
 
 
 @dataclass
@@ -633,6 +629,8 @@ class Fusion:
         return s
 
     def finish(self) -> None:
+        """Refuse a log with no IMU sample after the initial time (the smoother and the summary are
+        :meth:`smoothed` and :meth:`summary`)."""
         if self.applied == 0:
             raise SinsError(f"{self._source}: no IMU sample after the initial time {self.init.time!r}: "
                             f"the init time is outside the log")
