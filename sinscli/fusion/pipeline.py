@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import chi2
 
 from ..errors import SinsError
 from ..nav import strapdown as sd
@@ -126,54 +127,9 @@ def _fill_unknown_terms(sens: dict, src: str) -> list:
     return notes
 
 
-def chi2_cdf(x: float, k: int) -> float:
-    """Chi-square CDF with ``k`` degrees of freedom: the regularized lower gamma P(k/2, x/2)."""
-    if x <= 0.0:
-        return 0.0
-    a, z = 0.5 * k, 0.5 * x
-    if z < a + 1.0:                          # series
-        term = total = 1.0 / a
-        n = a
-        while abs(term) > 1e-16 * abs(total):
-            n += 1.0
-            term *= z / n
-            total += term
-        return total * math.exp(-z + a * math.log(z) - math.lgamma(a))
-    # continued fraction for Q (Lentz), P = 1 - Q
-    b = z + 1.0 - a
-    c = 1.0 / 1e-300
-    dd = 1.0 / b
-    h = dd
-    for i in range(1, 1000):
-        an = -i * (i - a)
-        b += 2.0
-        dd = an * dd + b
-        dd = 1.0 / (dd if abs(dd) > 1e-300 else 1e-300)
-        c = b + an / c
-        c = c if abs(c) > 1e-300 else 1e-300
-        delta = dd * c
-        h *= delta
-        if abs(delta - 1.0) < 1e-15:
-            break
-    return 1.0 - math.exp(-z + a * math.log(z) - math.lgamma(a)) * h
-
-
-def chi2_ppf(p: float, k: int) -> float:
-    """The ``p`` quantile of the chi-square distribution with ``k`` degrees of freedom (bisection)."""
-    lo, hi = 0.0, max(10.0, 4.0 * k)
-    while chi2_cdf(hi, k) < p:
-        hi *= 2.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if chi2_cdf(mid, k) < p:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
-
-
 def chi2_gate(p: float, m: int) -> float:
-    return chi2_ppf(p, m)
+    """The chi-square gate of an ``m``-dimensional innovation: the ``p`` quantile of chi2(m) (scipy.stats)."""
+    return float(chi2.ppf(p, m))
 
 
 @dataclass
@@ -384,7 +340,7 @@ class Fusion:
         cv[kn.C_REJ_RUN] = f.rejection_run
         # the window's mean NIS per dof (3 dof per measurement) above its chi-square quantile
         m_n = 3 * f.adapt_window
-        cv[kn.C_ADAPT_THR] = chi2_ppf(f.adapt_probability, m_n) / m_n if f.adapt else 0.0
+        cv[kn.C_ADAPT_THR] = chi2_gate(f.adapt_probability, m_n) / m_n if f.adapt else 0.0
         cv[kn.C_ADAPT_N] = f.adapt_window
         cv[kn.C_SMOOTH_DT] = f.smoother_interval if self.smooth else 0.0
         cv[kn.C_ZUPT_MAXV] = f.zupt_max_speed
