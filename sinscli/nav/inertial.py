@@ -38,7 +38,7 @@ from .earth import (OMEGA_IE, ecef_to_lla, ecef_to_launch_axes_py, enu_rotation,
 from .mechanization import displacement
 from .rotation import m_tvec, m_vec, v_add, v_scale
 from .strapdown import (S_HAVE_MM2, S_NOUT, S_T, S_TMM2, S_TMM3, S_TSTART,
-                        S_VEL, S_VLO, S_VMM2, S_VMM3, STATE_SIZE, _acc, _attitude_update, _cbn, _set_vec, _vec,
+                        S_VEL, S_VLO, S_VMM2, S_VMM3, STATE, STATE_SIZE, _acc, _attitude_update, _cbn, _set_vec, _vec,
                         close_interval, fast_sample, load_fast, save_fast)
 from .strapdown import new_state as _enu_new_state
 
@@ -46,11 +46,14 @@ from .strapdown import new_state as _enu_new_state
 COLUMNS = ("x_i", "y_i", "z_i", "vx_i", "vy_i", "vz_i")
 
 # --- state vector: the ENU loop's layout plus these slots ------------------
-S_R = STATE_SIZE            # 3: r^i, position from the launch point, m
-S_RLO = STATE_SIZE + 3      # 3: compensated-summation residues of r^i
-S_CEI = STATE_SIZE + 6      # 9: C_e^i at launch (row-major), constant
-S_R0E = STATE_SIZE + 15     # 3: launch point in ECEF, m, constant
-I_STATE_SIZE = STATE_SIZE + 18
+I_STATE = STATE.extend("launch-inertial state", [
+    ("S_R", 3),                # r^i, position from the launch point, m
+    ("S_RLO", 3),              # compensated-summation residues of r^i
+    ("S_CEI", 9),              # C_e^i at launch (row-major), constant
+    ("S_R0E", 3),              # launch point in ECEF, m, constant
+], total=STATE_SIZE + 18)
+S_R, S_RLO, S_CEI, S_R0E = I_STATE.offsets("S_R", "S_RLO", "S_CEI", "S_R0E")
+I_STATE_SIZE = I_STATE.total
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
