@@ -122,6 +122,7 @@ def test_monte_carlo_interrupted_and_resumed(tmp_path):
     assert len(pd.read_parquet(tmp_path / "out" / "results.parquet")) == 300 * 2
 
 
+@pytest.mark.slow
 def test_interrupted_1000_job_batch_resumes_to_the_same_report(tmp_path):
     """1,000 tiny jobs (1,000 seeds x 1 method, in this process); interrupted after 400 finished,
     the folder holds exactly those; ``--resume`` runs the other 600 and writes the report of an

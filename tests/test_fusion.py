@@ -190,6 +190,7 @@ def _mc_run(seed, sensor_file=None, fsensor="mems", duration=150.0):
     return sim, run_fusion(sim.imu, sim.init, sim.gnss, _opts(sensor=fsensor), init_sigma=INIT_SIGMA)
 
 
+@pytest.mark.slow
 def test_monte_carlo_consistency():
     """50 seeded runs (sensor without scale-factor/misalignment errors, which the 15 states do not model):
     the mean NEES of position, velocity and attitude at the end lies in the two-sided 95 % band of
