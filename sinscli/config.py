@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SinsError, num, quote
+from .frames import validate_section
+from .inputs import load_yaml
 from .units import DEG, DEG_PER_H, G0, MG
 
 GYRO_UNITS = {"rad/s": 1.0, "deg/s": DEG, "deg/h": DEG_PER_H}
@@ -119,7 +121,6 @@ def load_config(path=None, extra_sections=STAGE_SECTIONS) -> dict:
         cfg[name] = None
     if path is None:
         return cfg
-    from .inputs import load_yaml
     path = Path(path)
     data = load_yaml(path, "config file")
     if data is None:
@@ -236,7 +237,6 @@ def validate(cfg: dict, src: str) -> None:
         if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
             _fail(src, f"{section}.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the "
                                                  f"config's limits.time), got {off!r}")
-    from .frames import validate_section
     for section in ("gnss", "init", "truth"):
         validate_section(cfg[section], section, lambda key, msg: _fail(src, key, msg))
 

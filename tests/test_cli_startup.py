@@ -72,3 +72,16 @@ def test_installed_console_script_help(tmp_path):
     assert r.returncode == 0 and "navigate  Navigate IMU increments" in r.stdout
     r = subprocess.run([str(exe), "navigate", "--help"], cwd=tmp_path, capture_output=True, text=True)
     assert r.returncode == 0 and "[flu|frd|rfu]" in r.stdout
+
+
+@pytest.mark.parametrize("module, heavy", [
+    ("sinscli", ["numba", "numpy"]),                                     # _numba_cache: numba's event on demand
+    ("sinscli.report.report", ["pandas", "scipy.stats", "sinscli.fusion.pipeline"]),   # compare_page, tables
+    ("sinscli.batch.exec", ["distributed", "psutil"]),                  # the optional Dask extra
+], ids=lambda x: x if isinstance(x, str) else "")
+def test_function_local_imports_keep_their_modules_out(module, heavy):
+    """What the function-local imports (each with its reason, tests/test_layers.py) save: importing the
+    module does not load these (the time saved: python -X importtime, benchmarks/bench_startup.py)."""
+    r = subprocess.run([sys.executable, "-c", f"import sys, {module}; print('\\n'.join(sys.modules))"],
+                       capture_output=True, text=True, check=True)
+    assert not set(r.stdout.split()) & set(heavy)

@@ -28,9 +28,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 from .. import __version__
+from ..config import DEFAULTS, validate
 from ..errors import SinsError
 from ..inputs import load_yaml
 from .compare_job import JobOptions, describe, run_group
@@ -115,7 +114,6 @@ def default_method_name(nav: dict) -> str:
 
 
 def _load_method(src: Path, k: int, item) -> MethodSpec:
-    from ..config import DEFAULTS, validate
     where = f"methods[{k}]"
     if not isinstance(item, dict):
         _fail(src, where, "expected a mapping of navigation settings (attitude, coning, subsamples, frame, ...)")

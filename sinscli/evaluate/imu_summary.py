@@ -6,16 +6,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fusion.options import FusionOptions
+from ..fusion.standstill import StandstillDetector
+from ..io.readers import read_imu
 from ..nav.imu_stats import start_means, time_stats
 from ..units import G0
-
 
 
 def rest_windows(time, dtheta_b, dvel_b, t0: float) -> list[list[float]]:
     """The stretches at rest, ``[start, end]`` s: the fused navigation's standstill detector
     (:class:`sinscli.fusion.standstill.StandstillDetector`) with its default thresholds."""
-    from ..fusion.options import FusionOptions
-    from ..fusion.standstill import StandstillDetector
     o = FusionOptions()
     det = StandstillDetector(o.standstill_window, o.standstill_rate_std, o.standstill_accel_std,
                              o.standstill_accel_mag, G0)     # g's magnitude: the 0.3 m/s^2 tolerance covers any latitude
@@ -26,7 +26,6 @@ def rest_windows(time, dtheta_b, dvel_b, t0: float) -> list[list[float]]:
 def csv_summary(path, cfg: dict, imu_window: float = 1.0) -> dict:
     """The :func:`~sinscli.io.ros.summary.log_summary` dict of an IMU CSV (read with the config: columns,
     units, mounting), plus ``rest``: the windows at rest."""
-    from ..io.readers import read_imu
     imu = read_imu(path, cfg, allow_gaps=True)
     t = np.asarray(imu.time, dtype=np.float64)
     t0 = imu.t0 if imu.t0 is not None else float(t[0] - (t[1] - t[0]) if t.size > 1 else t[0])

@@ -21,14 +21,45 @@ Attitude methods (``ATT_*``):
 import numpy as np
 from numba import njit
 
-from .coning import CONING_COEFFS, body_increments, fast_step, load_memory, push_sample, save_memory
 from ..layout import Layout
-from .krylov import (SUBSTEP_TOL, euler3_dcm_t, euler3_init, euler3_step_t, krylov_init, krylov_update_t,
-                     substep_angle)
-from .mechanization import (displacement, first_guess_displacement, frame_rotation, midpoint,
-                            position_update, velocity_update)
-from .rotation import (m_mul, m_trans, m_vec, quat_mul_t, quat_to_dcm_t,
-                       rotvec_to_dcm_delta_t, rotvec_to_quat_delta_t, v_add, v_scale)
+from .coning import (
+    CONING_COEFFS,
+    body_increments,
+    fast_step,
+    load_memory,
+    push_sample,
+    save_memory,
+)
+from .krylov import (
+    SUBSTEP_TOL,
+    euler3_dcm_t,
+    euler3_init,
+    euler3_step_t,
+    krylov_init,
+    krylov_update_t,
+    substep_angle,
+)
+from .mechanization import (
+    displacement,
+    first_guess_displacement,
+    frame_rotation,
+    midpoint,
+    position_update,
+    velocity_update,
+)
+from .rotation import (
+    conv_to_flu,
+    dcm_to_quat,
+    m_mul,
+    m_trans,
+    m_vec,
+    quat_mul_t,
+    quat_to_dcm_t,
+    rotvec_to_dcm_delta_t,
+    rotvec_to_quat_delta_t,
+    v_add,
+    v_scale,
+)
 
 ATT_DCM, ATT_DCM_SEED000, ATT_QUAT, ATT_KRYLOV, ATT_EULER = 0, 1, 2, 3, 4
 
@@ -87,13 +118,11 @@ def new_state(time, lat, lon, h, vel_n, cbn, method=ATT_QUAT, conv=0, krylov_sub
     st[S_T], st[S_LAT], st[S_LON], st[S_H] = time, lat, lon, h
     st[S_VEL:S_VEL + 3] = vel_n
     st[S_CBN:S_CBN + 9] = np.asarray(cbn, dtype=np.float64).ravel()
-    from .rotation import dcm_to_quat
     st[S_Q:S_Q + 4] = dcm_to_quat(np.ascontiguousarray(cbn, dtype=np.float64))
     st[S_TSTART] = time
     st[S_COSMIN] = 1.0
     st[S_KSUB_ANGLE] = substep_angle(krylov_substep_tol)
     if method in (ATT_KRYLOV, ATT_EULER):
-        from .rotation import conv_to_flu
         c_flu = np.asarray(cbn, dtype=np.float64) @ conv_to_flu(conv).T
         if method == ATT_KRYLOV:
             ang, kset, phib = krylov_init(np.ascontiguousarray(c_flu))

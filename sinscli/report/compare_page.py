@@ -11,7 +11,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..evaluate.errors import CONSISTENCY_UNITS, HEADLINE, ROW_UNITS, ConsistencyTable, ErrorTable
+from ..evaluate.errors import (
+    CONSISTENCY_UNITS,
+    HEADLINE,
+    ROW_UNITS,
+    ConsistencyTable,
+    ErrorTable,
+)
+from ..nav.earth import lla_to_local_enu
 from .figures import ATTITUDE_FIGURES, _angle_unit, envelope
 from .tables import CONSISTENCY_LABELS, ROW_LABELS
 from .webpage import Page, esc, table
@@ -78,9 +85,9 @@ class GnssOverlay:
 
 def gnss_overlay(gnss, truth, name: str) -> GnssOverlay:
     """:class:`GnssOverlay` of a :class:`~sinscli.types.GnssLog` (degrees) about the truth's first point."""
+    # the fusion stage (scipy.stats, its kernels' modules) loads only for a report with GNSS fixes
     from ..fusion.options import FusionOptions
     from ..fusion.pipeline import outages
-    from ..nav.earth import lla_to_local_enu
     enu = lla_to_local_enu(np.radians(gnss.lat), np.radians(gnss.lon), gnss.height,
                            float(truth.lat[0]), float(truth.lon[0]), float(truth.height[0]))
     return GnssOverlay(name, gnss.time, enu[:, 0], enu[:, 1], outages(gnss.time, FusionOptions().outage))
@@ -90,6 +97,7 @@ def overlay_from_arrays(arrays, name: str) -> GnssOverlay | None:
     """The :class:`GnssOverlay` a batch job stored (``gnss.*`` arrays), or None."""
     if "gnss.time" not in arrays:
         return None
+    # the fusion stage loads only for a report with GNSS fixes (tests/test_cli_startup.py)
     from ..fusion.options import FusionOptions
     from ..fusion.pipeline import outages
     t = np.asarray(arrays["gnss.time"])

@@ -28,9 +28,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SinsError
-from ..evaluate.errors import ErrorSeries, ErrorTable, common_epoch, consistency_column, error_column, headline_errors
-from .figures import series_lines
-from .tables import timeseries_columns
+from ..evaluate.errors import (
+    ErrorSeries,
+    ErrorTable,
+    common_epoch,
+    consistency_column,
+    error_column,
+    headline_errors,
+)
+from .figures import LINE_NAMES, series_lines
+from .tables import TIMESERIES_QUANTITIES, TIMESERIES_SIGMAS, timeseries_columns
 
 TAIL_EPOCHS = 64
 
@@ -63,8 +70,6 @@ class SeriesDigest:
                    if k.startswith(f"{prefix}ts.") and k != f"{prefix}ts.time"}
         names = [k[len(prefix) + 5:-2] for k in arrays if k.startswith(f"{prefix}line.") and k.endswith(".t")]
         lines = {n: (arrays[f"{prefix}line.{n}.t"], arrays[f"{prefix}line.{n}.y"]) for n in names}
-        from .figures import LINE_NAMES
-        from .tables import TIMESERIES_QUANTITIES, TIMESERIES_SIGMAS
         ts_order = [q[0] for q in TIMESERIES_QUANTITIES + TIMESERIES_SIGMAS]
         return cls(lines={n: lines[n] for n in LINE_NAMES if n in lines},
                    timeseries=(arrays[f"{prefix}ts.time"], {k: ts_cols[k] for k in ts_order if k in ts_cols}),
