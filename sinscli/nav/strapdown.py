@@ -408,7 +408,7 @@ def interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_
     cbn = _cbn(st)
     dv_n0 = m_vec(cbn, dv_b)
     vel = _vec(st, S_VEL)
-    lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
+    lat, h = st[S_LAT], st[S_H]
     v_mm2 = _vec(st, S_VMM2)
     v_mm3 = _vec(st, S_VMM3)
     nhist = int(st[S_HAVE_MM2])
@@ -428,20 +428,30 @@ def interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_
     else:
         _attitude_update(st, method, phi, zeta)
     dlat, dlon, dh = position_update(lat, h, dR)
-    # ---- store (compensated accumulation of every integrated state) ----
-    _set_vec(st, S_VMM3, v_mm2)
+    store_interval(st, vel, dvel, nhist, t_end)
+    _acc(st, S_LAT, S_PLO, dlat)
+    _acc(st, S_LON, S_PLO + 1, dlon)
+    _acc(st, S_H, S_PLO + 2, dh)
+    return n_ev
+
+
+@njit(cache=True)
+def store_interval(st, vel, dvel, nhist, t_end):
+    """The store step of an attitude interval, shared by both frames (:func:`interval_update` and the
+    launch-inertial loop, :mod:`sinscli.nav.inertial`): the velocity history moves one interval back
+    (``v_{m-3} <- v_{m-2} <- v_{m-1} = vel``, for the Adams-Moulton displacement), ``dvel`` is added to the
+    velocity with its compensated residue (:func:`_acc`), and the interval closes at ``t_end``
+    (``S_T = S_TSTART = t_end``).  The caller adds its own position increment.
+    """
+    _set_vec(st, S_VMM3, _vec(st, S_VMM2))
     st[S_TMM3] = st[S_TMM2]
     _set_vec(st, S_VMM2, vel)
     st[S_TMM2] = st[S_TSTART]
     st[S_HAVE_MM2] = min(nhist + 1, 2)
     for i in range(3):
         _acc(st, S_VEL + i, S_VLO + i, dvel[i])
-    _acc(st, S_LAT, S_PLO, dlat)
-    _acc(st, S_LON, S_PLO + 1, dlon)
-    _acc(st, S_H, S_PLO + 2, dh)
     st[S_T] = t_end
     st[S_TSTART] = t_end
-    return n_ev
 
 
 def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integrator, cos_stop,
