@@ -78,6 +78,7 @@ def test_installed_console_script_help(tmp_path):
     ("sinscli", ["numba", "numpy"]),                                     # _numba_cache: numba's event on demand
     ("sinscli.report.report", ["pandas", "scipy.stats", "sinscli.fusion.pipeline"]),   # compare_page, tables
     ("sinscli.batch.exec", ["distributed", "psutil"]),                  # the optional Dask extra
+    ("sinscli.config", ["scipy.spatial"]),                                # Rotation only for a mounting
 ], ids=lambda x: x if isinstance(x, str) else "")
 def test_function_local_imports_keep_their_modules_out(module, heavy):
     """What the function-local imports (each with its reason, tests/test_layers.py) save: importing the
