@@ -63,6 +63,7 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
             gnss = ros.read_gnss(log_path, topic=gnss_topic, vel_topic=vel_topic, time_source=time_source)
             bar.update(1)
         if want_odom:
+            # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
             from ..io.ros.odometry import read_twist_topic
             from ..types import BodyVelLog
             where, t, v, cov, frame, imu_frame = read_twist_topic(log_path, odom_topic, time_source, imu_topic)

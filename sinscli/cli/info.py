@@ -68,11 +68,14 @@ def info_cmd(log, as_json, imu_window, config_path):
       sins info husky_imu_gps.bag
       sins info imu.csv --config nav.yaml
     """
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..io.readers import _is_log
     if _is_log(log):
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from ..io.ros import log_summary
         s = log_summary(log, imu_window=imu_window)
     else:
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from ..config import load_config
         from ..evaluate.imu_summary import csv_summary
         s = csv_summary(log, load_config(config_path), imu_window=imu_window)

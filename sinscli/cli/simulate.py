@@ -26,9 +26,11 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet):
     Example:
       sins simulate configs/scenarios/vehicle_drive.yaml -o run1 --seed 7
     """
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..sim.run import prepare, write_sim           # here, not at import: `sins simulate --help` is fast
     from ..sim.run import simulate as run_simulation
 
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..io.atomic import prepare_output
     from ..sim.run import SIM_FILES
     for name in SIM_FILES:                             # before any work: a folder, permissions, an input
