@@ -90,6 +90,7 @@ def test_signal_stops_the_batch_and_leaves_only_finished_jobs(tmp_path, backend,
     assert "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_monte_carlo_interrupted_and_resumed(tmp_path):
     """``sins align --monte-carlo`` keeps the same contract: SIGTERM, then --resume, then the same report."""
     scen = {"name": "mc_rest", "start": {"lat": 30.0, "lon": 114.0, "height": 50.0, "heading": 0.0},
