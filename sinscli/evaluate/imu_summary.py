@@ -18,7 +18,7 @@ def rest_windows(time, dtheta_b, dvel_b, t0: float) -> list[list[float]]:
     (:class:`sinscli.fusion.standstill.StandstillDetector`) with its default thresholds."""
     o = FusionOptions()
     det = StandstillDetector(o.standstill_window, o.standstill_rate_std, o.standstill_accel_std,
-                             o.standstill_accel_mag, G0)     # g's magnitude: the 0.3 m/s^2 tolerance covers any latitude
+                             o.standstill_accel_mag, G0)   # g: its 0.3 m/s^2 tolerance covers any latitude
     det.feed(time, dtheta_b, dvel_b, t_start=t0)
     return [[float(a), float(b)] for a, b in det.intervals]
 
