@@ -9,7 +9,9 @@ import math
 
 G0 = 9.80665                    # m/s^2 per g: standard gravity (CGPM 1901)
 MG = 1e-3 * G0                  # m/s^2 per milli-g
-UG = 1e-6 * G0                  # m/s^2 per micro-g (the sensor descriptions' unit; equals 9.80665e-6 within 1 ulp)
+UG = 1e-6 * G0                  # m/s^2 per micro-g: the sensor descriptions' factor (1 ulp below UG_DECIMAL)
+UG_DECIMAL = 9.80665e-6         # m/s^2 per micro-g, correctly rounded: the divisor of the outputs in micro-g and
+                                # the alignment's legacy sensor keys (both kept so that every output is bit-identical)
 DEG = math.pi / 180.0           # rad per degree
 ARCSEC = DEG / 3600.0           # rad per arcsecond
 DEG_PER_H = DEG / 3600.0        # rad/s per deg/h (gyro bias)

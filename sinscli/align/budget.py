@@ -42,9 +42,8 @@ import numpy as np
 
 from ..nav.earth import OMEGA_IE
 from ..nav import imu_stats
+from ..units import DEG, G0, UG_DECIMAL as UG
 
-DEG = math.pi / 180.0
-UG = 9.80665e-6
 # physical bounds on a working IMU's constant bias (a consumer MEMS: a few deg/s, tens of mg)
 BIAS_CAP = {"gyro": 2.0 * DEG, "accel": 0.5}
 # and on its gyro scale factor and misalignment, when no description gives them (the fits estimate
@@ -52,7 +51,7 @@ BIAS_CAP = {"gyro": 2.0 * DEG, "accel": 0.5}
 GYRO_SF_CAP = 0.01
 GYRO_MIS_CAP = 1.0 * DEG
 REST_MIN = 10.0          # s of rest needed to read bias components from the means
-G_NOMINAL = 9.80665      # m/s^2: scale of the specific force at rest (for scale-factor terms)
+G_NOMINAL = G0           # m/s^2: scale of the specific force at rest (for scale-factor terms)
 REST_FORCE = 1.0         # m/s^2: |f| - g at rest is at most this (the largest accelerometer bias)
 Z995 = 2.5758293035489   # standard normal 99.5 % point
 # Student t 99.5 % points (two-sided 99 %) by degrees of freedom
@@ -76,14 +75,9 @@ def t995(dof: float) -> float:
 
 
 def chi2_99(dof: float) -> float:
-    """Chi-square 99 % point (Wilson-Hilferty; exact to ~1 % from 1 degree of freedom up)."""
-    if dof <= 1.0:
-        return 6.635
-    if dof <= 2.0:
-        return 9.210
-    z = 2.3263478740408408
-    a = 2.0 / (9.0 * dof)
-    return dof * (1.0 - a + z * math.sqrt(a)) ** 3
+    """Chi-square 99 % point of ``dof`` degrees of freedom (scipy.stats)."""
+    from scipy.stats import chi2  # scipy.stats (0.3 s to import) only when a description meets rest data
+    return float(chi2.ppf(0.99, dof))
 
 
 def student_sigma(values, sigma_meas=None):

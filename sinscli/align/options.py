@@ -15,6 +15,7 @@ import numpy as np
 
 from .. import config as config_mod
 from ..errors import SinsError
+from ..units import DEG, UG_DECIMAL as UG
 
 METHODS = ("static", "inertial", "gnss-inertial", "kf")
 EPOCHS = ("end", "start")
@@ -25,9 +26,6 @@ COARSE_METHODS = ("auto", "static", "inertial", "gnss-inertial")
 # filter a coarse stage and updates.  A shorter interval runs with a warning naming this length.
 MIN_DURATION = {"static": 10.0, "inertial": 30.0, "gnss-inertial": 20.0, "kf": 60.0}
 LEGACY_SENSOR_KEYS = ("gyro_bias", "gyro_arw", "accel_bias", "accel_vrw")
-
-DEG = math.pi / 180.0
-UG = 9.80665e-6
 
 ALIGN_DEFAULTS = {
     "method": "inertial",          # static | inertial | gnss-inertial | kf

@@ -24,6 +24,7 @@ from ..nav.pipeline import NavOptions
 from ..nav import imu_stats
 from ..nav.rotation import conv_to_flu, dcm_to_euler, dcm_to_euler_many, euler_to_dcm, rotvec_to_dcm
 from ..types import GnssLog, ImuLog, NavState, time_tolerance
+from ..units import G0, MG, UG_DECIMAL
 from . import budget as budget_mod
 from . import coarse, fit, inertial, kf, observability, wahba
 from .options import AlignOptions
@@ -104,10 +105,10 @@ class AlignResult:
             out["roll_window"] = float(self.roll_window)
         if self.gyro_bias is not None:
             out["gyro_bias"] = [float(x) for x in np.degrees(self.gyro_bias) * 3600.0]       # deg/h
-            out["accel_bias"] = [float(x) for x in self.accel_bias / 9.80665e-6]             # micro-g
+            out["accel_bias"] = [float(x) for x in self.accel_bias / UG_DECIMAL]             # micro-g
             if self.gyro_bias_sigma is not None:
                 out["gyro_bias_sigma"] = [float(x) for x in np.degrees(self.gyro_bias_sigma) * 3600.0]
-                out["accel_bias_sigma"] = [float(x) for x in self.accel_bias_sigma / 9.80665e-6]
+                out["accel_bias_sigma"] = [float(x) for x in self.accel_bias_sigma / UG_DECIMAL]
         return out
 
 
@@ -274,9 +275,9 @@ def check_gravity(w: Window, g: float) -> None:
     mag = float(np.linalg.norm(f))
     if 0.5 * g <= mag <= 1.5 * g:
         return
-    if abs(mag * 9.80665 - g) < 0.1 * g:
+    if abs(mag * G0 - g) < 0.1 * g:
         hint = "the file probably holds g: set imu.units.accel: g"
-    elif abs(mag * 9.80665e-3 - g) < 0.1 * g:
+    elif abs(mag * MG - g) < 0.1 * g:
         hint = "the file probably holds mg: set imu.units.accel: mg"
     else:
         hint = "check the accelerometer columns and units, and that the base is not accelerating"

@@ -22,6 +22,7 @@ import numpy as np
 from ..fusion.noise import RestNoise
 from ..fusion.standstill import StandstillDetector, gnss_still
 from ..types import GnssLog, ImuLog
+from ..units import G0
 from .adev import overlapping_avar
 from .fit import _nnls_small
 
@@ -29,7 +30,7 @@ MIN_REST = 10.0            # s at rest in all, at least
 MIN_WINDOW = 3.0           # s: shorter intervals at rest are not used
 TAU_MIN = 0.25             # s: the shortest cluster time fitted (five periods of a 20 Hz vibration: its Allan
                            # variance is in its 1/tau^2 regime from there)
-G_NOMINAL = 9.80665        # the detector's gravity (its 0.3 m/s^2 tolerance covers every latitude)
+G_NOMINAL = G0             # the detector's gravity (its 0.3 m/s^2 tolerance covers every latitude)
 
 
 def rest_intervals(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> list[tuple[float, float]]:

@@ -19,6 +19,7 @@ from ..io.readers import read_body_velocity, read_gnss, read_imu
 from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
 from ..nav.earth import radii_py
 from ..types import ImuLog
+from ..units import G0
 from .base import log, progress, summary_line
 
 
@@ -199,7 +200,7 @@ def first_rest(imu, fopts, gnss) -> float:
     t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
     k = int(np.searchsorted(imu.time, t0 + 600.0))
     det = StandstillDetector(fopts.standstill_window, fopts.standstill_rate_std, fopts.standstill_accel_std,
-                             fopts.standstill_accel_mag, 9.80665, fopts.standstill_lowpass)
+                             fopts.standstill_accel_mag, G0, fopts.standstill_lowpass)
     a, b, _ = det.feed(imu.time[:k], imu.dtheta_b[:k], imu.dvel_b[:k], t_start=t0)
     end = t0
     for x, y, still in zip(a, b, gnss_still(gnss, a, b) if len(a) else []):

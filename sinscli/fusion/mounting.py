@@ -36,9 +36,9 @@ from ..errors import SinsError
 from ..nav.earth import local_en
 from ..nav.rotation import conv_to_flu
 from ..types import GnssLog, ImuLog, Trajectory
+from ..units import DEG, G0, MG
 from .standstill import StandstillDetector, gnss_still
 
-DEG = math.pi / 180.0
 MIN_MOVING = 30.0          # s of motion faster than MIN_SPEED at least
 MIN_SPEED = 0.5            # m/s
 MAX_YAW_SIGMA = 30.0       # deg: a yaw less certain than this is refused
@@ -124,7 +124,7 @@ def estimate_mounting(imu: ImuLog, gnss: GnssLog, conv: int, fopts, span: float 
     t = imu.time
     t0 = imu.t0 if imu.t0 is not None else float(t[0] - (t[1] - t[0]))
     det = StandstillDetector(fopts.standstill_window, fopts.standstill_rate_std, fopts.standstill_accel_std,
-                             fopts.standstill_accel_mag, 9.80665, fopts.standstill_lowpass)
+                             fopts.standstill_accel_mag, G0, fopts.standstill_lowpass)
     a, b, _ = det.feed(t, imu.dtheta_b, imu.dvel_b, t_start=t0)
     still = gnss_still(gnss, a, b) == 1 if len(a) else np.zeros(0, dtype=bool)
     rest = np.zeros(len(t), dtype=bool)
@@ -172,7 +172,7 @@ def estimate_mounting(imu: ImuLog, gnss: GnssLog, conv: int, fopts, span: float 
     dvx = 0.5 * (dv_l[i, 0] + dv_l[i + 1, 0])
     dvy = 0.5 * (dv_l[i, 1] + dv_l[i + 1, 1])
     dtt = 0.5 * (dts[i] + dts[i + 1])
-    g = 9.80665
+    g = G0
     dS = speed[i + 1] - speed[i] + g * 0.5 * (slope[i] + slope[i + 1]) * dtt
     wz = 0.5 * (dth_l[i, 2] / dts[i] + dth_l[i + 1, 2] / dts[i + 1])
     Lc = 0.5 * (speed[i] + speed[i + 1]) * wz * dtt
@@ -190,7 +190,7 @@ def estimate_mounting(imu: ImuLog, gnss: GnssLog, conv: int, fopts, span: float 
     # the levelling's own error tilts the plane the forward axis is fitted in: half of it as a yaw floor
     sig = np.array([up_sigma, up_sigma, math.hypot(sig_psi, 0.5 * up_sigma)])
     notes.append(f"up from {up_src}, forward from {n * span:.0f} s of driving (speed changes and turns; "
-                 f"horizontal accelerometer bias {np.hypot(*bias) / 9.80665e-3:.2g} mg fitted)")
+                 f"horizontal accelerometer bias {np.hypot(*bias) / MG:.2g} mg fitted)")
     if sig_psi > WARN_YAW_SIGMA:
         notes.append(f"warning: the yaw is uncertain to {sig_psi:.2g} deg: the vehicle's accelerations barely show "
                      f"its forward axis; with NHC (--vehicle car|robot) the heading follows the GNSS course "

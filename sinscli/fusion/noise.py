@@ -21,8 +21,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..nav.earth import OMEGA_IE
+from ..units import DEG, UG_DECIMAL
 
-DEG = math.pi / 180.0
 FACTOR = 2.0            # a description's white noise off by more than this (either way) yields to the data
 CREDIBILITY = 3.0       # off by more than this, the description's other terms are taken off by as much
 
@@ -59,7 +59,7 @@ def apply_data_noise(model, dn: RestNoise, g: float):
     for which, name, cur, data, unit, scale in (("gyro", "gyro white noise (ARW)", arw2, dn.gyro_white ** 2,
                                                  "deg/sqrt(h)", 60.0 / DEG),
                                                 ("accelerometer", "accelerometer white noise (VRW)", vrw2,
-                                                 dn.accel_white ** 2, "ug/sqrt(Hz)", 1.0 / 9.80665e-6)):
+                                                 dn.accel_white ** 2, "ug/sqrt(Hz)", 1.0 / UG_DECIMAL)):
         # the largest axis for all three: a fit may give one axis no white noise at all (its variance all in
         # the vibration and flicker terms), which no filter should believe
         data = np.full(3, data.max())
@@ -98,6 +98,6 @@ def apply_data_noise(model, dn: RestNoise, g: float):
     k = int(np.argmax(np.abs(dn.accel_mean)))          # the axis nearest the vertical
     db = abs(float(np.linalg.norm(dn.accel_mean)) - g)
     if db ** 2 > 4.0 * p0_ba[k]:
-        notes.append(f"accelerometer bias variance raised to the rest's |f| - g ({db / 9.80665e-6:.3g} ug)")
+        notes.append(f"accelerometer bias variance raised to the rest's |f| - g ({db / UG_DECIMAL:.3g} ug)")
         p0_ba[k] = max(p0_ba[k], db ** 2)
     return replace(model, arw2=arw2, vrw2=vrw2, p0_bg=p0_bg, p0_ba=p0_ba), notes

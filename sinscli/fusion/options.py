@@ -15,8 +15,8 @@ import numpy as np
 from ..config import MAX_COUNT, MAX_LEVER_ARM
 from ..conventions import VEHICLES
 from ..errors import SinsError
+from ..units import DEG
 
-DEG = math.pi / 180.0
 MAX_VALUE = 1.0e9           # any number of the section: its square stays far from overflow
 MAX_POS = 1.0e7             # m: a position sigma (the size of the earth)
 MAX_VEL = 1.0e4             # m/s: a velocity sigma or a speed (the physical speed limit)

@@ -24,6 +24,7 @@ from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
 from ..nav.rotation import conv_to_flu
 from ..sensors import G0, load_sensor
 from ..types import GnssLog, ImuLog, NavState, Trajectory, time_tolerance
+from ..units import DEG, UG_DECIMAL
 from . import kernel as kn
 from .model import BA, BG, PHI, SA, SG, V
 from .noise import apply_data_noise
@@ -34,7 +35,6 @@ from .standstill import StandstillDetector, gnss_still
 
 log = logging.getLogger("sins")
 
-DEG = math.pi / 180.0
 DEFAULT_SENSOR = "mems"
 REQUIRED_TERMS = {"gyro": ("arw", "bias_sigma", "bias_instability", "bias_tau"),
                   "accel": ("vrw", "bias_sigma", "bias_instability", "bias_tau")}
@@ -605,7 +605,7 @@ class Fusion:
         for i, k in enumerate(BIAS_COLUMNS[:3]):
             out[k] = bias[:, i] * d * 3600.0
         for i, k in enumerate(BIAS_COLUMNS[3:]):
-            out[k] = bias[:, 3 + i] / 9.80665e-6
+            out[k] = bias[:, 3 + i] / UG_DECIMAL
         if self.ncore == 21:
             for i, k in enumerate(SF_COLUMNS):
                 out[k] = bias[:, 6 + i] * 1e6

@@ -20,8 +20,8 @@ import numpy as np
 
 from ..nav.earth import local_en, radii_py
 from ..types import GnssLog, Trajectory
+from ..units import DEG
 
-DEG = math.pi / 180.0
 UNIX_MIN, UNIX_MAX = 1.0e8, 4.0e9         # s: an absolute epoch (1973 .. 2096 in UNIX time)
 WEEK = 604800.0
 
