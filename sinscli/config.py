@@ -1,21 +1,29 @@
-"""Navigation config: YAML, every key documented in ``configs/navigation.yaml``, validated on load.
+"""Navigation config: YAML, every key documented in ``configs/navigation.yaml``, validated once on load into
+typed, frozen sections (:class:`Config`: :class:`ImuSection`, :class:`GnssSection`, :class:`Limits`, ...).
 
-Errors name the file and the offending key, e.g.
-``nav.yaml: navigation.coning: expected one of 1, 2, 3, 4, got 5``.
-Command-line options override the config (the CLI passes them to :func:`merge`).
+Every key is checked by the one validator family of :mod:`sinscli.schema`, and a refusal names the file and
+the key in one line, e.g. ``nav.yaml: key navigation.coning: expected one of 1, 2, 3, 4, got 5``.
+Readers take their section; command-line options override keys with :func:`override`
+(``dataclasses.replace`` of a section, each value checked as the YAML's).  The ``align`` and ``fusion``
+sections belong to their stages, which validate them (:mod:`sinscli.align.options`,
+:mod:`sinscli.fusion.options`); they are kept raw here.
 """
 from __future__ import annotations
 
 import copy
 import math
 import warnings
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 
-from .errors import SinsError, num, quote
-from .frames import validate_section
+from . import conventions as cv
+from . import schema as sc
+from .frames import ANGLE_UNITS as FRAME_ANGLE_UNITS, FRAMES
 from .inputs import load_yaml
+from .schema import MAX_COUNT  # noqa: F401  (config.MAX_COUNT of the stages' sections)
 from .units import DEG, DEG_PER_H, G0, MG
 
 GYRO_UNITS = {"rad/s": 1.0, "deg/s": DEG, "deg/h": DEG_PER_H}
@@ -27,222 +35,314 @@ IMU_NAMES = ["time", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_
 GNSS_NAMES = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u",
               "std_e", "std_n", "std_u", "std_vel_e", "std_vel_n", "std_vel_u"]
 ODOMETRY_NAMES = ["time", "vel_x", "vel_y", "vel_z", "std_x", "std_y", "std_z"]
-
-DEFAULTS = {
-    "imu": {
-        "columns": {},            # FORMATS name -> column name in the file
-        "ignore_columns": [],     # extra file columns to ignore
-        "units": {"gyro": "rad/s", "accel": "m/s^2", "dtheta": "rad", "dvel": "m/s"},
-        "body": "flu",            # flu | rfu | frd: the body axes after mounting
-        "mounting": None,         # sensor -> body: {roll, pitch, yaw} deg, a 3x3 matrix, or auto (estimated
-                                  # from the log by navigate --gnss)
-        "static_start": False,    # the log starts at rest (enables the specific-force check)
-        "time_offset": 0.0,       # s added to every IMU time on reading (a logging delay on the IMU side: the
-                                  # output is then on the GNSS clock)
-    },
-    "gnss": {
-        "columns": {},
-        "ignore_columns": [],
-        "lever_arm": [0.0, 0.0, 0.0],   # antenna position in body axes, m
-        "time_offset": 0.0,             # s added to every GNSS time on reading (e.g. -18: GPS time -> UTC)
-        "frame": "enu",                 # enu | ned: velocity columns (NED: vel_d, std_d, std_vel_d; frames.py)
-        "units": {"angle": "deg"},      # lat, lon in deg | rad
-    },
-    "init": {                     # the --init file (init YAML or trajectory)
-        "frame": "enu",           # enu | ned (NED: key/column vel_d, attitude columns body -> NED)
-        "units": {"angle": "deg"},    # lat, lon, roll, pitch, heading in deg | rad
-    },
-    "truth": {                    # the truth trajectory of sins compare --config
-        "frame": "enu",
-        "units": {"angle": "deg"},
-        "time_offset": 0.0,       # s added to every truth time on reading (as gnss.time_offset; --time-offset)
-    },
-    "odometry": {
-        "columns": {},            # FORMATS name (time, vel_x.., std_x..) -> column name in the CSV
-        "ignore_columns": [],
-        "frame": "auto",          # auto | body | vehicle | sensor: axes of the velocity (configs/navigation.yaml)
-    },
-    "navigation": {
-        "attitude": "quat",       # dcm | quat | krylov | euler
-        "dcm_variant": "exact",   # exact (Savage eq 26) | seed000 (seed 000 eqs 12-14)
-        "coning": 2,              # 1 | 2 | 3 | 4
-        "subsamples": 1,          # fast IMU samples per attitude update
-        "every": 1,               # write every K-th state
-        "frame": "enu",           # enu | launch-inertial
-        "allow_gaps": False,      # bridge gaps > 5 nominal intervals with a warning
-        "euler_integrator": "rk4",          # euler | rk4 (3-angle baseline)
-        "singularity_threshold": 0.01,      # |cos psi| under which the 3-angle method warns
-        "on_singularity": "continue",       # continue | stop
-        "krylov_substep_tol": 1.0e-9,       # krylov: RK4 truncation allowed per interval / its rotation
-        "launch": None,           # {lat, lon, height, azimuth} deg/m for launch-inertial
-    },
-    "limits": {                   # physically impossible inputs are refused at the reader (line, column)
-        "rate": 100.0,            # rad/s: angular rate, or an increment's |dtheta| / dt
-        "specific_force": 980.665,    # m/s^2 (100 g): specific force, or |dvel| / dt
-        "speed": 10000.0,         # m/s: GNSS, init and trajectory velocity (each component and the norm)
-        "height_min": -20000.0,   # m: ellipsoidal height range of GNSS, init and trajectory rows
-        "height_max": 1.0e8,
-        "time": 1.0e10,           # s: largest time stamp magnitude (a stamp in ns instead of s is refused)
-    },
-    "ros": {
-        "imu_topic": None,
-        "gnss_topic": None,
-        "vel_topic": None,
-        "odom_topic": None,       # body velocity: nav_msgs/Odometry (or a body-frame Twist*) topic
-        "time": "header",         # header | log
-    },
-}
-
-CHOICES = {
-    ("imu", "body"): ["flu", "rfu", "frd"],
-    ("navigation", "attitude"): ["dcm", "quat", "krylov", "euler"],
-    ("navigation", "dcm_variant"): ["exact", "seed000"],
-    ("navigation", "coning"): [1, 2, 3, 4],
-    ("navigation", "frame"): ["enu", "launch-inertial"],
-    ("navigation", "euler_integrator"): ["euler", "rk4"],
-    ("navigation", "on_singularity"): ["continue", "stop"],
-    ("ros", "time"): ["header", "log"],
-    ("odometry", "frame"): ["auto", "body", "vehicle", "sensor"],
-}
-MAX_COUNT = 2 ** 31 - 1          # largest subsamples / every (the kernels count in int64)
 MAX_LEVER_ARM = 1000.0           # m, each lever-arm component
 UNIT_CHOICES = {"gyro": GYRO_UNITS, "accel": ACCEL_UNITS, "dtheta": ANGLE_UNITS, "dvel": VEL_UNITS}
-
+LAUNCH_KEYS = ("lat", "lon", "height", "azimuth")
 
 # sections that belong to another stage, which validates them itself (`sins align`); one config
 # file can then serve every command
 STAGE_SECTIONS = ("align", "fusion")
 
 
-def load_config(path=None, extra_sections=STAGE_SECTIONS) -> dict:
-    """Load and validate a config YAML (or the defaults when ``path`` is None).
+def _columns(names):
+    def check(src, key, v):
+        v = sc.mapping(src, key, v, names)
+        for k, col in v.items():
+            if not isinstance(col, str):
+                sc.expected(src, f"{key}.{k}", "a column name", col)
+        return sc.frozen(v)
+    return check
 
-    ``extra_sections`` (default: the ``align`` and ``fusion`` sections) are accepted and returned raw
-    under their name (None when absent) for the stage that validates them.
-    """
-    cfg = copy.deepcopy(DEFAULTS)
+
+def _imu_units(src, key, v):
+    v = sc.mapping(src, key, v, UNIT_CHOICES)
+    for k, unit in v.items():
+        sc.choice(src, f"{key}.{k}", unit, tuple(UNIT_CHOICES[k]))
+    return sc.frozen({**{"gyro": "rad/s", "accel": "m/s^2", "dtheta": "rad", "dvel": "m/s"}, **v})
+
+
+def _angle_units(src, key, v):
+    v = sc.mapping(src, key, v, ("angle",))
+    return sc.frozen({"angle": sc.choice(src, f"{key}.angle", v.get("angle", "deg"), tuple(FRAME_ANGLE_UNITS))})
+
+
+def _mounting(src, key, v):
+    if isinstance(v, str) and v.lower() == "auto":
+        return "auto"
+    mounting_matrix(v, src)              # refuses what is not a rotation
+    return copy.deepcopy(v)
+
+
+def _lever_arm(src, key, v):
+    return sc.vector(src, key, v, 3, scalar=False, ge=-MAX_LEVER_ARM, le=MAX_LEVER_ARM)
+
+
+def _launch(src, key, v):
+    if v is None:
+        return None
+    v = sc.mapping(src, key, v, LAUNCH_KEYS)
+    return sc.frozen({k: sc.number(src, f"{key}.{k}", x, limit=math.inf) for k, x in v.items()})
+
+
+def _time_offset(src, key, v):
+    return sc.number(src, key, v, limit=math.inf)      # within limits.time: checked with the section's limits
+
+
+def _limit(positive=True):
+    def check(src, key, v):
+        if isinstance(v, str) and "e" in v.lower():
+            sc.fail(src, key, f"expected a finite number{' > 0' if positive else ''}, got {sc.got(v)} "
+                              f"(YAML reads 1.0e8 as text: write 1.0e+8)")
+        return sc.number(src, key, v, gt=0.0 if positive else None, limit=math.inf)
+    return check
+
+
+def _text(src, key, v):
+    return sc.optional_text(src, key, v)
+
+
+def _ch(choices):
+    return lambda src, key, v: sc.choice(src, key, v, choices)
+
+
+def _count(src, key, v):
+    return sc.integer(src, key, v, 1, MAX_COUNT)
+
+
+def _names(src, key, v):
+    return sc.names(src, key, v)
+
+
+# every key of every section: (default, check); the defaults are configs/navigation.yaml's
+SCHEMA = {
+    "imu": {
+        "columns": ({}, _columns(IMU_NAMES)),       # FORMATS name -> column name in the file
+        "ignore_columns": ([], _names),             # extra file columns to ignore
+        "units": ({}, _imu_units),                  # gyro, accel, dtheta, dvel (UNIT_CHOICES)
+        "body": ("flu", _ch(cv.BODY_NAMES)),        # the body axes after mounting
+        "mounting": (None, _mounting),              # sensor -> body: {roll, pitch, yaw} deg, a 3x3 matrix, or
+                                                    # auto (estimated from the log by navigate --gnss)
+        "static_start": (False, sc.boolean),        # the log starts at rest (the specific-force check)
+        "time_offset": (0.0, _time_offset),         # s added to every IMU time on reading
+    },
+    "gnss": {
+        "columns": ({}, _columns(GNSS_NAMES)),
+        "ignore_columns": ([], _names),
+        "lever_arm": ([0.0, 0.0, 0.0], _lever_arm),     # antenna position in body axes, m
+        "time_offset": (0.0, _time_offset),             # s added to every GNSS time on reading
+        "frame": ("enu", _ch(FRAMES)),                  # velocity columns (NED: vel_d, std_d, std_vel_d)
+        "units": ({}, _angle_units),                    # lat, lon in deg | rad
+    },
+    "init": {                                   # the --init file (init YAML or trajectory)
+        "frame": ("enu", _ch(FRAMES)),
+        "units": ({}, _angle_units),            # lat, lon, roll, pitch, heading in deg | rad
+    },
+    "truth": {                                  # the truth trajectory of sins compare --config
+        "frame": ("enu", _ch(FRAMES)),
+        "units": ({}, _angle_units),
+        "time_offset": (0.0, _time_offset),
+    },
+    "odometry": {
+        "columns": ({}, _columns(ODOMETRY_NAMES)),
+        "ignore_columns": ([], _names),
+        "frame": ("auto", _ch(cv.ODOMETRY_FRAMES)),
+    },
+    "navigation": {
+        "attitude": ("quat", _ch(cv.ATTITUDES)),
+        "dcm_variant": ("exact", _ch(cv.DCM_VARIANTS)),
+        "coning": (2, _ch(cv.CONING_ORDERS)),
+        "subsamples": (1, _count),
+        "every": (1, _count),
+        "frame": ("enu", _ch(cv.NAV_FRAMES)),
+        "allow_gaps": (False, sc.boolean),
+        "euler_integrator": ("rk4", _ch(cv.EULER_INTEGRATORS)),
+        "singularity_threshold": (0.01, lambda src, key, v: sc.number(src, key, v, gt=0.0, lt=1.0)),
+        "on_singularity": ("continue", _ch(cv.ON_SINGULARITY)),
+        "krylov_substep_tol": (1.0e-9, lambda src, key, v: sc.number(src, key, v, gt=0.0, lt=1.0)),
+        "launch": (None, _launch),              # {lat, lon, height, azimuth} deg/m for launch-inertial
+    },
+    "limits": {                                 # physically impossible inputs are refused at the reader
+        "rate": (100.0, _limit()),              # rad/s
+        "specific_force": (980.665, _limit()),  # m/s^2 (100 g)
+        "speed": (10000.0, _limit()),           # m/s
+        "height_min": (-20000.0, _limit(False)),    # m
+        "height_max": (1.0e8, _limit()),
+        "time": (1.0e10, _limit()),             # s: largest |time stamp|
+    },
+    "ros": {
+        "imu_topic": (None, _text),
+        "gnss_topic": (None, _text),
+        "vel_topic": (None, _text),
+        "odom_topic": (None, _text),
+        "time": ("header", _ch(cv.ROS_TIMES)),
+    },
+}
+# the raw default values, section by section (configs/navigation.yaml)
+DEFAULTS = {name: {k: copy.deepcopy(d) for k, (d, _) in keys.items()} for name, keys in SCHEMA.items()}
+
+
+@dataclass(frozen=True)
+class ImuSection:
+    columns: MappingProxyType = field(default_factory=lambda: sc.frozen({}))
+    ignore_columns: tuple = ()
+    units: MappingProxyType = field(default_factory=lambda: _imu_units("", "", {}))
+    body: str = "flu"
+    mounting: object = None
+    static_start: bool = False
+    time_offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class GnssSection:
+    columns: MappingProxyType = field(default_factory=lambda: sc.frozen({}))
+    ignore_columns: tuple = ()
+    lever_arm: tuple = (0.0, 0.0, 0.0)
+    time_offset: float = 0.0
+    frame: str = "enu"
+    units: MappingProxyType = field(default_factory=lambda: sc.frozen({"angle": "deg"}))
+
+
+@dataclass(frozen=True)
+class InitSection:
+    frame: str = "enu"
+    units: MappingProxyType = field(default_factory=lambda: sc.frozen({"angle": "deg"}))
+
+
+@dataclass(frozen=True)
+class TruthSection:
+    frame: str = "enu"
+    units: MappingProxyType = field(default_factory=lambda: sc.frozen({"angle": "deg"}))
+    time_offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class OdometrySection:
+    columns: MappingProxyType = field(default_factory=lambda: sc.frozen({}))
+    ignore_columns: tuple = ()
+    frame: str = "auto"
+
+
+@dataclass(frozen=True)
+class NavigationSection:
+    attitude: str = "quat"
+    dcm_variant: str = "exact"
+    coning: int = 2
+    subsamples: int = 1
+    every: int = 1
+    frame: str = "enu"
+    allow_gaps: bool = False
+    euler_integrator: str = "rk4"
+    singularity_threshold: float = 0.01
+    on_singularity: str = "continue"
+    krylov_substep_tol: float = 1.0e-9
+    launch: MappingProxyType | None = None
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Physical limits (``limits:``): a value beyond them is refused where it is read (:mod:`sinscli.io.limits`)."""
+    rate: float = 100.0                 # rad/s: angular rate, or an increment's |dtheta| / dt
+    specific_force: float = 980.665     # m/s^2 (100 g): specific force, or |dvel| / dt
+    speed: float = 10000.0              # m/s: each velocity component and the norm
+    height_min: float = -20000.0        # m: ellipsoidal height range
+    height_max: float = 1.0e8
+    time: float = 1.0e10                # s: largest time stamp magnitude
+
+
+@dataclass(frozen=True)
+class RosSection:
+    imu_topic: str | None = None
+    gnss_topic: str | None = None
+    vel_topic: str | None = None
+    odom_topic: str | None = None       # body velocity: nav_msgs/Odometry (or a body-frame Twist*) topic
+    time: str = "header"
+
+
+SECTIONS = {"imu": ImuSection, "gnss": GnssSection, "init": InitSection, "truth": TruthSection,
+            "odometry": OdometrySection, "navigation": NavigationSection, "limits": Limits, "ros": RosSection}
+
+
+@dataclass(frozen=True)
+class Config:
+    """The whole navigation config, built once per run (:func:`load_config`)."""
+    imu: ImuSection = field(default_factory=ImuSection)
+    gnss: GnssSection = field(default_factory=GnssSection)
+    init: InitSection = field(default_factory=InitSection)
+    truth: TruthSection = field(default_factory=TruthSection)
+    odometry: OdometrySection = field(default_factory=OdometrySection)
+    navigation: NavigationSection = field(default_factory=NavigationSection)
+    limits: Limits = field(default_factory=Limits)
+    ros: RosSection = field(default_factory=RosSection)
+    align: object = None            # the raw ``align:`` mapping (sinscli.align.options validates it)
+    fusion: object = None           # the raw ``fusion:`` mapping (sinscli.fusion.options validates it)
+    source: str = "config"          # the file it was read from
+
+
+def _check(section: str, values: dict, src) -> dict:
+    spec = SCHEMA[section]
+    return {k: spec[k][1](src, f"{section}.{k}", v) for k, v in values.items()}
+
+
+def _cross_checks(cfg: Config, src) -> None:
+    lim = cfg.limits
+    if not lim.height_min < lim.height_max:
+        sc.expected(src, "limits.height_min", f"a number below limits.height_max ({sc.num(lim.height_max)})",
+                    lim.height_min)
+    for name in ("imu", "gnss", "truth"):
+        off = getattr(cfg, name).time_offset
+        if not abs(off) <= lim.time:
+            sc.expected(src, f"{name}.time_offset", f"a number of seconds within +-{lim.time:g} (the config's "
+                                                    f"limits.time)", off)
+
+
+def build_config(data, src: str = "config", extra_sections=STAGE_SECTIONS) -> Config:
+    """Validate a config mapping (the YAML's document; None: the defaults) into a :class:`Config`."""
+    if data is not None and not isinstance(data, dict):
+        sc.expected(src, "(document)", f"a mapping of sections {', '.join(sorted(SCHEMA))}", data)
+    data = data or {}
+    kw = {"source": str(src)}
+    for name in data:
+        if name not in SCHEMA and name not in extra_sections:
+            sc.fail(src, name, f"unknown section; expected one of {', '.join(sorted([*SCHEMA, *extra_sections]))}")
     for name in extra_sections:
-        cfg[name] = None
-    if path is None:
-        return cfg
-    path = Path(path)
-    data = load_yaml(path, "config file")
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise SinsError(f"{path}: expected a mapping of sections {sorted(DEFAULTS)}")
-    for section, values in data.items():
-        if section in extra_sections:
-            cfg[section] = values
-            continue
-        if section not in DEFAULTS:
-            raise SinsError(f"{path}: {section}: unknown section; expected one of "
-                            f"{', '.join(sorted([*DEFAULTS, *extra_sections]))}")
-        if values is None:
-            continue
-        if not isinstance(values, dict):
-            raise SinsError(f"{path}: {section}: expected a mapping of keys")
-        for key, value in values.items():
-            if key not in DEFAULTS[section]:
-                raise SinsError(f"{path}: {section}.{key}: unknown key; expected one of "
-                                f"{', '.join(sorted(DEFAULTS[section]))}")
-            cfg[section][key] = value
-    validate(cfg, str(path))
+        kw[name] = data.get(name)
+    for name, cls in SECTIONS.items():
+        values = sc.mapping(src, name, data.get(name), SCHEMA[name])
+        kw[name] = cls(**_check(name, {k: values.get(k, d) for k, (d, _) in SCHEMA[name].items()}, src))
+    cfg = Config(**kw)
+    _cross_checks(cfg, src)
     return cfg
 
 
-def merge(cfg: dict, section: str, **overrides) -> dict:
-    """Command-line options (not None) override config keys; validated again."""
-    out = copy.deepcopy(cfg)
-    for key, value in overrides.items():
-        if value is not None:
-            out[section][key] = value
-    validate(out, "command line")
-    return out
+def load_config(path=None, extra_sections=STAGE_SECTIONS) -> Config:
+    """Load and validate a config YAML (the defaults when ``path`` is None) into a :class:`Config`, once per run.
+
+    ``extra_sections`` (default: the ``align`` and ``fusion`` sections) are accepted and kept raw for the
+    stage that validates them.
+    """
+    if path is None:
+        return build_config(None, "config", extra_sections)
+    path = Path(path)
+    return build_config(load_yaml(path, "config file"), str(path), extra_sections)
 
 
-def _fail(src, key, msg):
-    raise SinsError(f"{src}: {key}: {msg}")
+def override(cfg: Config, section: str, src: str = "command line", **values) -> Config:
+    """``cfg`` with the keys given (not None) of ``section`` replaced (``dataclasses.replace``), each value
+    checked as the YAML's would be."""
+    given = {k: v for k, v in values.items() if v is not None}
+    if not given:
+        return cfg
+    for k in given:
+        if k not in SCHEMA[section]:
+            sc.fail(src, f"{section}.{k}", f"unknown key; expected one of {', '.join(sorted(SCHEMA[section]))}")
+    new = replace(cfg, **{section: replace(getattr(cfg, section), **_check(section, given, src))})
+    _cross_checks(new, src)
+    return new
 
 
-def validate(cfg: dict, src: str) -> None:
-    """Check every key's type and range; raise SinsError naming the key."""
-    for (section, key), choices in CHOICES.items():
-        v = cfg[section][key]
-        if isinstance(v, str):
-            v = v.lower()
-            cfg[section][key] = v
-        if v not in choices:
-            _fail(src, f"{section}.{key}", f"expected one of {', '.join(map(str, choices))}, got {v!r}")
-    nav = cfg["navigation"]
-    for key in ("subsamples", "every"):
-        v = nav[key]
-        if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= MAX_COUNT:
-            _fail(src, f"navigation.{key}", f"expected a whole number from 1 to {MAX_COUNT}, got {num(v)}")
-    if not isinstance(nav["allow_gaps"], bool):
-        _fail(src, "navigation.allow_gaps", f"expected true or false, got {nav['allow_gaps']!r}")
-    thr = nav["singularity_threshold"]
-    if not isinstance(thr, (int, float)) or not 0 < thr < 1:
-        _fail(src, "navigation.singularity_threshold", f"expected a number in (0, 1), got {thr!r}")
-    tol = nav["krylov_substep_tol"]
-    if not isinstance(tol, (int, float)) or isinstance(tol, bool) or not 0 < tol < 1:
-        _fail(src, "navigation.krylov_substep_tol", f"expected a number in (0, 1), got {tol!r}")
-    if nav["launch"] is not None:
-        launch = nav["launch"]
-        if not isinstance(launch, dict) or set(launch) - {"lat", "lon", "height", "azimuth"}:
-            _fail(src, "navigation.launch", "expected a mapping with keys lat, lon, height, azimuth")
-        for k, v in launch.items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                _fail(src, f"navigation.launch.{k}", f"expected a number, got {v!r}")
-    imu = cfg["imu"]
-    units = imu["units"]
-    if not isinstance(units, dict):
-        _fail(src, "imu.units", "expected a mapping like {gyro: deg/s, accel: g}")
-    for k, v in units.items():
-        if k not in UNIT_CHOICES:
-            _fail(src, f"imu.units.{k}", f"unknown quantity; expected one of {', '.join(UNIT_CHOICES)}")
-        if not isinstance(v, str) or v not in UNIT_CHOICES[k]:
-            _fail(src, f"imu.units.{k}", f"expected one of {', '.join(UNIT_CHOICES[k])}, got {quote(v, 40)}")
-    for k, v in DEFAULTS["imu"]["units"].items():
-        units.setdefault(k, v)
-    for section, names in (("imu", IMU_NAMES), ("gnss", GNSS_NAMES), ("odometry", ODOMETRY_NAMES)):
-        cols = cfg[section]["columns"]
-        if not isinstance(cols, dict):
-            _fail(src, f"{section}.columns", "expected a mapping {FORMATS name: file column}")
-        for k, v in cols.items():
-            if k not in names:
-                _fail(src, f"{section}.columns.{k}", f"unknown column name; expected one of {', '.join(names)}")
-            if not isinstance(v, str):
-                _fail(src, f"{section}.columns.{k}", f"expected a column name, got {v!r}")
-        ign = cfg[section]["ignore_columns"]
-        if not isinstance(ign, list) or not all(isinstance(x, str) for x in ign):
-            _fail(src, f"{section}.ignore_columns", "expected a list of column names")
-    if not isinstance(imu["static_start"], bool):
-        _fail(src, "imu.static_start", f"expected true or false, got {imu['static_start']!r}")
-    mounting_matrix(imu["mounting"], src)
-    lim = cfg["limits"]
-    for k, v in lim.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or \
-                (k != "height_min" and v <= 0):
-            hint = " (YAML reads 1.0e8 as text: write 1.0e+8)" if isinstance(v, str) and "e" in v.lower() else ""
-            _fail(src, f"limits.{k}", f"expected a finite number{'' if k == 'height_min' else ' > 0'}, "
-                                      f"got {v!r}{hint}")
-        lim[k] = float(v)
-    if not lim["height_min"] < lim["height_max"]:
-        _fail(src, "limits.height_min", f"must be below limits.height_max ({lim['height_max']!r})")
-    arm = cfg["gnss"]["lever_arm"]
-    if (not isinstance(arm, (list, tuple)) or len(arm) != 3
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and abs(x) <= MAX_LEVER_ARM
-                       for x in arm)):
-        _fail(src, "gnss.lever_arm", f"expected three numbers [x, y, z] in metres (at most {MAX_LEVER_ARM:g} "
-                                     f"each), got {arm!r}")
-    for section in ("imu", "gnss", "truth"):
-        off = cfg[section]["time_offset"]
-        if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
-            _fail(src, f"{section}.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the "
-                                                 f"config's limits.time), got {off!r}")
-    for section in ("gnss", "init", "truth"):
-        validate_section(cfg[section], section, lambda key, msg: _fail(src, key, msg))
+def section_values(section) -> dict:
+    """The keys and values of a section (a plain dict, for a record of the run)."""
+    return {f.name: getattr(section, f.name) for f in fields(section)}
 
 
 def mounting_angles(c: np.ndarray) -> dict:
@@ -269,12 +369,12 @@ def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
     if isinstance(mounting, dict):
         bad = set(mounting) - {"roll", "pitch", "yaw"}
         if bad:
-            _fail(src, f"imu.mounting.{sorted(map(str, bad))[0]}", "unknown key; expected roll, pitch, yaw (degrees)")
+            sc.fail(src, f"imu.mounting.{sorted(map(str, bad))[0]}", "unknown key; expected roll, pitch, yaw (degrees)")
         ang = {}
         for k in ("roll", "pitch", "yaw"):
             v = mounting.get(k, 0.0)
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not abs(v) <= 360.0:
-                _fail(src, f"imu.mounting.{k}", f"expected a number of degrees in [-360, 360], got {v!r}")
+                sc.expected(src, f"imu.mounting.{k}", "a number of degrees in [-360, 360]", v)
             ang[k] = math.radians(v)
         # scipy.spatial (0.56 s to import) only for a config with a mounting (tests/test_cli_startup.py)
         from scipy.spatial.transform import Rotation
@@ -284,8 +384,8 @@ def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
     except (TypeError, ValueError):
         m = None
     if m is None or m.shape != (3, 3):
-        _fail(src, "imu.mounting", "expected {roll, pitch, yaw} in degrees, a 3x3 rotation matrix or auto")
+        sc.expected(src, "imu.mounting", "{roll, pitch, yaw} in degrees, a 3x3 rotation matrix or auto", mounting)
     if not np.all(np.abs(m) <= 1.0 + 1e-6) or not np.abs(m @ m.T - np.eye(3)).max() <= 1e-6 \
             or not np.linalg.det(m) > 0:
-        _fail(src, "imu.mounting", "the 3x3 matrix is not a rotation (orthonormal, det +1) within 1e-6")
+        sc.expected(src, "imu.mounting", "a rotation (orthonormal, det +1 within 1e-6)", mounting)
     return m

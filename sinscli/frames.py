@@ -22,10 +22,12 @@ NED_NAMES = {"vel_u": "vel_d", "std_u": "std_d", "std_vel_u": "std_vel_d"}
 ANGLE_COLUMNS = ("lat", "lon", "roll", "pitch", "heading")
 
 
-def convention(section: dict | None) -> tuple[str, float]:
-    """``(frame, factor to degrees)`` of a validated config section (defaults: ENU, degrees)."""
-    section = section or {}
-    return section.get("frame", "enu"), ANGLE_UNITS[(section.get("units") or {}).get("angle", "deg")]
+def convention(section) -> tuple[str, float]:
+    """``(frame, factor to degrees)`` of a validated config section (``gnss``, ``init``, ``truth``: its
+    ``frame`` and ``units``; None: ENU, degrees)."""
+    if section is None:
+        return "enu", 1.0
+    return section.frame, ANGLE_UNITS[section.units["angle"]]
 
 
 def file_name(name: str, frame: str) -> str:
@@ -49,22 +51,3 @@ def to_enu(data: dict, frame: str, to_deg: float) -> dict:
 def cbn_to_enu(cbn: np.ndarray, frame: str) -> np.ndarray:
     """Body -> ENU attitude from a file's body -> ``frame`` one ((N, 3, 3) or (3, 3))."""
     return cbn if frame != "ned" else np.matmul(C_NED_ENU, cbn)
-
-
-def validate_section(section: dict, name: str, fail) -> None:
-    """Check ``frame`` and ``units`` of a config section (``fail(key, message)`` raises)."""
-    frame = section.get("frame", "enu")
-    if isinstance(frame, str):
-        frame = frame.lower()
-        section["frame"] = frame
-    if frame not in FRAMES:
-        fail(f"{name}.frame", f"expected one of {', '.join(FRAMES)}, got {frame!r}")
-    units = section.get("units") or {}
-    if not isinstance(units, dict):
-        fail(f"{name}.units", "expected a mapping like {angle: rad}")
-    for k, v in units.items():
-        if k != "angle":
-            fail(f"{name}.units.{k}", "unknown quantity; expected angle")
-        if not isinstance(v, str) or v not in ANGLE_UNITS:
-            fail(f"{name}.units.{k}", f"expected one of {', '.join(ANGLE_UNITS)}, got {v!r}")
-    section["units"] = {"angle": units.get("angle", "deg")}

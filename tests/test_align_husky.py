@@ -34,7 +34,7 @@ def reference():
             t.append(m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec)
             q.append([m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z])
     cfg, _ = load_align_config(CONFIG)
-    c_sb = np.array(cfg["imu"]["mounting"], dtype=float)
+    c_sb = np.array(cfg.imu.mounting, dtype=float)
     c = quat_to_dcm_many(np.ascontiguousarray(q, dtype=float)) @ c_sb.T
     return np.array(t), np.degrees(dcm_to_euler_many(c, 0))
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sinscli.config import load_config
+from sinscli.config import load_config, override
 from sinscli.errors import SinsError
 from sinscli.io import ros
 from sinscli.io.body_vel_csv import read_body_velocity_csv, write_body_velocity_csv
@@ -73,13 +73,12 @@ def test_twist_in_the_imu_frame_gets_the_mounting(tmp_path, child):
     in the sensor axes, v_b = C_sensor^body v: sensor -z (1 m/s) is forward, sensor +y is up."""
     path = tmp_path / "s.bag"
     ros.write_log(path, imu=_imu(), odom=_odom(child=child, v=(0.0, 0.2, -1.0), std=(0.1, 0.2, 0.3)))
-    cfg = load_config(HUSKY_CFG)
-    cfg["ros"]["imu_topic"] = "/imu/data"
+    cfg = override(load_config(HUSKY_CFG), "ros", imu_topic="/imu/data")
     bv = read_body_velocity(path, cfg)
     np.testing.assert_allclose(bv.vel_b, np.tile([1.0, 0.0, 0.2], (20, 1)), atol=1e-15)
     np.testing.assert_allclose(bv.std, np.tile([0.3, 0.1, 0.2], (20, 1)), rtol=1e-14)
     # the same twist said to be in vehicle axes by the config is taken as it is
-    cfg["odometry"]["frame"] = "vehicle"
+    cfg = override(cfg, "odometry", frame="vehicle")
     np.testing.assert_allclose(read_body_velocity(path, cfg).vel_b, np.tile([0.0, 0.2, -1.0], (20, 1)), atol=1e-15)
 
 
@@ -178,8 +177,7 @@ def test_body_velocity_csv_round_trip_and_frames(tmp_path):
     back = read_body_velocity_csv(tmp_path / "b.csv")
     assert np.array_equal(back.time, bv.time) and np.array_equal(back.vel_b, bv.vel_b) and np.array_equal(back.std, bv.std)
     path = _csv(tmp_path, _odom_data())
-    cfg = load_config(HUSKY_CFG)
-    cfg["odometry"]["frame"] = "sensor"                      # columns in the IMU's axes: v_b = C v
+    cfg = override(load_config(HUSKY_CFG), "odometry", frame="sensor")                     # columns in the IMU's axes: v_b = C v
     s = read_body_velocity(path, cfg)
     np.testing.assert_allclose(s.vel_b[0], MOUNT @ [2.0, 0.01, -0.02], atol=1e-15)
     np.testing.assert_allclose(s.std[0], [0.1, 0.05, 0.1], rtol=1e-14)

@@ -36,7 +36,7 @@ def test_substep_angle_and_count_rule():
     assert th_s == K.SUBSTEP_ANGLE
     assert abs(K.RK4_KAPPA * th_s ** 4 - K.SUBSTEP_TOL) < 1e-15 * K.SUBSTEP_TOL * 1e3
     assert 0.0125 < th_s < 0.0126                        # 0.72 deg per sub-step by default
-    assert config_mod.DEFAULTS["navigation"]["krylov_substep_tol"] == K.SUBSTEP_TOL == NavOptions().krylov_substep_tol
+    assert config_mod.NavigationSection().krylov_substep_tol == K.SUBSTEP_TOL == NavOptions().krylov_substep_tol
     u = np.array([0.48, -0.6, 0.64])                     # unit axis
     for theta, m in ((0.5 * th_s, 1), (0.999 * th_s, 1), (1.001 * th_s, 2), (2.5 * th_s, 3),
                      (TWO_REV / 100, 10), (TWO_REV / 400, 3), (100.0, K.MAX_SUBSTEPS)):
@@ -191,5 +191,5 @@ def test_installed_sins_reports_substeps_and_takes_the_config_key(tmp_path):
     cfg.write_text("navigation:\n  krylov_substep_tol: 0\n")
     r = run("--config", str(cfg), out="bad.csv")
     assert r.returncode == 2 and not (tmp_path / "bad.csv").exists()
-    assert r.stderr.strip() == (f"sins: error: {cfg}: navigation.krylov_substep_tol: expected a number in "
+    assert r.stderr.strip() == (f"sins: error: {cfg}: key navigation.krylov_substep_tol: expected a number in "
                                 "(0, 1), got 0")

@@ -26,7 +26,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("gnss",),                                 # raw GNSS kernels (orbits, corrections, SPP), read by io/ and fusion/
     ("nav",),                                  # strapdown kernels, earth model, rotations, IMU statistics
     ("config", "sensors"),                     # the navigation config; the sensor description
-    ("inputs", "frames"),                      # input checks, the one YAML loader; frame and angle conventions of files
+    ("inputs", "frames", "schema"),            # input checks, the one YAML loader; frame and angle conventions of files; the validators
     ("errors", "types", "units", "layout", "conventions", "__init__"),   # the package's __version__ and cache note
     ("_numba_cache",),                         # where numba caches, imported by the package's __init__
 )

@@ -6,6 +6,7 @@ import pytest
 from click.testing import CliRunner
 
 from sinscli.cli import main
+from sinscli.config import build_config
 from sinscli.io.imu_csv import read_imu_csv, rates_to_increments
 from sinscli.io.trajectory import read_trajectory
 from sinscli.evaluate.errors import compare_trajectories
@@ -63,7 +64,7 @@ def test_rate_file_and_units(tmp_path):
     cfg = {"columns": {"time": "stamp", "gyro_x": "wx", "gyro_y": "wy", "gyro_z": "wz",
                        "accel_x": "ax", "accel_y": "ay", "accel_z": "az"},
            "units": {"gyro": "deg/s", "accel": "g"}}
-    imu = read_imu_csv(p, cfg)
+    imu = read_imu_csv(p, build_config({"imu": cfg}).imu)
     tend, dth, dv, t0 = rates_to_increments(t, w, f)
     assert imu.t0 == 0.0 and imu.kind == "rates"
     np.testing.assert_allclose(imu.dtheta_b, dth, rtol=1e-14, atol=1e-18)
@@ -151,11 +152,11 @@ def test_config_errors_name_the_key(tmp_path, simdir):
     cfg.write_text("navigation:\n  coning: 5\n")
     r = CliRunner().invoke(main, ["navigate", str(simdir / "imu.csv"), "--init", str(simdir / "init.yaml"),
                                   "--config", str(cfg), "-o", str(tmp_path / "o.csv"), "-q"])
-    assert r.exit_code == 2 and "navigation.coning: expected one of 1, 2, 3, 4, got 5" in r.output
+    assert r.exit_code == 2 and "key navigation.coning: expected one of 1, 2, 3, 4, got 5" in r.output
     cfg.write_text("navigation:\n  colour: red\n")
     r = CliRunner().invoke(main, ["navigate", str(simdir / "imu.csv"), "--init", str(simdir / "init.yaml"),
                                   "--config", str(cfg), "-o", str(tmp_path / "o.csv"), "-q"])
-    assert r.exit_code == 2 and "navigation.colour: unknown key" in r.output
+    assert r.exit_code == 2 and "key navigation.colour: unknown key" in r.output
     assert not (tmp_path / "o.csv").exists()
 
 
@@ -163,7 +164,7 @@ def test_shipped_config_is_valid():
     from pathlib import Path
     from sinscli.config import load_config
     cfg = load_config(Path(__file__).resolve().parents[1] / "configs" / "navigation.yaml")
-    assert cfg["navigation"]["attitude"] == "quat"
+    assert cfg.navigation.attitude == "quat"
 
 
 def test_unwired_attitude_methods_are_refused(simdir, tmp_path):

@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sinscli.config import mounting_matrix
+from sinscli.config import ImuSection, mounting_matrix
 from sinscli.io.imu_csv import apply_mounting
 from sinscli.io.readers import read_imu
 from sinscli.nav.earth import gravity
 from sinscli.nav.rotation import euler_to_dcm
 from sinscli.nav.sanity import check_mounting
-from sinscli.config import load_config
+from sinscli.config import load_config, override
 from test_contract import sins
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -115,8 +115,7 @@ def test_husky_without_its_mounting_warns_and_names_the_fix(tmp_path, caplog):
     rc, lines = sins(["navigate", BAG, "--init", init, "--config", ROOT / "configs" / "align" / "husky.yaml",
                       "-q", "-o", tmp_path / "h2.csv"])
     assert rc == 0 and not [r for r in caplog.records if "mounting" in r.getMessage()], lines
-    cfg = load_config()
-    cfg["ros"]["imu_topic"] = "/imu/data"
+    cfg = override(load_config(), "ros", imu_topic="/imu/data")
     imu = read_imu(BAG, cfg)                               # --align: the up axis
     msg = check_mounting(imu.time, imu.dtheta_b, imu.dvel_b, imu.t0 if imu.t0 is not None else imu.time[0],
                          9.80, 0, None)
@@ -136,9 +135,9 @@ def test_init_later_in_the_log_is_checked_there(tmp_path, caplog):
     k = int(np.flatnonzero(truth.time == 100.0)[0])
     imu = _read(SAMPLE / "imu.csv", load_config())
     from sinscli.nav.sanity import mounting_warning
-    assert mounting_warning(imu, 100.0, G, 0, truth.Cbn[k], {}) is None
+    assert mounting_warning(imu, 100.0, G, 0, truth.Cbn[k], ImuSection()) is None
     rolled = truth.Cbn[k] @ euler_to_dcm(math.pi / 2, 0.0, 0.0, 0)
-    assert "init's roll and pitch" in mounting_warning(imu, 100.0, G, 0, rolled, {})
+    assert "init's roll and pitch" in mounting_warning(imu, 100.0, G, 0, rolled, ImuSection())
 
 
 def test_no_warning_fused_on_the_sample(tmp_path, caplog):

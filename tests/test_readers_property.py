@@ -12,7 +12,7 @@ import yaml
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from sinscli.config import DEFAULTS, load_config
+from sinscli.config import DEFAULTS, Limits, load_config
 from sinscli.errors import SinsError
 from sinscli.io.gnss_csv import read_gnss_csv
 from sinscli.io.imu_csv import read_imu_csv
@@ -20,7 +20,7 @@ from sinscli.io.init_state import INIT_KEYS, read_init
 from sinscli.io.trajectory import BASE_COLUMNS, DCM_COLUMNS, read_trajectory
 
 SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-LIM = DEFAULTS["limits"]
+LIM = Limits()
 
 # ------------------------------------------------------------------ text generators
 
@@ -102,12 +102,12 @@ def _check_imu(path):
     for a in (imu.time, imu.dtheta_b, imu.dvel_b):
         assert np.isfinite(a).all()
     assert np.all(np.diff(imu.time) > 0)
-    assert np.abs(imu.time).max() <= LIM["time"]
+    assert np.abs(imu.time).max() <= LIM.time
     if imu.kind == "rates":
         dt = np.diff(np.concatenate([[imu.t0], imu.time]))
         assert np.all(dt > 0) and imu.t0 < imu.time[0]
-        assert np.all(np.abs(imu.dtheta_b) <= LIM["rate"] * dt[:, None] * (1 + 1e-12))
-        assert np.all(np.abs(imu.dvel_b) <= LIM["specific_force"] * dt[:, None] * (1 + 1e-12))
+        assert np.all(np.abs(imu.dtheta_b) <= LIM.rate * dt[:, None] * (1 + 1e-12))
+        assert np.all(np.abs(imu.dvel_b) <= LIM.specific_force * dt[:, None] * (1 + 1e-12))
 
 
 @SETTINGS
@@ -131,9 +131,9 @@ def test_gnss_csv_reads_or_refuses(text):
         assert np.isfinite(a).all()
     assert np.all(np.diff(g.time) > 0)
     assert np.all(np.abs(g.lat) <= 90) and np.all(np.abs(g.lon) <= 360)
-    assert np.all((g.height >= LIM["height_min"]) & (g.height <= LIM["height_max"]))
+    assert np.all((g.height >= LIM.height_min) & (g.height <= LIM.height_max))
     if g.vel_n is not None:
-        assert np.all(np.linalg.norm(g.vel_n, axis=1) <= LIM["speed"])
+        assert np.all(np.linalg.norm(g.vel_n, axis=1) <= LIM.speed)
     if g.std_pos is not None:
         assert np.all(g.std_pos >= 0)
 
@@ -211,8 +211,8 @@ def test_init_yaml_reads_or_refuses(text):
         return
     assert all(math.isfinite(x) for x in (s.time, s.lat, s.lon, s.height))
     assert np.isfinite(s.vel_n).all() and np.isfinite(s.Cbn).all()
-    assert abs(s.lat) <= math.radians(89.99) and abs(s.time) <= LIM["time"]
-    assert np.linalg.norm(s.vel_n) <= LIM["speed"]
+    assert abs(s.lat) <= math.radians(89.99) and abs(s.time) <= LIM.time
+    assert np.linalg.norm(s.vel_n) <= LIM.speed
     assert np.abs(s.Cbn @ s.Cbn.T - np.eye(3)).max() < 1e-12
 
 
@@ -233,13 +233,13 @@ def test_config_yaml_loads_or_refuses(text):
     cfg = read_or_refuse(load_config, _write(text, ".yaml"))
     if cfg is None:
         return
-    nav = cfg["navigation"]
-    assert 1 <= nav["subsamples"] < 2 ** 31 and 1 <= nav["every"] < 2 ** 31
-    assert 0 < nav["singularity_threshold"] < 1
-    for v in cfg["limits"].values():
+    nav = cfg.navigation
+    assert 1 <= nav.subsamples < 2 ** 31 and 1 <= nav.every < 2 ** 31
+    assert 0 < nav.singularity_threshold < 1
+    for v in vars(cfg.limits).values():
         assert math.isfinite(v)
     from sinscli.config import mounting_matrix
-    m = mounting_matrix(cfg["imu"]["mounting"])
+    m = mounting_matrix(cfg.imu.mounting)
     assert np.isfinite(m).all() and np.abs(m @ m.T - np.eye(3)).max() <= 1e-6
 
 
@@ -257,7 +257,7 @@ def test_body_velocity_csv_reads_or_refuses(text):
     if bv is None:
         return
     assert np.isfinite(bv.time).all() and np.isfinite(bv.vel_b).all() and np.all(np.diff(bv.time) > 0)
-    assert np.abs(bv.time).max() <= LIM["time"] and np.linalg.norm(bv.vel_b, axis=1).max() <= LIM["speed"]
+    assert np.abs(bv.time).max() <= LIM.time and np.linalg.norm(bv.vel_b, axis=1).max() <= LIM.speed
     assert bv.std is None or (np.isfinite(bv.std).all() and (bv.std > 0).all())
 
 
@@ -292,7 +292,7 @@ def test_tum_reads_or_refuses(text):
         return
     t, enu, q, origin = out
     assert np.isfinite(t).all() and np.isfinite(enu).all() and np.isfinite(q).all() and np.all(np.diff(t) > 0)
-    assert np.abs(t).max() <= LIM["time"] and np.abs(enu).max() <= 1e8
+    assert np.abs(t).max() <= LIM.time and np.abs(enu).max() <= 1e8
     assert np.abs(np.linalg.norm(q, axis=1) - 1.0).max() <= 1e-3
     assert origin is None or (abs(math.degrees(origin[0])) <= 90 and math.isfinite(origin[2]))
 
@@ -322,7 +322,7 @@ def test_fusion_section_loads_or_refuses(text):
 
     def read(p):
         cfg = load_config(p)
-        return build_fusion_options(cfg.get("fusion"), str(p), base_dir=p.parent)
+        return build_fusion_options(cfg.fusion, str(p), base_dir=p.parent)
     o = read_or_refuse(read, path)
     if o is None:
         return

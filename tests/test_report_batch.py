@@ -52,21 +52,21 @@ def test_default_method_names():
 
 
 @pytest.mark.parametrize("change, pattern", [
-    (lambda d: d.update(colour="red"), r"batch\.yaml: colour: unknown key"),
-    (lambda d: d.update(methods=[]), r"batch\.yaml: methods: expected a non-empty list"),
-    (lambda d: d["methods"][1].update(coning=5), r"batch\.yaml: methods\[1\]\.coning: expected one of 1, 2, 3, 4"),
-    (lambda d: d["methods"][0].update(atitude="quat"), r"methods\[0\]\.atitude: unknown key"),
-    (lambda d: d["methods"][0].update(subsamples=0), r"methods\[0\]\.subsamples: expected a whole number"),
-    (lambda d: d["methods"][1].update(name="quat"), r"methods\[1\]\.name: duplicate name 'quat'"),
-    (lambda d: d["datasets"][0].update(scenario="nope.yaml"), r"datasets\[0\]\.scenario: file not found"),
-    (lambda d: d["datasets"][0].update(perfect="yes"), r"datasets\[0\]\.perfect: expected true or false"),
-    (lambda d: d["datasets"][1].pop("init"), r"datasets\[1\]\.init: missing"),
-    (lambda d: d["datasets"][1].update(gnss="g.csv"), r"datasets\[1\]\.gnss: unknown key"),
-    (lambda d: d["datasets"][1].update(name="a/b"), r"datasets\[1\]\.name: expected a name"),
-    (lambda d: d.update(seeds=[1, 1]), r"batch\.yaml: seeds: expected a count"),
-    (lambda d: d.update(seeds=0), r"batch\.yaml: seeds: expected a count >= 1"),
-    (lambda d: d.update(epoch="end"), r"batch\.yaml: epoch: expected a time"),
-    (lambda d: d.update(timeseries_every=0), r"timeseries_every: expected a whole number"),
+    (lambda d: d.update(colour="red"), r"batch\.yaml: key colour: unknown key"),
+    (lambda d: d.update(methods=[]), r"batch\.yaml: key methods: expected a non-empty list"),
+    (lambda d: d["methods"][1].update(coning=5), r"batch\.yaml: key methods\[1\]\.coning: expected one of 1, 2, 3, 4"),
+    (lambda d: d["methods"][0].update(atitude="quat"), r"key methods\[0\]\.atitude: unknown key"),
+    (lambda d: d["methods"][0].update(subsamples=0), r"key methods\[0\]\.subsamples: expected a whole number"),
+    (lambda d: d["methods"][1].update(name="quat"), r"key methods\[1\]\.name: duplicate name 'quat'"),
+    (lambda d: d["datasets"][0].update(scenario="nope.yaml"), r"key datasets\[0\]\.scenario: file not found"),
+    (lambda d: d["datasets"][0].update(perfect="yes"), r"key datasets\[0\]\.perfect: expected true or false"),
+    (lambda d: d["datasets"][1].pop("init"), r"key datasets\[1\]\.init: missing"),
+    (lambda d: d["datasets"][1].update(gnss="g.csv"), r"key datasets\[1\]\.gnss: unknown key"),
+    (lambda d: d["datasets"][1].update(name="a/b"), r"key datasets\[1\]\.name: expected a name"),
+    (lambda d: d.update(seeds=[1, 1]), r"batch\.yaml: key seeds: expected a count"),
+    (lambda d: d.update(seeds=0), r"batch\.yaml: key seeds: expected a count >= 1"),
+    (lambda d: d.update(epoch="end"), r"batch\.yaml: key epoch: expected a time"),
+    (lambda d: d.update(timeseries_every=0), r"key timeseries_every: expected a whole number"),
 ])
 def test_bad_batch_names_the_key(tmp_path, change, pattern):
     import copy

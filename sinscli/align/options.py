@@ -315,11 +315,10 @@ def build_options(d: dict, src: str, conv: int = 0, lever_arm=None, base_dir=Non
     )
 
 
-def load_align_config(path) -> tuple[dict, dict]:
+def load_align_config(path) -> tuple[config_mod.Config, dict]:
     """A config YAML with an optional ``align:`` section: ``(navigation config, merged align mapping)``.
 
     The navigation part is loaded and validated by :func:`sinscli.config.load_config`.
     """
     cfg = config_mod.load_config(path)
-    align = cfg.pop("align")
-    return cfg, merge_section(align, str(path) if path is not None else "config")
+    return cfg, merge_section(cfg.align, str(path) if path is not None else "config")

@@ -22,14 +22,14 @@ workers at once and leaves only the finished jobs' files.
 """
 from __future__ import annotations
 
-import copy
 import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
 from .. import __version__
-from ..config import DEFAULTS, validate
+from .. import schema as sc
+from ..config import DEFAULTS, build_config, section_values
 from ..errors import SinsError
 from ..inputs import load_yaml
 from .compare_job import JobOptions, describe, run_group
@@ -80,7 +80,7 @@ class BatchSpec:
 # --------------------------------------------------------------------------- loading and validation
 
 def _fail(src, key, msg):
-    raise SinsError(f"{src}: {key}: {msg}")
+    sc.fail(src, key, msg)          # the one message style (sinscli.schema): SRC: key KEY: MESSAGE
 
 
 def _path(src: Path, key: str, value) -> Path:
@@ -121,13 +121,13 @@ def _load_method(src: Path, k: int, item) -> MethodSpec:
     for key in item:
         if key not in allowed:
             _fail(src, f"{where}.{key}", f"unknown key; expected one of {', '.join(sorted(allowed))}")
-    cfg = copy.deepcopy(DEFAULTS)
-    cfg["navigation"].update({key: v for key, v in item.items() if key != "name"})
     try:
-        validate(cfg, f"{src}: {where}")
-    except SinsError as exc:                      # "navigation.coning" -> "methods[k].coning"
-        raise SinsError(str(exc).replace(f"{where}: navigation.", f"{where}.")) from None
-    nav = cfg["navigation"]
+        section = build_config({"navigation": {key: v for key, v in item.items() if key != "name"}}, src).navigation
+    except SinsError as exc:                      # "key navigation.coning" -> "key methods[k].coning"
+        raise SinsError(str(exc).replace("key navigation.", f"key {where}.")) from None
+    nav = section_values(section)
+    if nav["launch"] is not None:
+        nav["launch"] = dict(nav["launch"])
     name = _name(src, f"{where}.name", item["name"]) if "name" in item else default_method_name(nav)
     return MethodSpec(name=name, navigation=nav)
 

@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from ..config import load_config
+from ..conventions import BODY_CONVENTIONS
+from ..frames import convention
 from ..errors import SinsError
 from ..evaluate.errors import compare_trajectories
 from ..io.imu_csv import read_imu_csv
@@ -30,7 +32,7 @@ from ..report.digest import digest, tail_table
 from ..sim import simulate
 from .exec import where
 
-BODY_CODES = {"flu": 0, "rfu": 1, "frd": 2}
+BODY_CODES = BODY_CONVENTIONS         # imu.body -> its code (sinscli.conventions)
 
 
 @dataclass
@@ -79,11 +81,11 @@ def prepare_data(ds, seed: int | None) -> Prepared:
         if p is not None:
             _visible(p)
     cfg = load_config(ds.config)
-    conv = BODY_CODES[cfg["imu"]["body"]]
-    imu = read_imu_csv(ds.imu, cfg)
-    truth = read_trajectory(ds.truth)
+    conv = BODY_CODES[cfg.imu.body]
+    imu = read_imu_csv(ds.imu, cfg.imu)
+    truth = read_trajectory(ds.truth, cfg.limits, *convention(cfg.truth))
     start = imu.t0 if imu.t0 is not None else float(imu.time[0])
-    init = read_init(ds.init, start, conv)
+    init = read_init(ds.init, start, conv, cfg.limits, cfg.init)
     return Prepared(imu=imu, init=init, truth=truth, conv=conv)
 
 

@@ -3,11 +3,13 @@ from __future__ import annotations
 
 import logging
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import click
 import numpy as np
 
+from .. import conventions as cv
 from ..errors import SinsError
 from ..io.atomic import atomic_path, prepare_output
 from ..io.init_state import write_init_yaml
@@ -27,7 +29,7 @@ def _parse_heading(value):
 @click.argument("imu", required=False, type=click.Path(path_type=Path))
 @click.option("--gnss", "gnss_path", type=click.Path(path_type=Path), default=None,
               help="GNSS log (CSV or ROS bag/MCAP): position, and velocity for gnss-inertial / kf on the move.")
-@click.option("--method", type=click.Choice(["static", "inertial", "gnss-inertial", "kf"]), default=None,
+@click.option("--method", type=click.Choice(cv.ALIGN_METHODS), default=None,
               help="static (analytic, at rest) | inertial (seed 001, static or swaying base) | gnss-inertial "
                    "(moving, GNSS velocity) | kf (Kalman fine alignment after a coarse stage). Default: config.")
 @click.option("--start", type=float, default=None, help="Alignment start, log time (s). Default: the log's start.")
@@ -36,11 +38,11 @@ def _parse_heading(value):
 @click.option("--roll-window", type=float, default=None,
               help="Roll from the first S seconds, pitch and heading from the whole interval (seed 001).")
 @click.option("--heading", default=None, help="Heading (deg) to use instead of the estimated one.")
-@click.option("--epoch", type=click.Choice(["end", "start"]), default=None,
+@click.option("--epoch", type=click.Choice(cv.ALIGN_EPOCHS), default=None,
               help="State written for the interval's end (default) or start (Cbn(0)).")
 @click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
               help="Config YAML: imu/gnss/ros sections of the navigation config plus an 'align' section.")
-@click.option("--body", type=click.Choice(sorted(BODY_CONVENTIONS)), default=None, help="Body axes convention.")
+@click.option("--body", type=click.Choice(sorted(cv.BODY_NAMES)), default=None, help="Body axes convention.")
 @click.option("--imu-topic", default=None, help="IMU topic in a ROS bag / MCAP log.")
 @click.option("--gnss-topic", default=None, help="NavSatFix topic in a ROS bag / MCAP log.")
 @click.option("--vel-topic", default=None,
@@ -91,25 +93,25 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
     # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..align.options import build_options, load_align_config, parse_position
     from ..align.pipeline import align
-    from ..config import merge
+    from ..config import override
     from ..io.readers import read_gnss, read_imu
 
     cfg, al = load_align_config(config_path)
-    cfg = merge(cfg, "imu", body=body)
-    cfg = merge(cfg, "ros", imu_topic=imu_topic, gnss_topic=gnss_topic, vel_topic=vel_topic)
+    cfg = override(cfg, "imu", body=body)
+    cfg = override(cfg, "ros", imu_topic=imu_topic, gnss_topic=gnss_topic, vel_topic=vel_topic)
     for key, value in (("method", method), ("start", start), ("duration", duration),
                        ("roll_window", roll_window), ("epoch", epoch)):
         if value is not None:
             al[key] = value
     if heading is not None:
         al["heading"] = _parse_heading(heading)
-    conv_name = cfg["imu"]["body"]
+    conv_name = cfg.imu.body
     conv = BODY_CONVENTIONS[conv_name]
     opts = build_options(al, str(config_path) if config_path else "command line", conv=conv,
-                         lever_arm=cfg["gnss"]["lever_arm"],
+                         lever_arm=cfg.gnss.lever_arm,
                          base_dir=config_path.parent if config_path is not None else None)
     if position is not None:
-        opts.position = parse_position(position, "--position")
+        opts = replace(opts, position=parse_position(position, "--position"))
     imu_log = read_imu(imu, cfg)
     gnss = read_gnss(gnss_path, cfg) if gnss_path is not None else None
     if gnss is not None:

@@ -39,7 +39,7 @@ def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir,
     from ..align.options import build_options, load_align_config
     from ..allan.output import plot_allan, write_allan_csv, write_fit_csv, write_sensor_yaml
     from ..allan.pipeline import characterize
-    from ..config import merge
+    from ..config import override
     from ..io.readers import read_imu
     from ..report.report import staged_dir
 
@@ -47,7 +47,7 @@ def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir,
     from ..io.atomic import prepare_output
     prepare_output(outdir, directory=True)      # before any work: a file, no permission
     cfg, al = load_align_config(config_path)
-    cfg = merge(cfg, "ros", imu_topic=imu_topic)
+    cfg = override(cfg, "ros", imu_topic=imu_topic)
     opts = build_options(al, str(config_path) if config_path else "command line")
     imu = read_imu(log, cfg, allow_gaps=False)
     with contextlib.ExitStack() as stack:

@@ -6,11 +6,12 @@ from pathlib import Path
 
 import click
 
+from ..conventions import BODY_CONVENTIONS
 from ..errors import SinsError
 from .base import main, progress, quiet_option
 from .batch_options import info_echo, interrupted_exit, scheduler_options, verbose
 
-BODY = {"flu": 0, "rfu": 1, "frd": 2}
+BODY = BODY_CONVENTIONS                    # --body (sinscli.conventions)
 
 
 def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
@@ -127,12 +128,12 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
         raise SinsError("--align-traj and --rpe-* set how the trajectory metrics are computed: "
                         "give --metrics ate,rpe too")
     # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
-    from ..config import load_config, merge
+    from ..config import load_config, override
     from ..nav.window import make_window
     window = make_window(start, end, None)
-    truth_cfg = merge(load_config(config_path), "truth", time_offset=time_offset)["truth"]
+    cfg = override(load_config(config_path), "truth", time_offset=time_offset)
     _single(truth, list(inputs), outdir, label, epoch, interpolate, BODY[body or "flu"], timeseries_every, title,
-            quiet, mopts, gnss_path, window, truth_cfg)
+            quiet, mopts, gnss_path, window, cfg.truth)
 
 
 def _is_tum(path: Path) -> bool:
@@ -182,7 +183,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
     legend = _legend(navs, names, label)
     truth = _read(truth_path, truth_cfg)
     trajs = [_read(p) for p in navs]
-    time_offset = (truth_cfg or {}).get("time_offset", 0.0)
+    time_offset = truth_cfg.time_offset if truth_cfg is not None else 0.0
     if window is not None and window.active:    # absolute, against the truth's first epoch (after its offset)
         window = window.resolve(float(truth.time[0]) + float(time_offset or 0.0))
     window_note = _apply_window(truth, truth_path, trajs, navs, window, time_offset)

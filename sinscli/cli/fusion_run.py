@@ -38,15 +38,15 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
 
     src = str(config_path) if config_path else "config"
     base = Path(config_path).parent if config_path else Path.cwd()
-    fopts = build_fusion_options(cfg.get("fusion"), src, base_dir=base, vehicle=vehicle)
+    fopts = build_fusion_options(cfg.fusion, src, base_dir=base, vehicle=vehicle)
     if sensor is not None:
         fopts = replace(fopts, sensor=sensor, base_dir=Path.cwd())
     if fopts.lever_arm is None:
-        fopts = replace(fopts, lever_arm=np.asarray(cfg["gnss"]["lever_arm"], dtype=float))
+        fopts = replace(fopts, lever_arm=np.asarray(cfg.gnss.lever_arm, dtype=float))
     check_trajectory_output(output)
     if innovations_path is not None:
         prepare_output(innovations_path)
-    imu = read_imu(imu_path, cfg, allow_gaps=cfg["navigation"]["allow_gaps"])
+    imu = read_imu(imu_path, cfg, allow_gaps=cfg.navigation.allow_gaps)
     if len(imu) == 0:
         raise SinsError(f"{imu_path}: no IMU samples")
     gnss = read_gnss(gnss_path, cfg)
@@ -61,13 +61,13 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     try:
         check_gnss_against_imu(gnss, t0, float(imu.time[-1]))
     except SinsError as exc:
-        offset = float(cfg["gnss"]["time_offset"])
+        offset = cfg.gnss.time_offset
         if not offset:
             raise
         raise SinsError(f"{exc} (after the GNSS time offset of {offset:g} s, --time-offset or gnss.time_offset)") \
             from None
     mounting = None
-    if cfg["imu"].get("mounting") == "auto":
+    if cfg.imu.mounting == "auto":
         imu, mounting = _auto_mounting(imu, gnss, opts.conv, fopts, output)
     body_vel = None
     if odom_path is not None:
@@ -80,17 +80,17 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     init_bias = None
     if align_method is not None:             # the attitude comes from the log: check its up axis
         note = mounting_warning(imu, t0, gravity(np.sin(np.radians(gnss.lat[0])), float(gnss.height[0])), opts.conv,
-                                None, cfg["imu"])
+                                None, cfg.imu)
         if note:
             log.warning(note)
         init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts)
     else:
-        init = read_init(init_path, t0 if window.start is None else window.start, opts.conv, cfg["limits"],
-                         cfg["init"])
+        init = read_init(init_path, t0 if window.start is None else window.start, opts.conv, cfg.limits,
+                         cfg.init)
         check_init(init.time, window, str(init_path))
-        init_sigma, init_bias = align_estimates(init, init_path, cfg["limits"])
+        init_sigma, init_bias = align_estimates(init, init_path, cfg.limits)
         note = mounting_warning(imu, max(t0, init.time), gravity(np.sin(init.lat), init.height), opts.conv,
-                                init.Cbn, cfg["imu"])
+                                init.Cbn, cfg.imu)
         if note:
             log.warning(note)
     data_noise = noise_from_rest(imu, fopts, gnss) if fopts.noise_from_data else None
@@ -219,7 +219,7 @@ def _align(imu, gnss, method, cfg, config_path, conv, fopts):
     from ..align.options import build_options, merge_section
     from ..align.pipeline import align
     src = str(config_path) if config_path else "config"
-    al = merge_section(cfg.get("align"), src)
+    al = merge_section(cfg.align, src)
     if method == "kf":
         coarse = al["kf"]["coarse"]
         method = coarse if coarse != "auto" else "gnss-inertial"
@@ -238,7 +238,7 @@ def _align(imu, gnss, method, cfg, config_path, conv, fopts):
         raise SinsError(f"{imu.source}: --align {method} needs the log to start at rest, and its first "
                         f"{al['duration']:.3g} s move (at rest for {rest:.3g} s); use --align gnss-inertial, or "
                         f"--init with the initial state")
-    aopts = build_options(al, src, conv=conv, lever_arm=cfg["gnss"]["lever_arm"])
+    aopts = build_options(al, src, conv=conv, lever_arm=cfg.gnss.lever_arm)
     res = align(imu, aopts, gnss, heading_optional=True)
     for note in res.notes:
         click.echo(f"sins: note: {note}", err=True)
@@ -255,7 +255,7 @@ def _align(imu, gnss, method, cfg, config_path, conv, fopts):
     # the IMU's position from the antenna's fix, whatever the method took (static and inertial take the
     # fix as it is): the lever arm through the aligned attitude; with the heading unknown its horizontal
     # part points anywhere (variance |l_h|^2 / 2 per axis)
-    arm = np.asarray(fopts.lever_arm if fopts.lever_arm is not None else cfg["gnss"]["lever_arm"], float)
+    arm = np.asarray(fopts.lever_arm if fopts.lever_arm is not None else cfg.gnss.lever_arm, float)
     st = res.state
     lat = math.radians(float(np.interp(st.time, gnss.time, gnss.lat)))
     lon = float(np.interp(st.time, gnss.time, np.unwrap(np.radians(gnss.lon))))

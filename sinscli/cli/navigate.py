@@ -2,11 +2,13 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import click
 
-from ..conventions import BODY_CONVENTIONS, VEHICLES
+from .. import conventions as cv
+from ..conventions import BODY_CONVENTIONS
 from ..errors import SinsError
 from .base import finish_progress, log, main, progress, quiet_option, summary_line
 
@@ -41,7 +43,7 @@ def _count_rows(path: Path) -> int:
 @click.option("--gnss", "gnss_path", default=None, type=click.Path(path_type=Path),
               help="GNSS log (CSV or ROS bag/MCAP): fused navigation with the error-state Kalman filter.")
 @click.option("--align", "align_method", default=None,
-              type=click.Choice(["static", "inertial", "gnss-inertial", "kf"]),
+              type=click.Choice(cv.ALIGN_METHODS),
               help="With --gnss: initial state from `sins align --method METHOD` on the log's first window.")
 @click.option("--smooth", is_flag=True, help="With --gnss: Rauch-Tung-Striebel smoothed trajectory.")
 @click.option("--innovations", "innovations_path", default=None, type=click.Path(path_type=Path),
@@ -49,15 +51,15 @@ def _count_rows(path: Path) -> int:
 @click.option("--odom", "odom_path", default=None, type=click.Path(path_type=Path),
               help="With --gnss: body velocity (odometry): a body-velocity CSV, or a bag/MCAP with an Odometry "
                    "topic (ros.odom_topic, else auto-detected).")
-@click.option("--vehicle", default=None, type=click.Choice(VEHICLES),
+@click.option("--vehicle", default=None, type=click.Choice(cv.VEHICLES),
               help="With --gnss: the platform, for its constraints: car and robot NHC + ZUPT/ZARU at rest, pedestrian "
                    "ZUPT/ZARU at rest and heading from motion, aircraft and none (default) no constraint "
                    "(config fusion.vehicle).")
 @click.option("--sensor", default=None,
               help="With --gnss: sensor description (preset mems|tactical|navigation or a sensor YAML).")
-@click.option("--attitude", type=click.Choice(["dcm", "quat", "krylov", "euler"]), default=None,
+@click.option("--attitude", type=click.Choice(cv.ATTITUDES), default=None,
               help="Attitude algorithm (default from config: quat).")
-@click.option("--dcm-variant", type=click.Choice(["exact", "seed000"]), default=None,
+@click.option("--dcm-variant", type=click.Choice(cv.DCM_VARIANTS), default=None,
               help="dcm: exact closed form (Savage eq 26) or the series recursion of seed 000 eqs 12-14.")
 @click.option("--coning", type=click.IntRange(1, 4), default=None,
               help="Coning/sculling order: 1 (none, fixed axis), 2, 3 or 4 samples.")
@@ -66,19 +68,19 @@ def _count_rows(path: Path) -> int:
 @click.option("--every", type=click.IntRange(1), default=None, help="Write every K-th attitude update.")
 @click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
               help="Navigation config YAML (see configs/navigation.yaml).")
-@click.option("--body", type=click.Choice(sorted(BODY_CONVENTIONS)), default=None,
+@click.option("--body", type=click.Choice(sorted(cv.BODY_NAMES)), default=None,
               help="Body axes convention of the IMU after mounting.")
 @click.option("--allow-gaps", is_flag=True, default=None, help="Bridge gaps > 5 intervals with a warning.")
 @click.option("--static-start", is_flag=True, default=None,
               help="The log starts at rest: check the specific force against gravity.")
 @click.option("--angles", is_flag=True, help="Add the raw angles (krylov/euler) to the output.")
-@click.option("--euler-integrator", type=click.Choice(["euler", "rk4"]), default=None,
+@click.option("--euler-integrator", type=click.Choice(cv.EULER_INTEGRATORS), default=None,
               help="3-angle baseline integrator: forward Euler (the patent's) or RK4.")
 @click.option("--singularity-threshold", type=float, default=None,
               help="|cos psi| under which the 3-angle method reports its singularity (default 0.01).")
-@click.option("--on-singularity", type=click.Choice(["continue", "stop"]), default=None,
+@click.option("--on-singularity", type=click.Choice(cv.ON_SINGULARITY), default=None,
               help="3-angle method at its singularity: carry on (warn) or stop the run there.")
-@click.option("--frame", type=click.Choice(["enu", "launch-inertial"]), default=None,
+@click.option("--frame", type=click.Choice(cv.NAV_FRAMES), default=None,
               help="Navigation frame: local ENU, or the launch-centred inertial frame (WGS-84 J2 "
                    "gravitation; launch point from navigation.launch or the init YAML's launch:).")
 @click.option("--imu-topic", default=None, help="IMU topic in a ROS bag / MCAP log.")
@@ -127,21 +129,22 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
 
     check_trajectory_output(output)            # before any work: a directory, no format, no permission
     window = make_window(start, end, duration)
-    cfg = config_mod.load_config(config_path)
-    cfg = config_mod.merge(cfg, "navigation", attitude=attitude, dcm_variant=dcm_variant, coning=coning,
-                           subsamples=subsamples, every=every, allow_gaps=allow_gaps,
-                           euler_integrator=euler_integrator, singularity_threshold=singularity_threshold,
-                           on_singularity=on_singularity, frame=frame)
-    cfg = config_mod.merge(cfg, "imu", body=body, static_start=static_start)
-    cfg = config_mod.merge(cfg, "ros", imu_topic=imu_topic)
-    cfg = config_mod.merge(cfg, "gnss", time_offset=time_offset)
-    nav = cfg["navigation"]
-    conv = BODY_CONVENTIONS[cfg["imu"]["body"]]
-    opts = NavOptions(attitude=nav["attitude"], dcm_variant=nav["dcm_variant"], coning=nav["coning"],
-                      subsamples=nav["subsamples"], every=nav["every"], conv=conv, frame=nav["frame"],
-                      angles=angles, euler_integrator=nav["euler_integrator"],
-                      singularity_threshold=nav["singularity_threshold"], on_singularity=nav["on_singularity"],
-                      launch=nav["launch"], krylov_substep_tol=nav["krylov_substep_tol"])
+    cfg = config_mod.load_config(config_path)           # once per run; the options below replace its keys
+    cfg = config_mod.override(cfg, "navigation", attitude=attitude, dcm_variant=dcm_variant, coning=coning,
+                              subsamples=subsamples, every=every, allow_gaps=allow_gaps,
+                              euler_integrator=euler_integrator, singularity_threshold=singularity_threshold,
+                              on_singularity=on_singularity, frame=frame)
+    cfg = config_mod.override(cfg, "imu", body=body, static_start=static_start)
+    cfg = config_mod.override(cfg, "ros", imu_topic=imu_topic)
+    cfg = config_mod.override(cfg, "gnss", time_offset=time_offset)
+    nav = cfg.navigation
+    conv = BODY_CONVENTIONS[cfg.imu.body]
+    opts = NavOptions(attitude=nav.attitude, dcm_variant=nav.dcm_variant, coning=nav.coning,
+                      subsamples=nav.subsamples, every=nav.every, conv=conv, frame=nav.frame,
+                      angles=angles, euler_integrator=nav.euler_integrator,
+                      singularity_threshold=nav.singularity_threshold, on_singularity=nav.on_singularity,
+                      launch=None if nav.launch is None else dict(nav.launch),
+                      krylov_substep_tol=nav.krylov_substep_tol)
     opts.check()
     if gnss_path is not None:
         # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
@@ -153,7 +156,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     from .._numba_cache import set_compile_note
     from ..nav.pipeline import first_run_seconds
     set_compile_note(f"sins: compiling navigation kernels (first run only, about {first_run_seconds(opts)} s)")
-    blocks = iter_imu(imu, cfg, allow_gaps=nav["allow_gaps"])
+    blocks = iter_imu(imu, cfg, allow_gaps=nav.allow_gaps)
     first = next(blocks, None)
     if first is None or len(first) == 0:
         raise SinsError(f"{imu}: no IMU samples")
@@ -161,17 +164,17 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
         first.time[1] - first.time[0] if len(first) > 1 else 0.0))
     window = window.resolve(t_start)
     check_in_log(window, t_start, None, str(imu))
-    init = read_init(init_path, t_start if window.start is None else window.start, conv, cfg["limits"], cfg["init"])
+    init = read_init(init_path, t_start if window.start is None else window.start, conv, cfg.limits, cfg.init)
     check_init(init.time, window, str(init_path))
     if opts.frame == "launch-inertial" and opts.launch is None and "launch" in init.extra:
         launch_frame(init.extra["launch"], init.time, f"{init_path}: launch")   # checked naming the file
-        opts.launch = init.extra["launch"]
-    if cfg["imu"]["static_start"]:
+        opts = replace(opts, launch=init.extra["launch"])
+    if cfg.imu.static_start:
         check_static_start(first, gravity(math.sin(init.lat), init.height), conv)
     # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..nav.sanity import mounting_warning
     note = mounting_warning(first, max(t_start, init.time), gravity(math.sin(init.lat), init.height), conv, init.Cbn,
-                            cfg["imu"])
+                            cfg.imu)
     if note:
         log.warning(note)
 

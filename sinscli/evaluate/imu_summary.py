@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config import Config
 from ..fusion.options import FusionOptions
 from ..fusion.standstill import StandstillDetector
 from ..io.readers import read_imu
@@ -23,7 +24,7 @@ def rest_windows(time, dtheta_b, dvel_b, t0: float) -> list[list[float]]:
     return [[float(a), float(b)] for a, b in det.intervals]
 
 
-def csv_summary(path, cfg: dict, imu_window: float = 1.0) -> dict:
+def csv_summary(path, cfg: Config, imu_window: float = 1.0) -> dict:
     """The :func:`~sinscli.io.ros.summary.log_summary` dict of an IMU CSV (read with the config: columns,
     units, mounting), plus ``rest``: the windows at rest."""
     imu = read_imu(path, cfg, allow_gaps=True)
@@ -31,8 +32,8 @@ def csv_summary(path, cfg: dict, imu_window: float = 1.0) -> dict:
     t0 = imu.t0 if imu.t0 is not None else float(t[0] - (t[1] - t[0]) if t.size > 1 else t[0])
     row = {"topic": Path(path).name, "type": f"IMU CSV ({imu.kind})", "count": int(t.size)}
     row.update(time_stats(t))
-    name = f"{Path(path).name} (body axes)" if cfg["imu"].get("mounting") is not None else Path(path).name
-    return {"path": str(path), "format": "IMU CSV", "body": cfg["imu"]["body"], "start": row["start"], "end": row["end"],
+    name = f"{Path(path).name} (body axes)" if cfg.imu.mounting is not None else Path(path).name
+    return {"path": str(path), "format": "IMU CSV", "body": cfg.imu.body, "start": row["start"], "end": row["end"],
             "duration": (row["end"] - row["start"]) if t.size else None, "messages": int(t.size), "topics": [row],
             "imu": {name: start_means(t, imu.dtheta_b, imu.dvel_b, t0, imu_window)} if t.size else {},
             "rest": rest_windows(t, imu.dtheta_b, imu.dvel_b, t0) if t.size > 2 else []}

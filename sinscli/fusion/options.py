@@ -2,28 +2,25 @@
 
 Every key with its default and unit is in :data:`FUSION_DEFAULTS` (and documented in
 ``configs/navigation.yaml``).  Errors name the file and the key, e.g.
-``nav.yaml: fusion.zupt.sigma: expected a finite number > 0, got 0``.
+``nav.yaml: key fusion.zupt.sigma: expected a number > 0, got 0``.
 """
 from __future__ import annotations
 
-import copy
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..config import MAX_COUNT, MAX_LEVER_ARM
-from ..conventions import VEHICLES
-from ..errors import SinsError
+from .. import schema as sc
+from ..conventions import BIAS_MODELS, ESTIMABLE, FUSION_STATES, VEHICLES
 from ..units import DEG
 
-MAX_VALUE = 1.0e9           # any number of the section: its square stays far from overflow
+MAX_VALUE = sc.MAX_VALUE    # any number of the section: its square stays far from overflow
 MAX_POS = 1.0e7             # m: a position sigma (the size of the earth)
 MAX_VEL = 1.0e4             # m/s: a velocity sigma or a speed (the physical speed limit)
 MAX_TIME = 1.0e6            # s: a window, interval or correlation time
 MAX_RATE_DEG = 1.0e4        # deg/s: an angular-rate sigma (beyond the 100 rad/s rate limit)
 
-ESTIMABLE = ("lever_arm", "time_offset")
 
 FUSION_DEFAULTS = {
     "vehicle": "none",               # car | robot | pedestrian | aircraft | none: the constraints of the
@@ -155,57 +152,26 @@ class FusionOptions:
     base_dir: object = None                  # for a relative sensor path
 
 
+# the one validator family (sinscli.schema), keys under ``fusion.``
 def _fail(src, key, msg):
-    raise SinsError(f"{src}: fusion.{key}: {msg}")
+    sc.fail(src, f"fusion.{key}", msg)
 
 
-def _num(src, key, v, *, gt=None, ge=None, le=None, lt=None):
+def _num(src, key, v, **bounds):
     """A finite number within the bounds given, and at most :data:`MAX_VALUE` in size."""
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        _fail(src, key, f"expected a finite number, got {v!r}")
-    v = float(v)
-    if not abs(v) <= MAX_VALUE:
-        _fail(src, key, f"expected a number within +-{MAX_VALUE:g}, got {v!r}")
-    if gt is not None and not v > gt:
-        _fail(src, key, f"expected a finite number > {gt:g}, got {v!r}")
-    if ge is not None and not v >= ge:
-        _fail(src, key, f"expected a finite number >= {ge:g}, got {v!r}")
-    if le is not None and not v <= le:
-        _fail(src, key, f"expected a number <= {le:g}, got {v!r}")
-    if lt is not None and not v < lt:
-        _fail(src, key, f"expected a number < {lt:g}, got {v!r}")
-    return v
+    return sc.number(src, f"fusion.{key}", v, **bounds)
 
 
 def _vec(src, key, v, n, **kw):
-    if isinstance(v, (list, tuple)):
-        if len(v) != n:
-            _fail(src, key, f"expected {n} numbers, got {len(v)}")
-        return np.array([_num(src, f"{key}[{i}]", x, **kw) for i, x in enumerate(v)])
-    return np.full(n, _num(src, key, v, **kw))
+    return np.array(sc.vector(src, f"fusion.{key}", v, n, **kw))
 
 
 def _bool(src, key, v):
-    if not isinstance(v, bool):
-        _fail(src, key, f"expected true or false, got {v!r}")
-    return v
+    return sc.boolean(src, f"fusion.{key}", v)
 
 
 def _merge(defaults: dict, data, src, prefix=""):
-    out = copy.deepcopy(defaults)
-    if data is None:
-        return out
-    if not isinstance(data, dict):
-        where = f"fusion.{prefix.rstrip('.')}" if prefix else "fusion"
-        raise SinsError(f"{src}: {where}: expected a mapping of keys, got {data!r}")
-    for k, v in data.items():
-        if k not in defaults:
-            _fail(src, f"{prefix}{k}", f"unknown key; expected one of {', '.join(sorted(defaults))}")
-        if isinstance(defaults[k], dict) and k not in ("sensor",):
-            out[k] = _merge(defaults[k], v, src, f"{prefix}{k}.")
-        else:
-            out[k] = v
-    return out
+    return sc.merge(defaults, data, src, f"fusion{'.' + prefix.rstrip('.') if prefix else ''}", raw=("sensor",))
 
 
 def build_fusion_options(section, src: str, base_dir=None, vehicle: str | None = None) -> FusionOptions:
@@ -213,24 +179,17 @@ def build_fusion_options(section, src: str, base_dir=None, vehicle: str | None =
 
     ``vehicle`` (``--vehicle``) overrides ``fusion.vehicle``; the vehicle's preset
     (:data:`VEHICLE_PRESETS`) fills the keys the section does not set."""
-    if section is not None and not isinstance(section, dict):
-        raise SinsError(f"{src}: fusion: expected a mapping of keys, got {section!r}")
-    veh = vehicle if vehicle is not None else (section or {}).get("vehicle", "none")
-    if veh not in VEHICLES:
-        key = "--vehicle" if vehicle is not None else f"{src}: fusion.vehicle"
-        raise SinsError(f"{key}: expected one of {', '.join(VEHICLES)}, got {veh!r}")
+    section = sc.mapping(src, "fusion", section)
+    veh = sc.choice("command line" if vehicle is not None else src, "fusion.vehicle",
+                    vehicle if vehicle is not None else section.get("vehicle", "none"), VEHICLES)
     d = _merge(_merge(FUSION_DEFAULTS, VEHICLE_PRESETS[veh], "<vehicle preset>"), section, src)
     kw = {"base_dir": base_dir, "vehicle": veh}
-    if d["states"] not in (15, 21) or isinstance(d["states"], bool):
-        _fail(src, "states", f"expected 15 or 21, got {d['states']!r}")
-    kw["states"] = int(d["states"])
+    kw["states"] = int(sc.choice(src, "fusion.states", d["states"], FUSION_STATES))
     if d["sensor"] is not None and not isinstance(d["sensor"], (str, dict)):
-        _fail(src, "sensor", f"expected a preset name, a sensor YAML path or a mapping, got {d['sensor']!r}")
+        sc.expected(src, "fusion.sensor", "a preset name, a sensor YAML path or a mapping", d["sensor"])
     kw["sensor"] = d["sensor"]
     kw["noise_from_data"] = _bool(src, "noise_from_data", d["noise_from_data"])
-    if d["bias_model"] not in ("gm-noise", "gm-decay"):
-        _fail(src, "bias_model", f"expected gm-noise or gm-decay, got {d['bias_model']!r}")
-    kw["bias_model"] = d["bias_model"]
+    kw["bias_model"] = sc.choice(src, "fusion.bias_model", d["bias_model"], BIAS_MODELS)
     kw["propagation_interval"] = _num(src, "propagation_interval", d["propagation_interval"], ge=0.0, le=0.1)
     kw["gate_probability"] = _num(src, "gate_probability", d["gate_probability"], gt=0.0, lt=1.0)
     if d["robust_probability"] is not None:
@@ -245,7 +204,7 @@ def build_fusion_options(section, src: str, base_dir=None, vehicle: str | None =
         kw["lever_arm"] = _vec(src, "lever_arm", d["lever_arm"], 3, ge=-MAX_LEVER_ARM, le=MAX_LEVER_ARM)
     est = d["estimate"]
     if not isinstance(est, (list, tuple)) or any(e not in ESTIMABLE for e in est) or len(set(est)) != len(est):
-        _fail(src, "estimate", f"expected a list of distinct names from {', '.join(ESTIMABLE)}, got {est!r}")
+        sc.expected(src, "fusion.estimate", f"a list of distinct names from {', '.join(ESTIMABLE)}", est)
     kw["estimate"] = tuple(e for e in ESTIMABLE if e in est)
     es = d["estimate_sigma"]
     kw["lever_arm_sigma"] = _num(src, "estimate_sigma.lever_arm", es["lever_arm"], gt=0.0, le=MAX_LEVER_ARM)
@@ -282,17 +241,11 @@ def build_fusion_options(section, src: str, base_dir=None, vehicle: str | None =
                                            le=MAX_TIME)
     kw["heading_min_speed"] = _num(src, "heading_init.min_speed", hi["min_speed"], ge=0.0, le=MAX_VEL)
     kw["heading_sigma_floor"] = _num(src, "heading_init.sigma_floor", hi["sigma_floor"], gt=0.0, le=180.0) * DEG
-    rr = d["rejection_run"]
-    if isinstance(rr, bool) or not isinstance(rr, int) or not 1 <= rr <= MAX_COUNT:
-        _fail(src, "rejection_run", f"expected a whole number from 1 to {MAX_COUNT}, got {rr!r}")
-    kw["rejection_run"] = rr
+    kw["rejection_run"] = sc.integer(src, "fusion.rejection_run", d["rejection_run"], 1, MAX_COUNT)
     kw["outage"] = _num(src, "outage", d["outage"], gt=1.0, le=MAX_TIME)
     ad = d["adapt"]
     kw["adapt"] = _bool(src, "adapt.enabled", ad["enabled"])
-    w = ad["window"]
-    if isinstance(w, bool) or not isinstance(w, int) or not 2 <= w <= MAX_COUNT:
-        _fail(src, "adapt.window", f"expected a whole number from 2 to {MAX_COUNT}, got {w!r}")
-    kw["adapt_window"] = w
+    kw["adapt_window"] = sc.integer(src, "fusion.adapt.window", ad["window"], 2, MAX_COUNT)
     kw["adapt_max_scale"] = _num(src, "adapt.max_scale", ad["max_scale"], ge=1.0)
     kw["adapt_max_bias_scale"] = _num(src, "adapt.max_bias_scale", ad["max_bias_scale"], ge=1.0)
     kw["adapt_exit_ratio"] = _num(src, "adapt.exit_ratio", ad["exit_ratio"], gt=1.0)

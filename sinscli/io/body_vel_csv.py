@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import ODOMETRY_NAMES, mounting_matrix
+from ..config import ODOMETRY_NAMES, ImuSection, Limits, OdometrySection, mounting_matrix
 from ..nav.rotation import BODY_CONVENTIONS, conv_to_flu
 from ..types import BodyVelLog
 from .atomic import atomic_path
@@ -30,12 +30,13 @@ VEL = ["vel_x", "vel_y", "vel_z"]
 STD = ["std_x", "std_y", "std_z"]
 
 
-def read_body_velocity_csv(path, cfg: dict | None = None) -> BodyVelLog:
-    """Read a body-velocity CSV; ``cfg`` is the whole validated config (odometry, imu and limits sections)
-    or None."""
+def read_body_velocity_csv(path, odo: OdometrySection | None = None, imu: ImuSection | None = None,
+                           limits: Limits | None = None) -> BodyVelLog:
+    """Read a body-velocity CSV; ``odo``, ``imu`` and ``limits`` are the config's sections (None: the
+    defaults)."""
     path = Path(path)
-    lim = limits_mod.resolve((cfg or {}).get("limits"))
-    odo = (cfg or {}).get("odometry") or {}
+    lim = limits_mod.resolve(limits)
+    odo = odo if odo is not None else OdometrySection()
     data, mapping = read_mapped_columns(
         path, odo, ODOMETRY_NAMES, ["time"] + VEL, [STD],
         "expected a body-velocity CSV: time, vel_x, vel_y, vel_z and optionally std_x, std_y, std_z (map other "
@@ -49,12 +50,12 @@ def read_body_velocity_csv(path, cfg: dict | None = None) -> BodyVelLog:
         if c in data:
             limits_mod.check_sigma(path, data[c], names[c], 2)
     std = np.column_stack([data[c] for c in STD]) if STD[0] in data else None
-    kind = odo.get("frame", "auto")
+    kind = odo.frame
     if kind in ("sensor", "vehicle"):
-        imu = (cfg or {}).get("imu") or {}
-        c_sb = mounting_matrix(imu.get("mounting"))
+        imu = imu if imu is not None else ImuSection()
+        c_sb = mounting_matrix(imu.mounting)
         cov = None if std is None else np.einsum("ni,ij->nij", std ** 2, np.eye(3))
-        vel, cov_b = to_body_axes(vel, cov, kind, c_sb, BODY_CONVENTIONS[imu.get("body", "flu")])
+        vel, cov_b = to_body_axes(vel, cov, kind, c_sb, BODY_CONVENTIONS[imu.body])
         std = None if cov_b is None else np.sqrt(np.einsum("nii->ni", cov_b))
     return BodyVelLog(time=data["time"], vel_b=vel, std=std, source=str(path))
 

@@ -142,20 +142,20 @@ def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]
     return _finite_columns(path, columns, table.column, 2)
 
 
-def read_mapped_columns(path, section: dict, names: list[str], required: list[str], groups: list[list[str]],
+def read_mapped_columns(path, section, names: list[str], required: list[str], groups: list[list[str]],
                         unknown_hint: str, missing_hint: str) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     """Read a CSV whose columns are ``names`` (or config-mapped to them): ``(our name -> array, mapping)``.
 
-    ``section`` is the config section with ``columns`` (our name -> file column) and ``ignore_columns``.
+    ``section`` is the config's section, with ``columns`` (our name -> file column) and ``ignore_columns``.
     Refused naming the file: unknown columns (``unknown_hint`` says what is expected), missing required
     ones (``missing_hint``), a group of three (e.g. std_x, std_y, std_z) given in part; then every value
     as in :func:`read_numeric_columns`.
     """
     path = Path(path)
     header = read_header(path)
-    mapping = dict(section.get("columns") or {})
+    mapping = dict(section.columns)
     inverse = {v: k for k, v in mapping.items()}
-    ignored = set(section.get("ignore_columns") or [])
+    ignored = set(section.ignore_columns)
     known = [inverse.get(c, c) for c in header]
     unknown = [c for c, k in zip(header, known) if k not in names and c not in ignored]
     if unknown:

@@ -2,11 +2,12 @@
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from ..config import GNSS_NAMES
+from ..config import GNSS_NAMES, GnssSection, Limits
 from ..errors import SinsError
 from ..types import GnssLog
 from .atomic import atomic_path
@@ -23,7 +24,7 @@ GROUPS = {"vel_n": ["vel_e", "vel_n", "vel_u"], "std_pos": ["std_e", "std_n", "s
           "std_vel": ["std_vel_e", "std_vel_n", "std_vel_u"]}
 
 
-def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
+def read_gnss_csv(path, cfg: GnssSection | None = None, limits: Limits | None = None) -> GnssLog:
     """Read ``gnss.csv``: required time, lat, lon (deg), height (m); optional velocity and sigmas.
 
     ``cfg`` (the config's ``gnss`` section) may say the file is NED or in radians (:mod:`sinscli.frames`).
@@ -33,15 +34,14 @@ def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
     """
     lim = limits_mod.resolve(limits)
     path = Path(path)
-    section = dict(cfg or {})
+    section = cfg if cfg is not None else GnssSection()
     frame, to_deg = convention(section)
+    cols = dict(section.columns)
     if frame == "ned":                 # the vertical columns of a NED file: vel_d, std_d, std_vel_d
-        cols = dict(section.get("columns") or {})
         for name in NED_NAMES:
             cols.setdefault(name, file_name(name, frame))
-        section["columns"] = cols
     from .spp_csv import SPP_COLUMNS    # the extra columns of `sins gnss spp` output: known, not read
-    section["ignore_columns"] = list(section.get("ignore_columns") or []) + list(SPP_COLUMNS)
+    section = replace(section, columns=cols, ignore_columns=(*section.ignore_columns, *SPP_COLUMNS))
     data, mapping = read_mapped_columns(
         path, section, GNSS_NAMES, REQUIRED, list(GROUPS.values()),
         f"expected {', '.join(GNSS_NAMES)} (map other names with the config's gnss.columns)",

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import ACCEL_UNITS, ANGLE_UNITS, GYRO_UNITS, IMU_NAMES, VEL_UNITS, mounting_matrix
+from ..config import ACCEL_UNITS, ANGLE_UNITS, GYRO_UNITS, IMU_NAMES, VEL_UNITS, ImuSection, Limits, mounting_matrix
 from ..errors import SinsError
 from ..types import ImuLog
 from . import limits as limits_mod
@@ -44,10 +44,10 @@ def rates_to_increments(time, gyro, accel):
 
 def _resolve_columns(path, header, cfg_imu):
     """Map FORMATS names to file columns; decide the form; reject unknown columns."""
-    mapping = dict(cfg_imu.get("columns") or {})
+    mapping = dict(cfg_imu.columns)
     inverse = {v: k for k, v in mapping.items()}
     known = {inverse.get(c, c) for c in header}
-    ignored = set(cfg_imu.get("ignore_columns") or [])
+    ignored = set(cfg_imu.ignore_columns)
     unknown = [c for c in header if inverse.get(c, c) not in IMU_NAMES and c not in ignored]
     if unknown:
         raise SinsError(f"{path}: unknown column(s) {name_list(unknown)}; expected time with "
@@ -122,23 +122,23 @@ def check_time(path, time, allow_gaps=False, what="time", warn_gaps=True):
     TimeChecker(path, allow_gaps, f"column '{what}'", warn_gaps=warn_gaps).check(np.asarray(time, dtype=float), 2)
 
 
-def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=STREAM_BLOCK, limits=None):
+def iter_imu_csv(path, cfg: ImuSection | None = None, allow_gaps=False, block_bytes=STREAM_BLOCK,
+                 limits: Limits | None = None):
     """Stream an IMU CSV (either form) as :class:`ImuLog` blocks of increments, SI units, body axes.
 
-    ``cfg`` is the config's ``imu`` section (column mapping, units, mounting), ``limits`` its
-    ``limits`` section (default: the defaults): rates, forces and the rates an increment implies
+    ``cfg`` is the config's ``imu`` section (column mapping, units, mounting; default: the defaults),
+    ``limits`` its ``limits`` section (default: the defaults): rates, forces and the rates an increment implies
     beyond them are refused naming the line and column.
     Rate logs carry their last sample into the next block, so the increments
     are the same as for the whole file at once.
     """
-    from ..config import DEFAULTS
-    cfg_imu = cfg if cfg is not None else DEFAULTS["imu"]
-    lim = limits_mod.resolve(limits)
+    cfg_imu = cfg if cfg is not None else ImuSection()
+    lim = limits if limits is not None else Limits()
     path = Path(path)
     header = read_header(path)
     form, cols = _resolve_columns(path, header, cfg_imu)
-    units = {**DEFAULTS["imu"]["units"], **(cfg_imu.get("units") or {})}
-    c_sb = mounting_matrix(cfg_imu.get("mounting"))
+    units = cfg_imu.units
+    c_sb = mounting_matrix(cfg_imu.mounting)
     checker = TimeChecker(path, allow_gaps, what=f"column '{cols['time']}'")
     value_cols = [cols[c] for c in (RATE_COLS if form == "rates" else INC_COLS)]
     last = None       # last rate sample (time, gyro, accel) of the previous block
@@ -189,7 +189,7 @@ def concat_imu(blocks) -> ImuLog:
                   np.vstack([b.dvel_b for b in blocks]), t0=first.t0, source=first.source, kind=first.kind)
 
 
-def read_imu_csv(path, cfg=None, allow_gaps=False) -> ImuLog:
+def read_imu_csv(path, cfg: ImuSection | None = None, allow_gaps=False) -> ImuLog:
     """Read a whole IMU CSV into one :class:`ImuLog` (see :func:`iter_imu_csv`)."""
     return concat_imu(iter_imu_csv(path, cfg, allow_gaps))
 

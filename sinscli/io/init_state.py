@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..config import InitSection, Limits, TruthSection
 from ..errors import SinsError, num, quote
 from ..nav.rotation import dcm_to_euler, euler_to_dcm
 from ..types import NavState, time_tolerance
@@ -20,7 +21,8 @@ from ..inputs import input_file, load_yaml
 INIT_KEYS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading"]
 
 
-def read_init(path, t_start: float | None = None, conv: int = 0, limits=None, section=None) -> NavState:
+def read_init(path, t_start: float | None = None, conv: int = 0, limits: Limits | None = None,
+              section: InitSection | TruthSection | None = None) -> NavState:
     """Read the initial state.
 
     A YAML file must hold every key of FORMATS.md (extra keys from ``sins
@@ -62,7 +64,7 @@ def _check_lat(path, lat_deg, where):
                         f"ENU frame is undefined; use --frame launch-inertial")
 
 
-def _read_init_yaml(path: Path, conv: int, lim: dict, frame: str = "enu", to_deg: float = 1.0) -> NavState:
+def _read_init_yaml(path: Path, conv: int, lim: Limits, frame: str = "enu", to_deg: float = 1.0) -> NavState:
     data = load_yaml(path, "init file")
     keys = [file_name(k, frame) for k in INIT_KEYS]
     if not isinstance(data, dict):
@@ -132,8 +134,8 @@ def align_estimates(state: NavState, where, limits=None) -> tuple[dict, dict | N
                 raise SinsError(f"{where}: {k}: expected three numbers [x, y, z], got {quote(v, 60)}")
             vals[k] = np.asarray(v, dtype=np.float64)
         bias = {"gyro": np.radians(vals["gyro_bias"]) / 3600.0, "accel": vals["accel_bias"] * UG}
-        limits_mod.check_abs(where, bias["gyro"], lim["rate"], "gyro bias", "rate", " rad/s", "gyro_bias", row="")
-        limits_mod.check_abs(where, bias["accel"], lim["specific_force"], "accelerometer bias", "specific_force",
+        limits_mod.check_abs(where, bias["gyro"], lim.rate, "gyro bias", "rate", " rad/s", "gyro_bias", row="")
+        limits_mod.check_abs(where, bias["accel"], lim.specific_force, "accelerometer bias", "specific_force",
                              " m/s^2", "accel_bias", row="")
     return sig, bias
 

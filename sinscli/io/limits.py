@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..config import Limits
 from ..errors import SinsError, num, quote
 
 LON_RANGE = 360.0            # deg: longitudes in [-360, 360] (both -180..180 and 0..360 conventions)
@@ -18,12 +19,10 @@ MAX_SIGMA = 1.0e9            # a 1-sigma read from a file (m, m/s, deg ...): pos
                              # stays far from overflow)
 
 
-def resolve(limits: dict | None) -> dict:
-    """The limits to use: the given (validated) section, else the defaults of ``configs/navigation.yaml``."""
-    if limits is None:
-        from ..config import DEFAULTS
-        return DEFAULTS["limits"]
-    return limits
+def resolve(limits: Limits | None) -> Limits:
+    """The limits to use: the config's (validated once, with the config) or, for a library call without
+    a config, the defaults of ``configs/navigation.yaml``."""
+    return limits if limits is not None else Limits()
 
 
 def _loc(row: str, k: int, column) -> str:
@@ -94,20 +93,20 @@ def check_sigma(where, values, column=None, first=0, row: str = "line", hint: st
     raise SinsError(f"{where}{_loc(row, _row(first, k), column)}: {what}{hint}")
 
 
-def check_imu_rates(where, gyro, accel, lim: dict, columns=None, first=0, row: str = "line") -> None:
+def check_imu_rates(where, gyro, accel, lim: Limits, columns=None, first=0, row: str = "line") -> None:
     """Angular rates (rad/s) and specific forces (m/s^2), (N, 3) each, against the limits."""
     gcols, acols = (columns[:3], columns[3:]) if columns is not None else (None, None)
-    check_abs(where, gyro, lim["rate"], "angular rate", "rate", " rad/s", gcols, first, row)
-    check_abs(where, accel, lim["specific_force"], "specific force", "specific_force", " m/s^2", acols, first, row)
+    check_abs(where, gyro, lim.rate, "angular rate", "rate", " rad/s", gcols, first, row)
+    check_abs(where, accel, lim.specific_force, "specific force", "specific_force", " m/s^2", acols, first, row)
 
 
-def check_imu_increments(where, dt, dtheta, dvel, lim: dict, columns=None, first=0, row: str = "line") -> None:
+def check_imu_increments(where, dt, dtheta, dvel, lim: Limits, columns=None, first=0, row: str = "line") -> None:
     """Increments over intervals ``dt`` (s, > 0), (N, 3) each: the rate and specific force they imply."""
     dt = np.asarray(dt, dtype=np.float64)
     for inc, key, what, unit, cols in ((dtheta, "rate", "angular rate", " rad", columns and columns[:3]),
                                        (dvel, "specific_force", "specific force", " m/s", columns and columns[3:])):
         inc = np.asarray(inc, dtype=np.float64)
-        ok = np.abs(inc) <= lim[key] * dt[:, None]
+        ok = np.abs(inc) <= getattr(lim, key) * dt[:, None]
         if ok.all():
             continue
         bad = ~ok
@@ -115,34 +114,34 @@ def check_imu_increments(where, dt, dtheta, dvel, lim: dict, columns=None, first
         j = int(np.argmax(bad[k]))
         raise SinsError(f"{where}{_loc(row, _row(first, k), cols[j] if cols else None)}: increment {num(inc[k, j])}"
                         f"{unit} over {dt[k]:.6g} s implies an {what} beyond the physical limit "
-                        f"{num(lim[key])}{unit}/s (the config's limits.{key})")
+                        f"{num(getattr(lim, key))}{unit}/s (the config's limits.{key})")
 
 
-def check_time(where, time, lim: dict, column=None, first=0, row: str = "line") -> None:
+def check_time(where, time, lim: Limits, column=None, first=0, row: str = "line") -> None:
     """Time stamps (s) within the limit; a stamp that fits once read as milli-, micro- or nanoseconds says so."""
     t = np.asarray(time, dtype=np.float64)
-    ok = np.abs(t) <= lim["time"]
+    ok = np.abs(t) <= lim.time
     if ok.all():
         return
     k = int(np.argmax(~ok))
     from .timebase import SCALES
-    unit = next((u for scale, u in SCALES if abs(t[k]) / scale <= lim["time"]), None)
+    unit = next((u for scale, u in SCALES if abs(t[k]) / scale <= lim.time), None)
     hint = f"; it looks like {unit}, but time stamps are seconds" if unit else ""
-    _refuse(where, row, _row(first, k), column, "time stamp", t[k], lim["time"], " s", "time", hint)
+    _refuse(where, row, _row(first, k), column, "time stamp", t[k], lim.time, " s", "time", hint)
 
 
-def check_position(where, lat_deg, lon_deg, height, lim: dict, columns=("lat", "lon", "height"), first=0,
+def check_position(where, lat_deg, lon_deg, height, lim: Limits, columns=("lat", "lon", "height"), first=0,
                    row: str = "line") -> None:
     """Latitude in [-90, 90] deg, longitude in [-360, 360] deg, height in the limits' range (m)."""
     check_range(where, lat_deg, -90.0, 90.0, "latitude", None, " deg", columns[0], first, row)
     check_range(where, lon_deg, -LON_RANGE, LON_RANGE, "longitude", None, " deg", columns[1], first, row)
-    check_range(where, height, lim["height_min"], lim["height_max"], "height", "height_min/height_max", " m",
+    check_range(where, height, lim.height_min, lim.height_max, "height", "height_min/height_max", " m",
                 columns[2], first, row)
 
 
-def check_velocity(where, vel, lim: dict, columns=None, first=0, row: str = "line") -> None:
+def check_velocity(where, vel, lim: Limits, columns=None, first=0, row: str = "line") -> None:
     """Velocity components (m/s), (N, 3), against the speed limit (each component and the norm)."""
     v = np.asarray(vel, dtype=np.float64)
-    check_abs(where, v, lim["speed"], "velocity", "speed", " m/s", columns, first, row)
-    check_abs(where, np.linalg.norm(v, axis=1), lim["speed"], "speed", "speed", " m/s",
+    check_abs(where, v, lim.speed, "velocity", "speed", " m/s", columns, first, row)
+    check_abs(where, np.linalg.norm(v, axis=1), lim.speed, "speed", "speed", " m/s",
               None if columns is None else "/".join(columns), first, row)

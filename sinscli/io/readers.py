@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..config import Config, mounting_matrix
 from ..errors import SinsError
 from ..types import BodyVelLog, GnssLog, ImuLog
 from .imu_csv import apply_mounting, concat_imu, iter_imu_csv
@@ -16,10 +17,10 @@ def _is_log(path) -> bool:
     return is_log(path)
 
 
-def iter_imu(path, cfg: dict, allow_gaps: bool = False):
-    """IMU blocks from a CSV file or a ROS/MCAP log (``cfg`` is the whole validated config);
+def iter_imu(path, cfg: Config, allow_gaps: bool = False):
+    """IMU blocks from a CSV file (the ``imu`` section) or a ROS/MCAP log (the ``ros`` section);
     ``imu.time_offset`` (s) is added to their times (the output is then on the GNSS clock)."""
-    offset = float(cfg["imu"].get("time_offset", 0.0))
+    offset = cfg.imu.time_offset
     for block in _iter_imu(Path(path), cfg, allow_gaps):
         if offset:
             block.time = block.time + offset
@@ -28,48 +29,47 @@ def iter_imu(path, cfg: dict, allow_gaps: bool = False):
         yield block
 
 
-def _iter_imu(path: Path, cfg: dict, allow_gaps: bool):
+def _iter_imu(path: Path, cfg: Config, allow_gaps: bool):
     if not path.exists():
         raise SinsError(f"{path}: file not found")
     if _is_log(path):
-        from ..config import mounting_matrix
         from .ros import read_imu as read_ros_imu
-        ros = cfg["ros"]
-        imu = read_ros_imu(path, topic=ros.get("imu_topic"), time_source=ros.get("time", "header"),
-                           allow_gaps=allow_gaps, limits=cfg.get("limits"))
-        yield apply_mounting(imu, mounting_matrix(cfg["imu"].get("mounting")))
+        ros = cfg.ros
+        imu = read_ros_imu(path, topic=ros.imu_topic, time_source=ros.time, allow_gaps=allow_gaps,
+                           limits=cfg.limits)
+        yield apply_mounting(imu, mounting_matrix(cfg.imu.mounting))
         return
-    yield from iter_imu_csv(path, cfg["imu"], allow_gaps, limits=cfg.get("limits"))
+    yield from iter_imu_csv(path, cfg.imu, allow_gaps, limits=cfg.limits)
 
 
-def read_imu(path, cfg: dict, allow_gaps: bool = False) -> ImuLog:
+def read_imu(path, cfg: Config, allow_gaps: bool = False) -> ImuLog:
     """A whole IMU log in memory (for alignment and tests)."""
     return concat_imu(iter_imu(path, cfg, allow_gaps))
 
 
-def read_gnss(path, cfg: dict) -> GnssLog:
+def read_gnss(path, cfg: Config) -> GnssLog:
     """A GNSS log from a CSV file or a ROS/MCAP log; ``gnss.time_offset`` (s) is added to its times."""
     path = Path(path)
     if not path.exists():
         raise SinsError(f"{path}: file not found")
     if _is_log(path):
         from .ros import read_gnss as read_ros_gnss
-        ros = cfg["ros"]
-        gnss = read_ros_gnss(path, topic=ros.get("gnss_topic"), vel_topic=ros.get("vel_topic"),
-                             time_source=ros.get("time", "header"), limits=cfg.get("limits"))
+        ros = cfg.ros
+        gnss = read_ros_gnss(path, topic=ros.gnss_topic, vel_topic=ros.vel_topic, time_source=ros.time,
+                             limits=cfg.limits)
     else:
         from .gnss_csv import read_gnss_csv
-        gnss = read_gnss_csv(path, cfg["gnss"], limits=cfg.get("limits"))
-    offset = float(cfg["gnss"].get("time_offset", 0.0))
+        gnss = read_gnss_csv(path, cfg.gnss, limits=cfg.limits)
+    offset = cfg.gnss.time_offset
     if offset:
         gnss.time = gnss.time + offset
     return gnss
 
 
-def read_body_velocity(path, cfg: dict) -> BodyVelLog:
+def read_body_velocity(path, cfg: Config) -> BodyVelLog:
     """Body velocity (odometry) from a body-velocity CSV or a ROS/MCAP log's Odometry topic.
 
-    ``cfg`` is the whole validated config: ``odometry`` (CSV columns, frame), ``imu`` (body convention,
+    ``cfg`` is the validated config: ``odometry`` (CSV columns, frame), ``imu`` (body convention,
     mounting) and ``ros`` (``odom_topic``, ``imu_topic``, ``time``) sections.  The result is in the body
     axes of the convention in force (``imu.body``), after the mounting where the velocity is given in the
     IMU's sensor axes (docs/io_formats.md).
@@ -78,14 +78,12 @@ def read_body_velocity(path, cfg: dict) -> BodyVelLog:
     if not path.exists():
         raise SinsError(f"{path}: file not found")
     if _is_log(path):
-        from ..config import mounting_matrix
         from ..nav.rotation import BODY_CONVENTIONS
         from .ros.odometry import read_body_velocity as read_ros_body_velocity
-        ros = cfg["ros"]
-        return read_ros_body_velocity(path, topic=ros.get("odom_topic"), time_source=ros.get("time", "header"),
-                                      mounting=mounting_matrix(cfg["imu"].get("mounting")),
-                                      conv=BODY_CONVENTIONS[cfg["imu"]["body"]],
-                                      frame=cfg["odometry"].get("frame", "auto"), imu_topic=ros.get("imu_topic"),
-                                      limits=cfg.get("limits"))
+        ros = cfg.ros
+        return read_ros_body_velocity(path, topic=ros.odom_topic, time_source=ros.time,
+                                      mounting=mounting_matrix(cfg.imu.mounting),
+                                      conv=BODY_CONVENTIONS[cfg.imu.body], frame=cfg.odometry.frame,
+                                      imu_topic=ros.imu_topic, limits=cfg.limits)
     from .body_vel_csv import read_body_velocity_csv
-    return read_body_velocity_csv(path, cfg)
+    return read_body_velocity_csv(path, cfg.odometry, cfg.imu, cfg.limits)

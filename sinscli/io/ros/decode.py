@@ -32,6 +32,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ...conventions import ROS_TIMES
 from ...errors import SinsError
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
@@ -40,7 +41,7 @@ ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
 TWIST_TYPES = ("geometry_msgs/msg/TwistStamped", "geometry_msgs/msg/TwistWithCovarianceStamped")
 VEL_TYPES = TWIST_TYPES                          # GNSS velocity, ENU (a GNSS receiver's twist)
 BODY_VEL_TYPES = (ODOMETRY_TYPE,) + TWIST_TYPES  # body velocity (odometry): twist in the child / header frame
-TIME_SOURCES = ("header", "log")
+TIME_SOURCES = ROS_TIMES      # ros.time, sins convert --time (sinscli.conventions)
 
 N_VALUES = 37                       # float64 fields after the header
 ORIENTATION = slice(0, 4)           # x, y, z, w
