@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import SinsError, num, quote
+from . import schema as sc
+from .errors import SinsError
 from .inputs import load_yaml, parse_yaml
 from .units import ARCSEC, DEG_PER_H, DEG_PER_SQRT_H, G0, PPM, UG  # noqa: F401  (G0: sensors.G0 of fusion/)
 
@@ -70,25 +71,24 @@ def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path, key: str
         if not preset and not path.is_absolute():
             path = base_dir / path
         if not preset and not path.exists():
-            raise SinsError(f"{src}: {key}: no sensor preset or file {spec!r} "
-                            f"(presets: {', '.join(PRESETS)})")
+            sc.fail(src, key, f"no sensor preset or file {spec!r} (presets: {', '.join(PRESETS)})")
         data = (parse_yaml(preset_text(spec), str(path)) if preset else load_yaml(path, "sensor file")) or {}
         where = str(path)
         if not isinstance(data, dict):
             raise SinsError(f"{path}: expected a mapping with 'gyro' and 'accel'")
     else:
-        raise SinsError(f"{src}: {key}: expected a preset name, a file or a mapping; got {spec!r}")
+        sc.expected(src, key, "a preset name, a file or a mapping", spec)
     out = {}
     for which, units in (("gyro", GYRO_UNITS), ("accel", ACCEL_UNITS)):
         for part, name in ((data.get(which), where), ((overrides or {}).get(which), src)):
             if part is not None and not isinstance(part, dict):
-                raise SinsError(f"{name}: {which}: expected a mapping of error terms, got {quote(part, 40)}")
+                sc.expected(name, which, "a mapping of error terms", part)
         merged = dict(data.get(which) or {})
         merged.update((overrides or {}).get(which) or {})
         out[which] = _convert(merged, units, where, which)
     for k in data:
         if k not in ("gyro", "accel", "name", "description"):
-            raise SinsError(f"{where}: {k}: unknown key; expected gyro, accel, name, description")
+            sc.fail(where, k, "unknown key; expected one of accel, description, gyro, name")
     return out
 
 
@@ -100,24 +100,24 @@ def _convert(d: dict, units: dict, where: str, which: str) -> dict:
     out = {}
     for k, v in d.items():
         if k not in units:
-            raise SinsError(f"{where}: {which}.{k}: unknown key; expected one of {', '.join(units)}")
+            sc.fail(where, f"{which}.{k}", f"unknown key; expected one of {', '.join(units)}")
         n = 6 if k.startswith("misalignment") else 3
         if isinstance(v, (list, tuple)):
             if len(v) != n or not all(_number(x) for x in v):
-                raise SinsError(f"{where}: {which}.{k}: expected {n} numbers or one; got {quote(v, 60)}")
+                sc.expected(where, f"{which}.{k}", f"{n} numbers or one", v)
             arr = np.array(v, dtype=float)
         elif _number(v):
             arr = np.full(n, float(v))
         else:
-            raise SinsError(f"{where}: {which}.{k}: expected a number; got {quote(v, 60)}")
+            sc.expected(where, f"{which}.{k}", "a number", v)
         if not np.all(np.abs(arr) <= MAX_VALUE):
-            raise SinsError(f"{where}: {which}.{k}: {num(arr[np.argmax(~(np.abs(arr) <= MAX_VALUE))])} is beyond "
-                            f"+-{MAX_VALUE:g}")
+            sc.expected(where, f"{which}.{k}", f"numbers within +-{MAX_VALUE:g}",
+                        arr[np.argmax(~(np.abs(arr) <= MAX_VALUE))])
         if k in ("bias_tau",) and np.any(arr < MIN_TAU):
-            raise SinsError(f"{where}: {which}.{k}: must be at least {MIN_TAU:g} s")
+            sc.expected(where, f"{which}.{k}", f"at least {MIN_TAU:g} s", float(np.min(arr)))
         if (k.endswith("sigma") or k in ("arw", "vrw", "bias_instability", "quantization")) and np.any(arr < 0):
-            raise SinsError(f"{where}: {which}.{k}: must be >= 0")
+            sc.expected(where, f"{which}.{k}", "numbers >= 0", float(np.min(arr)))
         out[k] = arr * units[k]
     if "bias_instability" in out and "bias_tau" not in out:
-        raise SinsError(f"{where}: {which}.bias_tau: required with bias_instability (s)")
+        sc.fail(where, f"{which}.bias_tau", "required with bias_instability (s)")
     return out

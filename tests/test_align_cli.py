@@ -152,7 +152,7 @@ def test_short_interval_runs_with_a_warning_naming_the_recommended_length(data, 
     assert res.exit_code == 0 and "warning" not in res.output, res.output
     cfg.write_text(yaml.safe_dump({"align": {"min_duration": {"inertial": -1}}}))
     _bad(["align", imu, "--config", cfg, "--position", "30,114,50", "-o", tmp_path / "x.yaml"], tmp_path / "x.yaml",
-         "align.min_duration.inertial: must be >= 0")
+         "key align.min_duration.inertial: expected a number >= 0, got -1")
 
 
 def _bad(args, out, *expect):

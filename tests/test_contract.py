@@ -339,9 +339,9 @@ def _fused(data, tmp_path, *extra, gnss=None, init=INIT):
     ("fusion:\n  standstill: {window: 1.0e+30}\n", ["fusion.standstill.window"]),
     ("fusion:\n  rejection_run: 9223372036854775807\n", ["fusion.rejection_run", "from 1 to 2147483647"]),
     ("fusion:\n  gnss_vel_sigma: .inf\n", ["c.yaml: line 2", "fusion.gnss_vel_sigma: '.inf' is not a finite"]),
-    ("fusion:\n  sensor: {gyro: {arw: [a, b, c]}}\n", ["c.yaml: gyro.arw: expected 3 numbers or one"]),
-    ("fusion:\n  sensor: {gyro: {arw: 1.0e+300}}\n", ["gyro.arw: 1e+300 is beyond +-1e+09"]),
-    ("fusion:\n  sensor: {gyro: [1, 2]}\n", ["gyro: expected a mapping of error terms"]),
+    ("fusion:\n  sensor: {gyro: {arw: [a, b, c]}}\n", ["c.yaml: key gyro.arw: expected 3 numbers or one, got ['a', 'b', 'c']"]),
+    ("fusion:\n  sensor: {gyro: {arw: 1.0e+300}}\n", ["key gyro.arw: expected numbers within +-1e+09, got 1e+300"]),
+    ("fusion:\n  sensor: {gyro: [1, 2]}\n", ["key gyro: expected a mapping of error terms, got [1, 2]"]),
     ("gnss:\n  time_offset: 1.0e+300\n", ["c.yaml: key gnss.time_offset", "limits.time"]),
 ])
 def test_fusion_config_values_that_cannot_be_physical(data, tmp_path, text, fragments):

@@ -200,7 +200,7 @@ def predicted_noise_statistic(signal_rate, dt, density, quant, m, seed=0):
     ``density`` and carried quantization ``quant`` (per count) measuring the noise-free rate
     ``signal_rate`` (n, 3): the described errors added to it and put through the same estimator (the
     quantization's share depends on the signal, so it is simulated rather than written in closed form)."""
-    from ..sim.errors import quantize
+    from ..sim.errors import quantize  # sim/__init__ loads the whole simulator: only for a described quantization
     dt = np.asarray(dt, dtype=float)
     rng = np.random.default_rng(seed + 0x5EED)
     syn = np.asarray(signal_rate, dtype=float) * dt[:, None] + float(density) * np.sqrt(dt)[:, None] * \

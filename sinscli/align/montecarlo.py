@@ -35,7 +35,7 @@ from ..nav.earth import gravity
 from ..nav.rotation import dcm_to_euler_many
 from ..types import time_tolerance
 from . import observability
-from .options import SensorSpec, build_options, from_sensor, merge_section
+from .options import AlignOptions, SensorSpec, build_options, from_sensor, merge_section
 from .pipeline import align
 from .sway import ScenarioRuns, load_align_scenario, prepare_scenario
 
@@ -408,7 +408,6 @@ def coverage_runs(scenario: dict, methods, seeds, cases=("right", "absent", "opt
     description: ``right`` (the one the runs are drawn from), ``absent``, ``optimistic`` (every figure
     ten times too small).  Returns ``{(method, case): Coverage}``; ``align_kw`` are
     :class:`~sinscli.align.options.AlignOptions` fields (``position`` defaults to the start)."""
-    from .options import AlignOptions
     prepared = prepare_scenario(copy.deepcopy(scenario), sway, "coverage", None)
     sc = prepared.scenario
     runs = ScenarioRuns(prepared)

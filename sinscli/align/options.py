@@ -10,15 +10,19 @@ from __future__ import annotations
 import copy
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from .. import config as config_mod
+from .. import schema as sc
+from ..conventions import ALIGN_EPOCHS, ALIGN_METHODS, CONING_ORDERS
 from ..errors import SinsError
+from ..sensors import load_sensor
 from ..units import DEG, UG_DECIMAL as UG
 
-METHODS = ("static", "inertial", "gnss-inertial", "kf")
-EPOCHS = ("end", "start")
+METHODS = ALIGN_METHODS
+EPOCHS = ALIGN_EPOCHS
 VECTORS = ("auto", "cumulative", "increments")
 COARSE_METHODS = ("auto", "static", "inertial", "gnss-inertial")
 # Recommended shortest interval of each method, s (``align.min_duration.<method>``): the static mean
@@ -165,56 +169,33 @@ class AlignOptions:
     kf_vel_sigma: float | None = None
 
 
+# the one validator family (sinscli.schema), keys under ``align.``
 def _fail(src, key, msg):
-    raise SinsError(f"{src}: align.{key}: {msg}")
+    sc.fail(src, f"align.{key}", msg)
 
 
 def _num(src, key, v, *, gt=None, ge=None, allow_none=True):
     if v is None and allow_none:
         return None
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        _fail(src, key, f"expected a number, got {v!r}")
-    if gt is not None and not v > gt:
-        _fail(src, key, f"must be > {gt:g}, got {v!r}")
-    if ge is not None and not v >= ge:
-        _fail(src, key, f"must be >= {ge:g}, got {v!r}")
-    return float(v)
+    return sc.number(src, f"align.{key}", v, gt=gt, ge=ge, limit=math.inf)     # log times can be UNIX seconds
 
 
 def _choice(src, key, v, choices):
-    if v not in choices:
-        _fail(src, key, f"expected one of {', '.join(choices)}, got {v!r}")
-    return v
+    return sc.choice(src, f"align.{key}", v, choices)
 
 
 def _flag(src, key, v):
-    if not isinstance(v, bool):
-        _fail(src, key, f"expected true or false, got {v!r}")
-    return v
+    return sc.boolean(src, f"align.{key}", v)
 
 
 def merge_section(section, src: str) -> dict:
     """The defaults overlaid with a user ``align:`` mapping (unknown keys refused)."""
     out = copy.deepcopy(ALIGN_DEFAULTS)
-    if section is None:
-        return out
-    if not isinstance(section, dict):
-        raise SinsError(f"{src}: align: expected a mapping of alignment keys")
-    for k, v in section.items():
-        if k not in out:
-            _fail(src, k, f"unknown key; expected one of {', '.join(sorted(out))}")
+    for k, v in sc.mapping(src, "align", section, out).items():
         if k == "sensor" and (isinstance(v, str) or (isinstance(v, dict) and set(v) & {"gyro", "accel"})):
             out[k] = v                 # a preset name, a sensor YAML path or an inline sensor mapping
-            continue
-        if isinstance(out[k], dict):
-            if v is None:
-                continue
-            if not isinstance(v, dict):
-                _fail(src, k, f"expected a mapping with keys {', '.join(out[k])}")
-            for kk, vv in v.items():
-                if kk not in out[k]:
-                    _fail(src, f"{k}.{kk}", f"unknown key; expected one of {', '.join(out[k])}")
-                out[k][kk] = vv
+        elif isinstance(out[k], dict):
+            out[k].update(sc.mapping(src, f"align.{k}", v, out[k]))
         else:
             out[k] = v
     return out
@@ -246,9 +227,7 @@ def sensor_spec(v, src: str, base_dir=None) -> SensorSpec:
     """The ``align.sensor`` value as a :class:`SensorSpec`: the legacy mapping (deg/h, deg/sqrt(h),
     micro-g, micro-g/sqrt(Hz)), or a preset name, a sensor YAML path (relative to ``base_dir``) or an
     inline mapping in the sensor YAML schema, all read by :func:`sinscli.sensors.load_sensor`."""
-    from pathlib import Path
 
-    from ..sensors import load_sensor
     if isinstance(v, str) or (isinstance(v, dict) and set(v) & {"gyro", "accel"}):
         base = Path(base_dir) if base_dir is not None else Path(".")
         sensor = load_sensor(v, None, src, base, key="align.sensor")
@@ -266,15 +245,10 @@ def sensor_spec(v, src: str, base_dir=None) -> SensorSpec:
 def build_options(d: dict, src: str, conv: int = 0, lever_arm=None, base_dir=None) -> AlignOptions:
     """:class:`AlignOptions` from a merged ``align`` mapping (see :func:`merge_section`); ``base_dir``:
     where a relative sensor YAML path is looked up (the config file's folder)."""
-    method = d["method"]
-    if method not in METHODS:
-        _fail(src, "method", f"expected one of {', '.join(METHODS)}, got {method!r}")
-    sc, co, kf = d["static_check"], d["course"], d["kf"]
-    if kf["coarse"] not in COARSE_METHODS:
-        _fail(src, "kf.coarse", f"expected one of {', '.join(COARSE_METHODS)}, got {kf['coarse']!r}")
-    coning = d["coning"]
-    if coning not in (1, 2, 3, 4) or isinstance(coning, bool):
-        _fail(src, "coning", f"expected 1, 2, 3 or 4, got {coning!r}")
+    method = _choice(src, "method", d["method"], METHODS)
+    st, co, kf = d["static_check"], d["course"], d["kf"]
+    kf_coarse = _choice(src, "kf.coarse", kf["coarse"], COARSE_METHODS)
+    coning = _choice(src, "coning", d["coning"], CONING_ORDERS)
 
     def scaled(key, v, unit, **kw):
         x = _num(src, key, v, **kw)
@@ -301,13 +275,13 @@ def build_options(d: dict, src: str, conv: int = 0, lever_arm=None, base_dir=Non
                               allow_none=False) for m in METHODS},
         motion_displacement=_num(src, "motion_check.displacement", d["motion_check"]["displacement"], gt=0.0,
                                  allow_none=False),
-        static_rate=scaled("static_check.rate", sc["rate"], DEG, gt=0.0, allow_none=False),
-        static_accel=_num(src, "static_check.accel", sc["accel"], gt=0.0, allow_none=False),
-        static_block=_num(src, "static_check.block", sc["block"], gt=0.0, allow_none=False),
+        static_rate=scaled("static_check.rate", st["rate"], DEG, gt=0.0, allow_none=False),
+        static_accel=_num(src, "static_check.accel", st["accel"], gt=0.0, allow_none=False),
+        static_block=_num(src, "static_check.block", st["block"], gt=0.0, allow_none=False),
         max_heading_sigma=scaled("max_heading_sigma", d["max_heading_sigma"], DEG, gt=0.0, allow_none=False),
         course_min_speed=_num(src, "course.min_speed", co["min_speed"], gt=0.0, allow_none=False),
         course_sigma_floor=scaled("course.sigma_floor", co["sigma_floor"], DEG, ge=0.0, allow_none=False),
-        kf_coarse=kf["coarse"],
+        kf_coarse=kf_coarse,
         kf_coarse_duration=_num(src, "kf.coarse_duration", kf["coarse_duration"], gt=0.0),
         kf_update_interval=_num(src, "kf.update_interval", kf["update_interval"], gt=0.0, allow_none=False),
         kf_zupt_sigma=_num(src, "kf.zupt_sigma", kf["zupt_sigma"], gt=0.0, allow_none=False),

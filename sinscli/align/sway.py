@@ -104,6 +104,7 @@ def load_align_scenario(path) -> tuple[dict, dict | None, dict | None, str, Path
 
 def prepare_scenario(sim_part: dict, sway: dict | None, src: str, base_dir: Path, duration=None):
     """A :class:`sinscli.sim.run.Prepared` scenario, with the sway primitive when ``sway`` is given."""
+    # the simulator (sim/__init__ loads all of it) only for the scenario runs of sins align --monte-carlo
     from ..sim.run import prepare
     from ..sim.scenario import validate
 
@@ -128,6 +129,7 @@ class ScenarioRuns:
     """
 
     def __init__(self, prepared, progress=None):
+        # the simulator (sim/__init__ loads all of it) only for the scenario runs of sins align --monte-carlo
         from ..sim import truth as truth_mod
         from ..sim.imu_synth import GRAVITY_MODELS
 
@@ -138,6 +140,6 @@ class ScenarioRuns:
                                      progress=progress, t0=sc.t0)
 
     def run(self, seed: int, perfect: bool = False):
-        from ..sim.run import assemble
+        from ..sim.run import assemble  # the simulator only for the runs of sins align --monte-carlo
         sensor = {} if perfect else self.p.sensor
         return assemble(self.p.scenario, self.td, self.p.tau_gnss, sensor, seed, perfect)

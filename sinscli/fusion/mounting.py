@@ -38,6 +38,7 @@ from ..nav.rotation import conv_to_flu
 from ..types import GnssLog, ImuLog, Trajectory
 from ..units import DEG, G0, MG
 from .standstill import StandstillDetector, gnss_still
+from ..config import mounting_matrix
 
 MIN_MOVING = 30.0          # s of motion faster than MIN_SPEED at least
 MIN_SPEED = 0.5            # m/s
@@ -270,7 +271,6 @@ def refine(est: MountingEstimate, traj: Trajectory, conv: int, min_speed: float 
     if not better.any():
         return est
     rpy = np.where(better, rpy_new, est.rpy)
-    from ..config import mounting_matrix
     C = mounting_matrix({"roll": float(rpy[0]), "pitch": float(rpy[1]), "yaw": float(rpy[2])})
     kept = [n for n, b in zip(("roll", "pitch", "yaw"), better) if b]
     return MountingEstimate(C, mounting_angles(C), np.where(better, sig, est.sigma),

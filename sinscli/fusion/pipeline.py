@@ -32,6 +32,7 @@ from .summary import (FusionSummary, clock, exit_fixes, fix_residuals, ground_ve
                       outages, standstill_intervals)
 from .options import FusionOptions
 from .standstill import StandstillDetector, gnss_still
+from .smoother import smooth_rows
 
 log = logging.getLogger("sins")
 
@@ -629,7 +630,6 @@ class Fusion:
 
     def smoothed(self) -> Trajectory:
         """The RTS-smoothed trajectory at the forward output rows (the forward rows are consumed)."""
-        from .smoother import smooth_rows
         traj = concat([r[0] for r in self.forward_rows])
         var = np.concatenate([r[1] for r in self.forward_rows])
         bias = np.concatenate([r[2] for r in self.forward_rows])

@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..nav.earth import local_en
+
 
 @njit(cache=True)
 def rest_windows(t, dth, dv, t_start, window, rate_std, accel_std, accel_mag, g, lowpass, out):
@@ -189,7 +191,6 @@ def gnss_still(gnss, t0, t1, min_span: float = 10.0):
         for k in np.nonzero(have)[0]:
             out[k] = 0 if cm[j[k] + 1] - cm[i[k]] > 0 else 1
         return out
-    from ..nav.earth import local_en
     e, n = local_en(gnss.lat, gnss.lon, gnss.height)
     sp = gnss.position_sigma([1.5, 1.5, 3.0])
     sh = np.hypot(sp[:, 0], sp[:, 1]) / np.sqrt(2.0)

@@ -11,11 +11,16 @@ reading"): a written stamp is ``true time + offset``, so the config value ``-off
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
+import yaml
 
 from ..config import mounting_angles
+from ..io.atomic import atomic_path
+from ..io.body_vel_csv import write_body_velocity_csv
+from ..io.imu_csv import write_imu_csv, write_imu_rates_csv
 from ..nav.rotation import conv_to_flu
 from ..sensors import ACCEL_UNITS, GYRO_UNITS
 from ..types import BodyVelLog
@@ -166,7 +171,6 @@ def sim_record(res, vibration=None) -> dict:
 
 def write_imu_log(path, res) -> None:
     """``imu.csv`` as the scenario asks: increments or rates, at the true or the written stamps."""
-    from ..io.imu_csv import write_imu_csv, write_imu_rates_csv
     stamps = res.imu_stamps
     if res.imu_rates is not None:
         r = res.imu_rates
@@ -174,20 +178,14 @@ def write_imu_log(path, res) -> None:
     elif stamps is None:
         write_imu_csv(path, res.imu)
     else:
-        from dataclasses import replace
         write_imu_csv(path, replace(res.imu, time=stamps[1:]))
 
 
 def write_odometry(path, bv: BodyVelLog) -> None:
-    from ..io.body_vel_csv import write_body_velocity_csv
     write_body_velocity_csv(path, bv)
 
 
 def write_record(path, record: dict) -> None:
     """``sim_truth.yaml``, atomically (every number finite by construction)."""
-    import yaml
-    from pathlib import Path
-
-    from ..io.atomic import atomic_path
     with atomic_path(path) as tmp:
         Path(tmp).write_text(yaml.safe_dump(record, sort_keys=False, default_flow_style=None))

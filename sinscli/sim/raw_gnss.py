@@ -29,6 +29,11 @@ from ..gnss.model import azel, ecef_to_geodetic, group_delay
 from ..gnss.observations import ObsData
 from ..gnss.orbits import earth_rate, sat_state
 from ..gnss.signals import C_LIGHT, SYS_BDS, SYS_CHARS, SYS_GAL, SYS_GPS, SYS_QZS, frequency, sys_index
+from ..io.atomic import atomic_path
+from ..io.csvcore import write_table_csv
+from ..io.rinex import read_nav, write_nav, write_obs
+from ..nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef
+from .gnss import antenna_truth
 
 # signals written per system: (first frequency codes, second frequency codes), each C, L, D, S
 SIGNALS = {SYS_GPS: ("1C", "2W"), SYS_QZS: ("1C", "2L"), SYS_GAL: ("1C", "5Q"), SYS_BDS: ("2I", "7I")}
@@ -269,7 +274,6 @@ def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> Ra
 
 
 def load_nav_for_sim(cfg: dict) -> NavData:
-    from ..io.rinex import read_nav
     return read_nav(cfg["nav"] if cfg.get("nav") else shipped_nav())
 
 
@@ -281,7 +285,6 @@ def default_start(nav: NavData) -> float:
 def static_receiver(lat_deg, lon_deg, height, duration, cfg: dict | None = None, seed: int = 0,
                     nav: NavData | None = None) -> RawSim:
     """A static receiver for ``duration`` s (tests, examples)."""
-    from ..nav.earth import lla_to_ecef
     cfg = check_config(cfg)
     nav = nav if nav is not None else load_nav_for_sim(cfg)
     t0 = float(cfg["gps_start"]) if cfg["gps_start"] is not None else default_start(nav)
@@ -294,7 +297,6 @@ def static_receiver(lat_deg, lon_deg, height, duration, cfg: dict | None = None,
 def from_trajectory(time_rel, lat, lon, h, vel_enu, cfg: dict, seed: int = 0) -> RawSim:
     """Observations along a trajectory (scenario seconds ``time_rel``, radians, m, ENU m/s): epochs at the raw
     rate, the antenna state interpolated (cubic Hermite on ECEF position and velocity) at each true time."""
-    from ..nav.earth import enu_rotation, lla_to_ecef
     cfg = check_config(cfg)
     nav = load_nav_for_sim(cfg)
     t0 = float(cfg["gps_start"]) if cfg["gps_start"] is not None else default_start(nav)
@@ -322,7 +324,6 @@ RAW_FILES = ("obs.rnx", "nav.rnx", "gnss_truth.csv")
 def simulate_from_result(result, cfg: dict, seed: int = 0) -> RawSim:
     """Raw observations of the antenna of a ``sins simulate`` run (:class:`sinscli.sim.run.SimResult`): the
     antenna truth of its GNSS fixes' model (lever arm included) at the IMU times, resampled at the raw rate."""
-    from .gnss import antenna_truth
     tr = result.truth
     lever = (result.scenario.gnss.get("lever_arm", [0.0, 0.0, 0.0]) if result.scenario is not None
              else [0.0, 0.0, 0.0])
@@ -342,10 +343,6 @@ def simulate_from_result(result, cfg: dict, seed: int = 0) -> RawSim:
 def write_raw(sim: RawSim, outdir) -> list[Path]:
     """``obs.rnx``, ``nav.rnx`` (RINEX 3.04) and ``gnss_truth.csv`` (true GPS time, antenna lat/lon/height,
     ENU velocity, receiver clock bias m and drift m/s) into ``outdir`` (each written atomically)."""
-    from ..io.csvcore import write_table_csv
-    from ..io.atomic import atomic_path
-    from ..io.rinex import write_nav, write_obs
-    from ..nav.earth import ecef_to_lla, enu_rotation
     outdir = Path(outdir)
     write_obs(outdir / "obs.rnx", sim.obs)
     write_nav(outdir / "nav.rnx", sim.nav)

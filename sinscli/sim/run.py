@@ -7,6 +7,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError
+from ..io.atomic import prepare_output
+from ..io.gnss_csv import write_gnss_csv
+from ..io.init_state import write_init_yaml
+from ..io.trajectory import write_trajectory
 from ..nav.rotation import conv_to_flu
 from ..sensors import load_sensor
 from ..types import BodyVelLog, GnssLog, ImuLog, NavState, Trajectory
@@ -14,7 +18,7 @@ from . import truth as truth_mod
 from .errors import apply_imu_errors, gnss_seedseq
 from .gnss import antenna_truth, gnss_times, make_gnss
 from .imu_synth import GRAVITY_MODELS
-from .logs import ImuRates, imu_rates, imu_stamps, odometry_log, sim_record
+from .logs import ImuRates, imu_rates, imu_stamps, odometry_log, sim_record, write_imu_log, write_odometry, write_record
 from .scenario import Scenario, load_scenario
 from .segments import expand
 from .vibration import Vibration, draw_vibration
@@ -145,12 +149,7 @@ def write_sim(result: SimResult, outdir) -> list[Path]:
 
     Each file is written atomically by the project's writers.  Returns the paths.
     """
-    from ..io.gnss_csv import write_gnss_csv
-    from ..io.init_state import write_init_yaml
-    from ..io.trajectory import write_trajectory
-    from .logs import write_imu_log, write_odometry, write_record
 
-    from ..io.atomic import prepare_output
     out = Path(outdir)
     paths = [out / name for name in SIM_FILES] + ([out / "odom.csv"] if result.odometry is not None else [])
     for p in paths:                             # all checked before any is written (e.g. not an input)

@@ -6,14 +6,19 @@ Units in files: degrees, metres, seconds, Hz, m/s, m/s^2 (docs/simulate.md).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .. import schema as sc
+from ..config import mounting_matrix
 from ..errors import SinsError
 from ..inputs import load_yaml
 from ..nav.rotation import BODY_CONVENTIONS
+from ..sensors import ACCEL_UNITS, GYRO_UNITS
+from .gait import Gait
 from .imu_synth import GRAVITY_MODELS
 from .segments import AXES
 
@@ -102,41 +107,22 @@ def load_scenario(scenario) -> Scenario:
     return validate(data, str(path), path.parent)
 
 
+# the one validator family (sinscli.schema): ``SRC: key KEY: MESSAGE``
 def _fail(src, key, msg):
-    raise SinsError(f"{src}: {key}: {msg}")
+    sc.fail(src, key, msg)
 
 
 def _number(src, key, value, *, gt=None, ge=None):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        _fail(src, key, f"expected a number; got {value!r}")
-    v = float(value)
-    if not np.isfinite(v):
-        _fail(src, key, f"expected a finite number; got {value!r}")
-    if gt is not None and not v > gt:
-        _fail(src, key, f"must be > {gt:g}; got {v:g}")
-    if ge is not None and not v >= ge:
-        _fail(src, key, f"must be >= {ge:g}; got {v:g}")
-    return v
+    return sc.number(src, key, value, gt=gt, ge=ge, limit=math.inf)
 
 
 def _vector(src, key, value, n=3, ge=None):
     """A scalar (broadcast) or a list of ``n`` numbers."""
-    if isinstance(value, (list, tuple)):
-        if len(value) != n:
-            _fail(src, key, f"expected {n} numbers; got {len(value)}")
-        return np.array([_number(src, f"{key}[{i}]", v, ge=ge) for i, v in enumerate(value)])
-    return np.full(n, _number(src, key, value, ge=ge))
+    return np.array(sc.vector(src, key, value, n, ge=ge, limit=math.inf))
 
 
 def _mapping(src, key, value, allowed):
-    if value is None:
-        return {}
-    if not isinstance(value, dict):
-        _fail(src, key, f"expected a mapping; got {value!r}")
-    for k in value:
-        if k not in allowed:
-            _fail(src, f"{key}.{k}", f"unknown key {k!r}; expected one of {', '.join(sorted(allowed))}")
-    return value
+    return sc.mapping(src, key, value, allowed)
 
 
 def validate(data: dict, src: str, base_dir: Path) -> Scenario:
@@ -163,13 +149,9 @@ def validate(data: dict, src: str, base_dir: Path) -> Scenario:
     imu = _mapping(src, "imu", data.get("imu"), IMU_KEYS)
     if "rate" not in imu:
         _fail(src, "imu.rate", "required (Hz)")
-    rate = _number(src, "imu.rate", imu["rate"])
-    if rate < 1.0:
-        _fail(src, "imu.rate", f"must be at least 1 Hz; got {rate:g}")
+    rate = _number(src, "imu.rate", imu["rate"], ge=1.0)           # Hz
     overrides = {k: _mapping(src, f"imu.{k}", imu.get(k), _sensor_keys(k)) for k in ("gyro", "accel")}
-    output = imu.get("output", "increments")
-    if output not in IMU_OUTPUTS:
-        _fail(src, "imu.output", f"expected one of {', '.join(IMU_OUTPUTS)}; got {output!r}")
+    output = sc.choice(src, "imu.output", imu.get("output", "increments"), IMU_OUTPUTS)
     jitter = _number(src, "imu.stamp_jitter", imu.get("stamp_jitter", 0.0), ge=0.0)
     if not jitter < 0.5 / rate:
         _fail(src, "imu.stamp_jitter", f"must be below half the IMU interval ({0.5 / rate:g} s) so that the "
@@ -177,7 +159,6 @@ def validate(data: dict, src: str, base_dir: Path) -> Scenario:
     imu_offset = _offset(src, "imu.time_offset", imu.get("time_offset", 0.0))
     mounting = None
     if imu.get("mounting") is not None:
-        from ..config import mounting_matrix
         mounting = mounting_matrix(imu["mounting"], src)
 
     gnss = _gnss(src, _mapping(src, "gnss", data.get("gnss", {}), GNSS_KEYS), rate)
@@ -262,7 +243,6 @@ def _vibration(src, v, imu_rate):
 
 def _gait(src, g):
     """Walker step dynamics (docs/simulate.md): amplitudes at the reference speed."""
-    from .gait import Gait
     speed = _number(src, "gait.speed", g.get("speed", 1.3), gt=0.0)
     surge = _number(src, "gait.surge", g.get("surge", 0.15), ge=0.0)
     if not surge < speed:
@@ -293,7 +273,6 @@ def _odometry(src, o, imu_rate):
 
 
 def _sensor_keys(which):
-    from ..sensors import ACCEL_UNITS, GYRO_UNITS
     return set(GYRO_UNITS if which == "gyro" else ACCEL_UNITS)
 
 

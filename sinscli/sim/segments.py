@@ -39,6 +39,7 @@ from ..errors import SinsError
 from ..nav.rotation import FLU, RFU, conv_to_flu, euler_to_dcm
 from ..units import G0
 from .jets import Jet, axis_rotation, polynomial, stack
+from .gait import gait_terms
 
 HEADING, PITCH, ROLL, SPEED = 0, 1, 2, 3
 G_BANK = G0               # m/s^2, only shapes the coordinated-bank profile
@@ -145,7 +146,6 @@ class Primitive:
         ch, sh, cp, sp = np.cos(hdg), np.sin(hdg), np.cos(pit), np.sin(pit)
         vel = spd.truncate(1)[..., None] * stack([sh * cp, ch * cp, sp], axis=-1)
         if self.gait is not None:
-            from .gait import gait_terms
             rot, dv = gait_terms(self.gait, T * u, self.t_start, spd, hdg, pit)
             cbn = cbn @ rot
             vel = vel + dv
