@@ -3,6 +3,7 @@ numbers are written into messages."""
 from __future__ import annotations
 
 import numbers
+import os
 import re
 
 MAX_MESSAGE = 480        # characters of a message; longer ones are cut (a giant header, a huge value)
@@ -30,6 +31,17 @@ def quote(text, limit: int = 60) -> str:
     """``'text'`` for a message, cut to ``limit`` characters and with unprintable characters escaped."""
     s = repr(str(text))
     return s if len(s) <= limit else s[:limit - 4] + "...'"
+
+
+def printable(text) -> str:
+    """A path (or text) as it is shown in a message or written into a file: a byte of the name that is
+    not UTF-8 (Linux allows any) as ``\\xNN``, so that every text output stays valid UTF-8."""
+    s = os.fspath(text) if isinstance(text, os.PathLike) else str(text)
+    try:
+        s.encode("utf-8")
+        return s
+    except UnicodeEncodeError:
+        return os.fsencode(s).decode("utf-8", "backslashreplace")
 
 
 def num(x) -> str:

@@ -131,6 +131,8 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
         plot_series(plot, res.series.time - res.t0, eul,
                     title=f"Alignment of {Path(imu).name} (--method {res.method}), heading from {res.heading_source}",
                     sigma_deg=np.degrees(res.sigma), final_deg=final, heading_supplied=res.heading_source == "user")
+    from ..io.atomic import commit_outputs
+    commit_outputs()                          # every output in place before the line that names them
     r, p, h = np.degrees(dcm_to_euler_many(res.state.Cbn[None], conv)[0])
     s = np.degrees(res.sigma)
     hs = f"{s[2]:.3g}" if np.isfinite(s[2]) else "unknown"
@@ -162,6 +164,8 @@ def _monte_carlo(scenario, runs, seed, outdir, quiet, jobs, scheduler, resume, f
                              figures=figures, on_progress=bar.update, on_error=on_error, on_info=info_echo(quiet),
                              verbose=log.getEffectiveLevel() <= logging.INFO)
     mc = study.mc
+    from ..io.atomic import commit_outputs
+    commit_outputs()
     if not quiet:
         resumed = f" ({study.resumed} resumed from {outdir}/jobs, {study.ran} run)" if study.resumed else ""
         failed = f", {len(study.failed)} failed" if study.failed else ""

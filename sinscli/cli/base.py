@@ -55,6 +55,27 @@ class Interrupted(KeyboardInterrupt):
         self.signum = int(signum)
 
 
+def _bytes_as_escapes(exc):
+    """Codec error handler: a path byte that is not UTF-8 (held by Python as a surrogate) printed as ``\\xNN``,
+    as :func:`sinscli.errors.printable` writes it into files."""
+    if isinstance(exc, UnicodeEncodeError):
+        bad = exc.object[exc.start:exc.end]
+        return "".join(f"\\x{ord(c) - 0xDC00:02x}" if 0xDC80 <= ord(c) <= 0xDCFF else f"\\u{ord(c):04x}"
+                       for c in bad), exc.end
+    raise exc
+
+
+def _printable_stderr() -> None:
+    """stderr writes a name's non-UTF-8 bytes as ``\\xNN`` (not Python's ``\\udcNN``)."""
+    import codecs
+    try:
+        codecs.lookup_error("sins-bytes")
+    except LookupError:
+        codecs.register_error("sins-bytes", _bytes_as_escapes)
+    with contextlib.suppress(AttributeError, ValueError, OSError):
+        sys.stderr.reconfigure(errors="sins-bytes")
+
+
 def _raise_interrupted(signum, frame):
     raise Interrupted(signum)
 
@@ -93,7 +114,7 @@ class _Command(click.Command):
     before it runs, so that an output naming one of them is refused, whatever the command."""
 
     def invoke(self, ctx):
-        from ..io.atomic import end_inputs, reset_inputs
+        from ..io.atomic import end_inputs, output_set, reset_inputs
         paths = []
         for param in self.params:
             if param.name in OUTPUT_PARAMS or not isinstance(param.type, click.Path):
@@ -102,12 +123,13 @@ class _Command(click.Command):
             paths.extend(value if isinstance(value, (tuple, list)) else [value])
         reset_inputs(p for p in paths if p is not None)
         try:
-            if self.name not in COMPILING_COMMANDS or ctx.params.get("quiet"):
-                return super().invoke(ctx)
-            from .._numba_cache import announce_compiles
-            note = f"sins: compiling the kernels of sins {self.name} (first run only; later runs load them)"
-            with announce_compiles(lambda text: click.echo(text, err=True), note):
-                return super().invoke(ctx)
+            with output_set():          # every output of the command appears at its end, or none
+                if self.name not in COMPILING_COMMANDS or ctx.params.get("quiet"):
+                    return super().invoke(ctx)
+                from .._numba_cache import announce_compiles
+                note = f"sins: compiling the kernels of sins {self.name} (first run only; later runs load them)"
+                with announce_compiles(lambda text: click.echo(text, err=True), note):
+                    return super().invoke(ctx)
         finally:
             end_inputs()
 
@@ -188,6 +210,7 @@ def main(ctx, debug, verbose):
     """sins: strapdown inertial navigation of IMU/GNSS logs."""
     ctx.ensure_object(dict)
     ctx.obj["debug"] = debug
+    _printable_stderr()
     level = logging.DEBUG if debug else logging.INFO if verbose else logging.WARNING
     # the root logger stays at WARNING: --debug is for sins, not for numba's compiler dumps
     logging.basicConfig(level=logging.WARNING, format="sins: %(levelname)s: %(message)s", stream=sys.stderr)
@@ -212,7 +235,10 @@ def finish_progress(bar) -> None:
 
 
 def summary_line(imu, rows: int, t0: float, t1: float, output) -> None:
-    """The last line of a successful ``sins navigate``: what was read, the rows written, their span, where."""
+    """The last line of a successful ``sins navigate``: what was read, the rows written, their span, where
+    (after the outputs are in place)."""
+    from ..io.atomic import commit_outputs
+    commit_outputs()
     click.echo(f"sins: navigated {os.fspath(imu)}: wrote {rows:,} rows, t = {t0:.3f} .. {t1:.3f} s "
                f"({t1 - t0:.3f} s), to {os.fspath(output)}", err=True)
 

@@ -79,6 +79,8 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
             if odom is not None:
                 write_body_velocity_csv(tmp / "odom.csv", odom)
                 bar.update(1)
+    from ..io.atomic import commit_outputs
+    commit_outputs()
     if imu is not None:
         log.info("%s: %d IMU increments from %s (first interval starts at %.9f s)",
                  outdir / "imu.csv", len(imu), imu.source, imu.t0)

@@ -29,7 +29,7 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet):
     from ..sim.run import prepare, write_sim           # here, not at import: `sins simulate --help` is fast
     from ..sim.run import simulate as run_simulation
 
-    from ..io.atomic import prepare_output
+    from ..io.atomic import commit_outputs, prepare_output
     from ..sim.run import SIM_FILES
     for name in SIM_FILES:                             # before any work: a folder, permissions, an input
         prepare_output(outdir / name)
@@ -38,6 +38,7 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet):
     with progress(prepared.n_imu, "simulate", quiet) as bar:
         result = run_simulation(prepared, seed=seed, perfect=perfect, progress=bar.update)
     paths = write_sim(result, outdir)
+    commit_outputs()
     log.info("wrote %s", ", ".join(str(p) for p in paths))
     if not quiet:
         click.echo(f"simulated {sc.name}: {len(result.imu)} IMU samples at {sc.imu_rate:g} Hz, "

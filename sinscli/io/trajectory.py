@@ -10,6 +10,7 @@ Other formats register a writer in :data:`WRITERS` by suffix
 """
 from __future__ import annotations
 
+import contextlib
 import math
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -19,12 +20,12 @@ import pyarrow as pa
 
 from ..conventions import BODY_CONVENTIONS, FLU
 from ..errors import SinsError, quote
-from .inputs import input_file
+from .inputs import closing_native, input_file, native_path
 from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, euler_to_dcm_many, quat_to_dcm_many
 from ..types import Trajectory
 from . import aided_columns
 from . import limits as limits_mod
-from .atomic import atomic_path, check_finite, prepare_output
+from .atomic import StagedFile, check_finite, prepare_output
 from .csvcore import CsvTableWriter, float64_table, float_column, read_header, read_numeric_columns
 from .frames import cbn_to_enu, file_name, to_enu
 
@@ -63,10 +64,12 @@ def trajectory_columns(traj: Trajectory, conv: int = 0, with_dcm: bool = True) -
 
 
 class TrajectoryWriter:
-    """Stream trajectory chunks to ``.csv`` or ``.parquet`` through a temporary file.
+    """Stream trajectory chunks to ``.csv`` or ``.parquet`` through a staged file
+    (:class:`sinscli.io.atomic.StagedFile`).
 
-    ``close()`` renames into place; ``abort()`` (or an exception inside a
-    ``with`` block) removes the temporary file, leaving no output.
+    ``close()`` hands the complete file over to be moved into place; ``abort()`` (or an exception
+    inside a ``with`` block) removes it, leaving no output.  Either raises a file system fault (disk
+    full, I/O error) as the one-line write error naming the target.
     """
 
     def __init__(self, path, conv: int = 0, extra_columns=()):
@@ -77,14 +80,22 @@ class TrajectoryWriter:
             raise SinsError(f"{path}: streaming output supports .csv and .parquet")
         self.columns = BASE_COLUMNS + DCM_COLUMNS + list(extra_columns)
         self.sigmas = [c for c in self.columns if aided_columns.is_sigma(c)]
-        self._ctx = atomic_path(self.path)
-        self._tmp = self._ctx.__enter__()
+        self._stage = StagedFile(self.path)
+        self._tmp = self._stage.tmp
         self._writer = None
         self._rows = 0
         self._pool = None          # Parquet: one thread writes row groups while the caller computes the next
         self._pending = None
+        self._sink = None          # a pyarrow file of a name that is not UTF-8 (io/inputs.native_path)
+        self._open = True
 
     def write(self, traj: Trajectory) -> None:
+        try:
+            self._write(traj)
+        except BaseException as exc:
+            raise self.abort(exc) from None
+
+    def _write(self, traj: Trajectory) -> None:
         cols = trajectory_columns(traj, self.conv)
         if self.suffix != ".csv":            # (the CSV table writer applies the same guard)
             check_finite(self.path, {c: cols[c] for c in self.columns}, cols["time"], self._rows + 1, self.sigmas)
@@ -95,13 +106,13 @@ class TrajectoryWriter:
                 self._writer = CsvTableWriter(self._tmp, self.columns, self.sigmas, text_columns=text)
             self._writer.write(cols)
         else:
-            import pyarrow as pa
             import pyarrow.parquet as pq
             table = float64_table({c: cols[c] for c in self.columns})
             table = table.replace_schema_metadata({BODY_METADATA: BODY_NAMES[self.conv].encode()})
             if self._writer is None:
                 # no dictionary encoding: navigation floats hardly repeat, and it costs 2.4x the write time
-                self._writer = pq.ParquetWriter(self._tmp, table.schema, use_dictionary=False)
+                self._sink = native_path(self._tmp, "wb")
+                self._writer = pq.ParquetWriter(self._sink, table.schema, use_dictionary=False)
                 self._pool = ThreadPoolExecutor(1, thread_name_prefix="sins-parquet")
             self._wait()                      # in order; an error of the previous row group surfaces here
             self._pending = self._pool.submit(self._writer.write_table, table)   # pyarrow releases the GIL
@@ -117,31 +128,38 @@ class TrajectoryWriter:
             self._pool = None
 
     def close(self) -> None:
+        """Finish the file (the last row group or CSV slices, flushed) and hand it over."""
+        if not self._open:
+            return
         try:
             self._wait()
-        except BaseException as exc:       # the last row group failed: no output, as for any error
-            self.abort(exc)
-            raise
-        self._shutdown()
-        if self._writer is not None:
-            self._writer.close()
-        self._ctx.__exit__(None, None, None)
-
-    def abort(self, exc=None) -> None:
-        try:
-            self._wait()
-        except Exception:
-            pass
-        self._shutdown()
-        if self._writer is not None:
-            try:
+            self._shutdown()
+            if self._writer is not None:
                 self._writer.close()
-            except Exception:
-                pass
-        try:
-            self._ctx.__exit__(type(exc) if exc else RuntimeError, exc or RuntimeError("aborted"), None)
-        except BaseException:
-            pass
+                if self._sink is not None:
+                    closing_native(self._sink)
+            self._open = False
+            self._stage.done()
+        except BaseException as exc:        # a late write error (disk full at the last block): no output
+            raise self.abort(exc) from None
+
+    def abort(self, exc=None) -> BaseException | None:
+        """Remove the staged file; return the exception to raise (a file system fault as the write error)."""
+        if not self._open:
+            return exc
+        self._open = False
+        with contextlib.suppress(Exception):
+            self._wait()
+        self._shutdown()
+        if self._writer is not None:
+            with contextlib.suppress(Exception):
+                if isinstance(self._writer, CsvTableWriter):
+                    self._writer.discard()
+                else:
+                    self._writer.close()
+                if self._sink is not None:
+                    closing_native(self._sink)
+        return self._stage.fail(exc)
 
     def __enter__(self):
         return self
@@ -149,8 +167,10 @@ class TrajectoryWriter:
     def __exit__(self, et, ev, tb):
         if et is None:
             self.close()
-        else:
-            self.abort(ev)
+            return False
+        err = self.abort(ev)
+        if err is not None and err is not ev:
+            raise err from None
         return False
 
 
@@ -201,7 +221,7 @@ def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) 
     if path.suffix.lower() == ".parquet":
         import pyarrow.parquet as pq
         try:
-            table = pq.read_table(path)
+            table = pq.read_table(native_path(path))
         except Exception as exc:
             raise SinsError(f"{path}: cannot read as Parquet ({type(exc).__name__})") from None
         header = table.column_names
@@ -293,7 +313,7 @@ def _read_body_column(path) -> int:
     """The ``body`` column of a trajectory CSV: one convention name, the same on every line."""
     import pyarrow.csv as pacsv
     try:
-        col = pacsv.read_csv(path, convert_options=pacsv.ConvertOptions(
+        col = pacsv.read_csv(native_path(path), convert_options=pacsv.ConvertOptions(
             include_columns=[BODY_COLUMN], column_types={BODY_COLUMN: pa.string()})).column(BODY_COLUMN)
     except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as exc:
         raise SinsError(f"{path}: column '{BODY_COLUMN}': cannot read ({type(exc).__name__})") from None

@@ -10,6 +10,7 @@ one that is not is that job's error, naming the path and the host.
 """
 from __future__ import annotations
 
+import os
 import time
 import traceback
 from dataclasses import dataclass
@@ -49,6 +50,10 @@ def describe(exc: BaseException) -> str:
     """One line for a job's failure: the SinsError text, else the exception and where it was raised."""
     if isinstance(exc, SinsError):
         return str(exc)
+    from ..io.atomic import is_fault, os_errno, target_of
+    if is_fault(exc):            # the file system (a full disk): the file and the reason, not a source line
+        name = f"{target_of(Path(exc.filename))}: " if getattr(exc, "filename", None) else ""
+        return f"{name}{os.strerror(os_errno(exc))}"
     tb = traceback.extract_tb(exc.__traceback__)
     where_ = f" at {Path(tb[-1].filename).name}:{tb[-1].lineno}" if tb else ""
     return " ".join(f"{type(exc).__name__}: {exc}{where_}".split())

@@ -112,7 +112,7 @@ class JobStore:
             self.replaced = sum(1 for _ in self.dir.rglob("*.npz"))
             shutil.rmtree(self.dir)
         self.dir.mkdir(parents=True, exist_ok=True)
-        with atomic_path(self.dir / FINGERPRINT) as tmp:
+        with atomic_path(self.dir / FINGERPRINT, now=True) as tmp:
             tmp.write_text(json.dumps(self.fingerprint, indent=1, sort_keys=True) + "\n", encoding="utf-8")
 
     def path(self, key: tuple) -> Path:
@@ -129,7 +129,7 @@ class JobStore:
     def write(self, key: tuple, meta: dict, arrays: dict[str, np.ndarray]) -> None:
         buf = io.BytesIO()
         np.savez(buf, meta=np.array(json.dumps(meta, sort_keys=True)), **arrays)
-        with atomic_path(self.path(key), suffix=".part") as tmp:
+        with atomic_path(self.path(key), suffix=".part", now=True) as tmp:   # kept for --resume
             tmp.write_bytes(buf.getbuffer())
 
     def read(self, key: tuple) -> tuple[dict, dict[str, np.ndarray]]:

@@ -121,23 +121,21 @@ SIM_FILES = ("imu.csv", "gnss.csv", "truth.csv", "init.yaml")
 def write_sim(result: SimResult, outdir) -> list[Path]:
     """Write ``imu.csv``, ``gnss.csv``, ``truth.csv``, ``init.yaml`` into ``outdir`` (FORMATS.md).
 
-    Each file is written atomically by the project's writers.  Returns the paths.
+    The four files are one set (:func:`sinscli.io.atomic.staged_dir`): all of them replace an earlier
+    set, or none does (a full disk never pairs new IMU data with an old truth).  Returns the paths.
     """
+    from ..io.atomic import staged_dir
     from ..io.gnss_csv import write_gnss_csv
     from ..io.imu_csv import write_imu_csv
     from ..io.init_state import write_init_yaml
     from ..io.trajectory import write_trajectory
 
-    from ..io.atomic import prepare_output
     out = Path(outdir)
-    paths = [out / name for name in SIM_FILES]
-    for p in paths:                             # all checked before any is written (e.g. not an input)
-        prepare_output(p)
-    out.mkdir(parents=True, exist_ok=True)
-    write_imu_csv(paths[0], result.imu)
-    write_gnss_csv(paths[1], result.gnss)
-    write_trajectory(paths[2], result.truth, conv=result.conv)
-    extra = {"scenario": result.name, "seed": result.seed, "perfect": result.perfect,
-             "body": ("flu", "rfu", "frd")[result.conv], "launch": result.launch}
-    write_init_yaml(paths[3], result.init, result.conv, extra)
-    return paths
+    with staged_dir(out, owned=SIM_FILES) as tmp:
+        write_imu_csv(tmp / SIM_FILES[0], result.imu)
+        write_gnss_csv(tmp / SIM_FILES[1], result.gnss)
+        write_trajectory(tmp / SIM_FILES[2], result.truth, conv=result.conv)
+        extra = {"scenario": result.name, "seed": result.seed, "perfect": result.perfect,
+                 "body": ("flu", "rfu", "frd")[result.conv], "launch": result.launch}
+        write_init_yaml(tmp / SIM_FILES[3], result.init, result.conv, extra)
+    return [out / name for name in SIM_FILES]
