@@ -22,9 +22,21 @@ class SinsError(Exception):
 
     def __init__(self, message: str):
         text = _NUMPY_REPR.sub(r"\1", " ".join(str(message).split()))
-        if len(text) > MAX_MESSAGE:
-            text = text[:MAX_MESSAGE - 3] + "..."
-        super().__init__(text)
+        super().__init__(shorten(text))
+
+
+def shorten(text: str, limit: int = MAX_MESSAGE) -> str:
+    """``text`` cut to ``limit`` characters in its middle, at spaces: the start (the file, the line) and the
+    end (what to do) are kept, and no word is cut."""
+    if len(text) <= limit:
+        return text
+    keep = limit - 5
+    head, tail = text[:keep * 2 // 3], text[len(text) - keep // 3:]
+    if " " in head[len(head) // 2:]:
+        head = head[:head.rindex(" ")]
+    if " " in tail[:len(tail) // 2]:
+        tail = tail[tail.index(" ") + 1:]
+    return f"{head} ... {tail}"
 
 
 def quote(text, limit: int = 60) -> str:

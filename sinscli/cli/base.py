@@ -46,6 +46,25 @@ SHORT_HELP = {
 _NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())    # click >= 8.2
 
 
+def _exit_now(code) -> None:
+    """End the process with ``code`` once its work is done: stdio flushed, the ``atexit`` handlers run
+    (logging, Dask clients, temporary folders), then ``os._exit``.  The interpreter's own teardown (freeing
+    every object and module: numba, llvmlite, pyarrow, matplotlib) is skipped: it held the process 2-9 s
+    after its last line on a loaded machine (issue 22), and there is nothing left in it to keep."""
+    import atexit
+    status = code if isinstance(code, int) else (0 if code is None else 1)
+    if code is not None and not isinstance(code, int):
+        with contextlib.suppress(Exception):
+            print(code, file=sys.stderr)
+    try:
+        atexit._run_exitfuncs()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(status)
+
+
 class Interrupted(KeyboardInterrupt):
     """SIGINT, SIGTERM or SIGHUP: raised in the main thread, so every ``atomic_path`` removes its
     temporary file on the way out, as for Ctrl-C."""
@@ -152,6 +171,15 @@ class _Group(click.Group):
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        if args is None:                # the `sins` program (arguments from sys.argv): end as soon as it is done
+            try:
+                self._main(args, prog_name, complete_var, **extra)
+            except SystemExit as exc:
+                _exit_now(exc.code)
+            raise AssertionError("unreachable")      # _main always ends in SystemExit
+        self._main(args, prog_name, complete_var, **extra)
+
+    def _main(self, args, prog_name, complete_var, **extra):
         with _signals_as_interrupt():
             try:
                 rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
@@ -220,10 +248,18 @@ def main(ctx, debug, verbose):
         log.warning(NUMBA_CACHE_NOTE)
 
 
+def stderr_is_terminal() -> bool:
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
 def progress(length: int, label: str, quiet: bool):
-    """A click progress bar on stderr (silent with ``--quiet`` or when ``length`` is small)."""
+    """A click progress bar on stderr: drawn on a terminal only (click would print its label as a bare line
+    into a log file or pipe); silent with ``--quiet``."""
     return click.progressbar(length=max(int(length), 1), label=label, file=sys.stderr,
-                             hidden=quiet, show_eta=True, show_percent=True)
+                             hidden=quiet or not stderr_is_terminal(), show_eta=True, show_percent=True)
 
 
 def finish_progress(bar) -> None:
