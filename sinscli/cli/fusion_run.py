@@ -25,7 +25,7 @@ def _span(t) -> str:
 
 
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-              opts, output, quiet, window=None, odom_path=None):
+              opts, output, quiet, window=None, odom_path=None, force=False):
     from ..fusion.options import build_fusion_options
     from ..fusion.pipeline import Fusion, fuse_blocks
     from ..nav.pipeline import concat
@@ -84,6 +84,14 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
                                 init.Cbn, cfg["imu"])
         if note:
             log.warning(note)
+    from ..io.readers import _is_log
+    from ..nav.sanity import gyro_unit_check
+    from ..sensors import load_sensor
+    lat0 = float(init.lat) if align_method is None else float(np.radians(gnss.lat[0]))
+    h0 = float(init.height) if align_method is None else float(gnss.height[0])
+    gyro_unit_check(imu, t0 if align_method is not None else max(t0, init.time), gravity(np.sin(lat0), h0), lat0,
+                    cfg["imu"], load_sensor(fopts.sensor or "mems", None, src, fopts.base_dir or base), force,
+                    ros=_is_log(imu_path))
     fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias,
                     body_vel=body_vel)
     step = 1 << 16
