@@ -143,7 +143,7 @@ def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=STREAM_BLOCK, lim
         if form == "rates":
             gyro = np.column_stack([data[c] for c in RATE_COLS[:3]]) * GYRO_UNITS[units["gyro"]]
             accel = np.column_stack([data[c] for c in RATE_COLS[3:]]) * ACCEL_UNITS[units["accel"]]
-            limits_mod.check_imu_rates(path, gyro, accel, lim, value_cols, line)
+            limits_mod.check_imu_rates(path, gyro, accel, lim, value_cols, line, gyro_unit=units["gyro"])
             if last is None:
                 check_rate_units(path, gyro, units["gyro"])
             else:
@@ -163,7 +163,7 @@ def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=STREAM_BLOCK, lim
             dt = np.diff(time, prepend=prev_time if prev_time is not None else np.nan)
             if prev_time is None:
                 dt[0] = dt[1] if dt.shape[0] > 1 else np.inf
-            limits_mod.check_imu_increments(path, dt, dtheta, dvel, lim, value_cols, line)
+            limits_mod.check_imu_increments(path, dt, dtheta, dvel, lim, value_cols, line, dtheta_unit=units["dtheta"])
             imu = ImuLog(time, dtheta, dvel, t0=None, source=str(path), kind="increments")
         yield apply_mounting(imu, c_sb)
     if form == "rates" and rows < 2:
