@@ -60,6 +60,13 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
             raise
         raise SinsError(f"{exc} (after the GNSS time offset of {offset:g} s, --time-offset or gnss.time_offset)") \
             from None
+    if not force:                              # a constant offset the spans cannot show (nav/timesync.py)
+        from ..nav.timesync import estimate_offset, offset_refusal
+        est = estimate_offset(imu.time, imu.dtheta_b, imu.dvel_b, t0, gnss.time, gnss.lat, gnss.lon, gnss.height,
+                              gnss.vel_n)
+        text = offset_refusal(est, str(gnss.source), float(cfg["gnss"]["time_offset"]))
+        if text:
+            raise SinsError(text)
     body_vel = None
     if odom_path is not None:
         body_vel = read_body_velocity(odom_path, cfg)

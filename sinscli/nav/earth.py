@@ -39,6 +39,28 @@ def gravity_py(sin_lat, h):
             + 0.0000000000007211 * h * h)
 
 
+def wrap_lon(lon, half=np.pi):
+    """Longitude wrapped into ``[-half, half)`` (``half`` = pi for radians, 180 for degrees): values already
+    there are returned unchanged, bit for bit; arrays or scalars.  Every writer and every reported
+    longitude goes through it (the antimeridian, RFC 7946, KML)."""
+    x = np.asarray(lon, dtype=np.float64)
+    inside = (x >= -half) & (x < half)
+    if np.all(inside):
+        return lon if np.ndim(lon) else float(x)
+    w = np.mod(x + half, 2.0 * half) - half
+    out = np.where(inside, x, np.where(w >= half, -half, w))
+    return out if np.ndim(lon) else float(out)
+
+
+def dlon(a, b, half=np.pi):
+    """``a - b`` of two longitudes taken modulo a full turn, into ``[-half, half]``: the east offset across
+    the antimeridian (179.9999 to -179.9999 deg is 0.0002 deg, not -359.9998).  Exact when the plain
+    difference is already within a half turn.  Residuals, ENU offsets and comparisons use it."""
+    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    out = np.where(np.abs(d) > half, d - 2.0 * half * np.round(d / (2.0 * half)), d)
+    return out if out.ndim else float(out)
+
+
 radii = njit(cache=True)(radii_py)
 gravity = njit(cache=True)(gravity_py)
 
