@@ -123,6 +123,25 @@ def check_finite(path, columns: dict, time=None, first_row: int = 1, sigmas=()) 
                               f"range; nothing written")
 
 
+def output_lon_lat(path, lat_deg, lon_deg, time=None, first_row: int = 1):
+    """The writers' guard of positions: ``(lat, lon)`` in degrees as every writer emits them, the longitude
+    wrapped into [-180, 180) (RFC 7946, KML, FORMATS.md; across the antimeridian a navigator's longitude
+    runs on past 180), after refusing a latitude outside [-90, 90] (a navigation that went over a pole,
+    where the ENU mechanization does not hold) naming the output, row, epoch and column."""
+    from ..nav.earth import wrap_lon
+    lat = np.asarray(lat_deg, dtype=np.float64)
+    bad = np.abs(lat) > 90.0
+    if bad.any():
+        k = int(np.argmax(bad.reshape(-1)))
+        t = np.asarray(time).reshape(-1) if time is not None else None
+        epoch = f" (time {num(t[k])} s)" if t is not None and k < t.shape[0] else ""
+        raise NonFiniteOutput(f"{target_of(Path(path))}: internal consistency check: row {first_row + k}{epoch}, "
+                              f"column 'lat': {num(lat.reshape(-1)[k])} deg is outside [-90, 90]: the navigation "
+                              f"went over a pole, where the ENU frame is undefined (--frame launch-inertial holds "
+                              f"there); nothing written")
+    return lat_deg, wrap_lon(lon_deg, 180.0)
+
+
 def target_of(path: Path) -> Path:
     """``path`` with every temporary name of this process in it (``.<name>.<pid>.part<suffix>``, a file
     of :func:`atomic_path` or a folder of :func:`staged_dir`) replaced by its target's name."""

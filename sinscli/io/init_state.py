@@ -11,7 +11,7 @@ import yaml
 from ..errors import SinsError, num, quote
 from ..nav.rotation import dcm_to_euler, euler_to_dcm
 from ..types import NavState, time_tolerance
-from .atomic import atomic_path, check_finite
+from .atomic import atomic_path, check_finite, output_lon_lat
 from . import limits as limits_mod
 from .frames import convention, file_name, to_enu
 from .inputs import input_file, load_yaml
@@ -56,9 +56,7 @@ def read_init(path, t_start: float | None = None, conv: int = 0, limits=None, se
 def _check_lat(path, lat_deg, where):
     if not -90.0 <= lat_deg <= 90.0:
         raise SinsError(f"{path}: {where}: latitude {num(lat_deg)} deg is outside [-90, 90]")
-    if abs(lat_deg) > 89.99:
-        raise SinsError(f"{path}: {where}: latitude {num(lat_deg)} deg is within 0.01 deg of a pole, where the "
-                        f"ENU frame is undefined; use --frame launch-inertial")
+    limits_mod.check_near_pole(f"{path}: {where}", lat_deg, use="; use --frame launch-inertial")
 
 
 def _read_init_yaml(path: Path, conv: int, lim: dict, frame: str = "enu", to_deg: float = 1.0) -> NavState:
@@ -149,6 +147,7 @@ def init_dict(state: NavState, conv: int = 0) -> dict:
 def write_init_yaml(path, state: NavState, conv: int = 0, extra: dict | None = None) -> None:
     """Write an init YAML (FORMATS.md keys first, then ``extra``), atomically."""
     data = init_dict(state, conv)
+    data["lat"], data["lon"] = (float(x) for x in output_lon_lat(path, data["lat"], data["lon"], state.time))
     for k, v in {**state.extra, **(extra or {})}.items():
         data[k] = _plain(v)
     check_finite(path, {k: v for k, v in data.items() if isinstance(v, (int, float)) or

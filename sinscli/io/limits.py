@@ -162,6 +162,22 @@ def check_position(where, lat_deg, lon_deg, height, lim: dict, columns=("lat", "
                 columns[2], first, row)
 
 
+NEAR_POLE = 89.99          # deg: closer to a pole the ENU frame (east, north) is undefined
+
+
+def check_near_pole(where, lat_deg, column=None, first=0, row: str = "line", use: str = "") -> None:
+    """Refuse a latitude within 0.01 deg of a pole, where the ENU frame is undefined: the one rule of the
+    init reader (an initial state) and the GNSS readers (a fix that would aid the ENU navigation).
+    ``use``: what to do instead, added to the message."""
+    v = np.asarray(lat_deg, dtype=np.float64).reshape(-1)
+    bad = np.abs(v) > NEAR_POLE
+    if not bad.any():
+        return
+    k = int(np.argmax(bad))
+    raise SinsError(f"{where}{_loc(row, _row(first, k), column)}: latitude {num(v[k])} deg is within "
+                    f"{num(90.0 - NEAR_POLE)} deg of a pole, where the ENU frame is undefined{use}")
+
+
 def check_velocity(where, vel, lim: dict, columns=None, first=0, row: str = "line") -> None:
     """Velocity components (m/s), (N, 3), against the speed limit (each component and the norm)."""
     v = np.asarray(vel, dtype=np.float64)

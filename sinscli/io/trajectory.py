@@ -25,7 +25,7 @@ from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, euler_to_dcm_man
 from ..types import Trajectory
 from . import aided_columns
 from . import limits as limits_mod
-from .atomic import StagedFile, check_finite, prepare_output
+from .atomic import StagedFile, check_finite, output_lon_lat, prepare_output
 from .csvcore import CsvTableWriter, float64_table, float_column, read_header, read_numeric_columns
 from .frames import cbn_to_enu, file_name, to_enu
 
@@ -45,13 +45,17 @@ BODY_NAMES = {code: name for name, code in BODY_CONVENTIONS.items()}
 WRITERS: dict = {}
 
 
-def trajectory_columns(traj: Trajectory, conv: int = 0, with_dcm: bool = True) -> dict[str, np.ndarray]:
-    """FORMATS.md columns of a trajectory (degrees for angles), plus its extra columns."""
+def trajectory_columns(traj: Trajectory, conv: int = 0, with_dcm: bool = True, path=None,
+                       first_row: int = 1) -> dict[str, np.ndarray]:
+    """FORMATS.md columns of a trajectory (degrees for angles), plus its extra columns; latitude and
+    longitude through the writers' guard (:func:`sinscli.io.atomic.output_lon_lat`: longitude in
+    [-180, 180), latitude within +-90) for the output ``path``."""
     cbn = np.ascontiguousarray(traj.Cbn, dtype=np.float64)
     eul = dcm_to_euler_many(cbn, conv)
     q = dcm_to_quat_many(cbn)
     d = math.degrees(1.0)
-    cols = {"time": traj.time, "lat": traj.lat * d, "lon": traj.lon * d, "height": traj.height,
+    lat, lon = output_lon_lat(path or traj.source, traj.lat * d, traj.lon * d, traj.time, first_row)
+    cols = {"time": traj.time, "lat": lat, "lon": lon, "height": traj.height,
             "vel_e": traj.vel_n[:, 0], "vel_n": traj.vel_n[:, 1], "vel_u": traj.vel_n[:, 2],
             "roll": eul[:, 0] * d, "pitch": eul[:, 1] * d, "heading": eul[:, 2] * d,
             "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3]}
@@ -96,7 +100,7 @@ class TrajectoryWriter:
             raise self.abort(exc) from None
 
     def _write(self, traj: Trajectory) -> None:
-        cols = trajectory_columns(traj, self.conv)
+        cols = trajectory_columns(traj, self.conv, path=self.path, first_row=self._rows + 1)
         if self.suffix != ".csv":            # (the CSV table writer applies the same guard)
             check_finite(self.path, {c: cols[c] for c in self.columns}, cols["time"], self._rows + 1, self.sigmas)
         self._rows += len(traj)

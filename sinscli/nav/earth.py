@@ -54,14 +54,16 @@ def wrap_lon(lon, half=np.pi):
 
 def dlon(a, b, half=np.pi):
     """``a - b`` of two longitudes taken modulo a full turn, into ``[-half, half]``: the east offset across
-    the antimeridian (179.9999 to -179.9999 deg is 0.0002 deg, not -359.9998).  Exact when the plain
-    difference is already within a half turn.  Residuals, ENU offsets and comparisons use it."""
-    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
-    out = np.where(np.abs(d) > half, d - 2.0 * half * np.round(d / (2.0 * half)), d)
-    return out if out.ndim else float(out)
+    the antimeridian (179.9999 to -179.9999 deg is 0.0002 deg, not -359.9998).  The plain difference when it
+    is already within a half turn (the rounded count of turns is 0), so nothing changes away from the
+    antimeridian.  Arrays or scalars; :data:`dlon_nb` is the same function compiled for the kernels.
+    Residuals, ENU offsets, velocities from positions and comparisons use it."""
+    d = a - b
+    return d - 2.0 * half * np.round(d / (2.0 * half))
 
 
 radii = njit(cache=True)(radii_py)
+dlon_nb = njit(cache=True)(dlon)
 gravity = njit(cache=True)(gravity_py)
 
 

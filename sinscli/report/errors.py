@@ -31,7 +31,7 @@ from numba import njit
 from ..errors import SinsError
 from ..io import aided_columns
 from ..io.timebase import describe as describe_time_base
-from ..nav.earth import lla_to_local_enu, radii_py
+from ..nav.earth import dlon as earth_dlon, lla_to_local_enu, radii_py
 from ..nav.rotation import (attitude_error_many, dcm_to_euler_many, dcm_to_rotvec, level_heading_frame, mm3,
                             rotvec_to_dcm)
 from ..types import Trajectory
@@ -168,7 +168,7 @@ def interpolate_truth(truth: Trajectory, t: np.ndarray, truth_name: str = "truth
         sw = s.reshape((-1,) + (1,) * (x.ndim - 1))
         return x[j] + sw * (x[j1] - x[j])
 
-    dlon = np.angle(np.exp(1j * (truth.lon[j1] - truth.lon[j])))   # across the antimeridian
+    dlon = earth_dlon(truth.lon[j1], truth.lon[j])                  # across the antimeridian
     out = Trajectory(time=tq, lat=lin(truth.lat), lon=truth.lon[j] + s * dlon, height=lin(truth.height),
                      vel_n=lin(truth.vel_n), Cbn=interp_dcm_many(truth.Cbn[j], truth.Cbn[j1], s),
                      source=truth.source)
@@ -186,7 +186,7 @@ def _subset(traj: Trajectory, idx: np.ndarray) -> Trajectory:
 def position_error_enu(lat_t, lon_t, h_t, lat_n, lon_n, h_n) -> np.ndarray:
     """Truth minus navigation position in metres E, N, U, with the radii at the truth point (rad, m)."""
     rm, rn = radii_py(np.sin(lat_t))
-    dlon = np.angle(np.exp(1j * (lon_t - lon_n)))
+    dlon = earth_dlon(lon_t, lon_n)                                 # across the antimeridian
     return np.stack([dlon * (rn + h_t) * np.cos(lat_t), (lat_t - lat_n) * (rm + h_t), h_t - h_n], axis=-1)
 
 
