@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..nav.earth import radii_py
+from ..nav.earth import dlon, radii_py
 from ..types import Trajectory
 
 
@@ -21,7 +21,7 @@ def errors(traj: Trajectory, truth: Trajectory):
         raise ValueError("truth does not hold the trajectory's times")
     rm, rn = radii_py(np.sin(truth.lat[k]))
     h = truth.height[k]
-    dr = np.column_stack([(traj.lon - truth.lon[k]) * (rn + h) * np.cos(truth.lat[k]),
+    dr = np.column_stack([dlon(traj.lon, truth.lon[k]) * (rn + h) * np.cos(truth.lat[k]),
                           (traj.lat - truth.lat[k]) * (rm + h), traj.height - h])
     dv = traj.vel_n - truth.vel_n[k]
     # (I - [phi x]) = Cbn_est Cbn_true^T  ->  [phi x] = I - C_est C_true^T (antisymmetric part)

@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from ..nav import strapdown as sd
-from ..nav.earth import OMEGA_IE, gravity, radii
+from ..nav.earth import OMEGA_IE, dlon_nb, gravity, radii
 from ..nav.rotation import (dcm_to_euler, dcm_to_quat, euler_to_dcm, m_mul, m_trans, m_tvec, m_vec, orthonormalize_t,
                             quat_mul_t, quat_normalize_t, quat_to_dcm_t, rotvec_to_dcm_t, rotvec_to_quat_t)
 from .linalg import cholesky
@@ -312,7 +312,7 @@ def _model(row, kind, st, fs, cv, nx, H, z, r):
     if kind == MT_GNSS_POS:
         rm, rn = radii(np.sin(lat))
         l_n = m_vec(c, lever)
-        z[0] = (lon - row[3]) * (rn + h) * np.cos(lat) + l_n[0]
+        z[0] = dlon_nb(lon, row[3]) * (rn + h) * np.cos(lat) + l_n[0]      # across the antimeridian too
         z[1] = (lat - row[2]) * (rm + h) + l_n[1]
         z[2] = h - row[4] + l_n[2]
         for i in range(3):

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import SinsError
 from ..nav import strapdown as sd
-from ..nav.earth import gravity, radii_py
+from ..nav.earth import dlon, gravity, radii_py
 from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
 from ..nav.rotation import conv_to_flu
 from ..sensors import G0, load_sensor
@@ -238,7 +238,8 @@ def gnss_rows(gnss: GnssLog, fopts: FusionOptions, t_min: float) -> np.ndarray:
     elif n >= 2:
         rm, rn = radii_py(np.sin(np.radians(gnss.lat)))
         dt = np.diff(gnss.time)
-        ve = np.diff(np.radians(gnss.lon)) * (rn[1:] + gnss.height[1:]) * np.cos(np.radians(gnss.lat[1:])) / dt
+        ve = dlon(np.radians(gnss.lon[1:]), np.radians(gnss.lon[:-1])) * (rn[1:] + gnss.height[1:]) * \
+            np.cos(np.radians(gnss.lat[1:])) / dt
         vn = np.diff(np.radians(gnss.lat)) * (rm[1:] + gnss.height[1:]) / dt
         svh = np.hypot(sp[1:, 0], sp[1:, 1]) / dt
         tc = gnss.time[1:]
@@ -665,7 +666,7 @@ def residuals(traj: Trajectory, gnss: GnssLog, lever, inside) -> tuple[float, fl
     k = np.clip(np.searchsorted(traj.time, t), 0, len(traj) - 1)
     l_n = traj.Cbn[k] @ np.asarray(lever, dtype=float)
     rm, rn = radii_py(np.sin(lat))
-    de = (lon - np.radians(gnss.lon[sel])) * (rn + h) * np.cos(lat) + l_n[:, 0]
+    de = dlon(lon, np.radians(gnss.lon[sel])) * (rn + h) * np.cos(lat) + l_n[:, 0]
     dn = (lat - np.radians(gnss.lat[sel])) * (rm + h) + l_n[:, 1]
     du = h - gnss.height[sel] + l_n[:, 2]
     return float(np.sqrt(np.mean(de ** 2 + dn ** 2))), float(np.sqrt(np.mean(du ** 2)))
