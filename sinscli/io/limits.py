@@ -175,7 +175,7 @@ def check_near_pole(where, lat_deg, column=None, first=0, row: str = "line", use
         return
     k = int(np.argmax(bad))
     raise SinsError(f"{where}{_loc(row, _row(first, k), column)}: latitude {num(v[k])} deg is within "
-                    f"{num(90.0 - NEAR_POLE)} deg of a pole, where the ENU frame is undefined{use}")
+                    f"{90.0 - NEAR_POLE:.2g} deg of a pole, where the ENU frame is undefined{use}")
 
 
 def check_velocity(where, vel, lim: dict, columns=None, first=0, row: str = "line") -> None:
