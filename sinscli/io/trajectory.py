@@ -191,11 +191,13 @@ def write_trajectory(path, traj: Trajectory, conv: int = 0) -> None:
 
 
 def guard_trajectory(path, traj: Trajectory) -> None:
-    """The writer guard (:func:`sinscli.io.atomic.check_finite`) on a whole trajectory: every value finite,
-    every ``*_std`` column positive (the writers of :data:`WRITERS` rely on it)."""
+    """The writer guards (:func:`sinscli.io.atomic.check_finite`, :func:`~sinscli.io.atomic.output_lon_lat`) on a
+    whole trajectory: every value finite, every ``*_std`` column positive, every latitude within +-90 deg
+    (the writers of :data:`WRITERS` rely on it)."""
     check_finite(path, {"time": traj.time, "lat": traj.lat, "lon": traj.lon, "height": traj.height,
                         "velocity": traj.vel_n, "attitude": traj.Cbn, **traj.extra}, traj.time,
                  sigmas=[c for c in traj.extra if aided_columns.is_sigma(c)])
+    output_lon_lat(path, np.degrees(traj.lat), np.degrees(traj.lon), traj.time)    # no track over a pole
 
 
 def check_trajectory_output(path) -> Path:
