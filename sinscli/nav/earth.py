@@ -68,64 +68,79 @@ gravity = njit(cache=True)(gravity_py)
 
 
 @njit(cache=True)
-def earth_rate_n(lat):
-    """``w_ie^n = (0, W cos L, W sin L)`` in ENU, rad/s."""
+def earth_rate_sc(sin_lat, cos_lat):
+    """``w_ie^n = (0, W cos L, W sin L)`` in ENU, rad/s, from ``sin L`` and ``cos L``."""
     out = np.empty(3)
     out[0] = 0.0
-    out[1] = OMEGA_IE * np.cos(lat)
-    out[2] = OMEGA_IE * np.sin(lat)
+    out[1] = OMEGA_IE * cos_lat
+    out[2] = OMEGA_IE * sin_lat
+    return out
+
+
+@njit(cache=True)
+def earth_rate_n(lat):
+    """``w_ie^n`` (:func:`earth_rate_sc`) at latitude ``lat`` (rad)."""
+    return earth_rate_sc(np.sin(lat), np.cos(lat))
+
+
+@njit(cache=True)
+def transport_rate_sc(sin_lat, tan_lat, h, vel_n):
+    """``w_en^n = (-vN/(RM+h), vE/(RN+h), vE tan L/(RN+h))`` in ENU, rad/s, from ``sin L`` and ``tan L``
+    (the simulator passes its own, CPU-independent values: sinscli/sim/pinned.py)."""
+    rm, rn = radii(sin_lat)
+    out = np.empty(3)
+    out[0] = -vel_n[1] / (rm + h)
+    out[1] = vel_n[0] / (rn + h)
+    out[2] = vel_n[0] * tan_lat / (rn + h)
     return out
 
 
 @njit(cache=True)
 def transport_rate_n(lat, h, vel_n):
-    """``w_en^n = (-vN/(RM+h), vE/(RN+h), vE tan L/(RN+h))`` in ENU, rad/s."""
-    rm, rn = radii(np.sin(lat))
-    out = np.empty(3)
-    out[0] = -vel_n[1] / (rm + h)
-    out[1] = vel_n[0] / (rn + h)
-    out[2] = vel_n[0] * np.tan(lat) / (rn + h)
-    return out
+    """``w_en^n`` (:func:`transport_rate_sc`) at latitude ``lat`` (rad)."""
+    return transport_rate_sc(np.sin(lat), np.tan(lat), h, vel_n)
 
 
-def lla_to_ecef(lat, lon, h):
-    """Geodetic (radians, metres) to ECEF metres; arrays broadcast.  Returns (..., 3)."""
-    s = np.sin(lat)
+def lla_to_ecef(lat, lon, h, m=np):
+    """Geodetic (radians, metres) to ECEF metres; arrays broadcast.  Returns (..., 3).  ``m``: the module of
+    the trigonometric functions (numpy; the simulator's CPU-independent :mod:`sinscli.sim.pinned`)."""
+    s = m.sin(lat)
     _, rn = radii_py(s)
-    c = np.cos(lat)
-    return np.stack([(rn + h) * c * np.cos(lon),
-                     (rn + h) * c * np.sin(lon),
+    c = m.cos(lat)
+    return np.stack([(rn + h) * c * m.cos(lon),
+                     (rn + h) * c * m.sin(lon),
                      (rn * (1.0 - E2) + h) * s], axis=-1)
 
 
-def ecef_to_lla(xyz):
-    """ECEF metres (..., 3) to geodetic ``(lat, lon, h)`` (radians, metres).
+def ecef_to_lla(xyz, m=np):
+    """ECEF metres (..., 3) to geodetic ``(lat, lon, h)`` (radians, metres); ``m`` as for :func:`lla_to_ecef`.
 
     Bowring's start and three Newton-type refinements: below 1e-9 m for any
     terrestrial or near-space point.
     """
     xyz = np.asarray(xyz, dtype=float)
     x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
-    p = np.hypot(x, y)
-    lon = np.arctan2(y, x)
-    lat = np.arctan2(z, p * (1.0 - E2))
+    p = m.hypot(x, y)
+    lon = m.arctan2(y, x)
+    lat = m.arctan2(z, p * (1.0 - E2))
     for _ in range(5):
-        s = np.sin(lat)
+        s = m.sin(lat)
         _, rn = radii_py(s)
-        h = np.where(np.abs(np.cos(lat)) > 1e-8, p / np.maximum(np.cos(lat), 1e-300) - rn,
-                     np.abs(z) - B)
-        lat = np.arctan2(z, p * (1.0 - E2 * rn / (rn + h)))
-    s = np.sin(lat)
+        c = m.cos(lat)
+        h = np.where(np.abs(c) > 1e-8, p / np.maximum(c, 1e-300) - rn, np.abs(z) - B)
+        lat = m.arctan2(z, p * (1.0 - E2 * rn / (rn + h)))
+    s = m.sin(lat)
     _, rn = radii_py(s)
-    c = np.cos(lat)
+    c = m.cos(lat)
     h = p * c + z * s - A * A / rn
     return lat, lon, h
 
 
-def enu_rotation(lat, lon):
-    """``C_e^n`` rows (E, N, U) of the ENU frame at (lat, lon) in ECEF axes; (..., 3, 3)."""
-    sl, cl = np.sin(lat), np.cos(lat)
-    so, co = np.sin(lon), np.cos(lon)
+def enu_rotation(lat, lon, m=np):
+    """``C_e^n`` rows (E, N, U) of the ENU frame at (lat, lon) in ECEF axes; (..., 3, 3); ``m`` as for
+    :func:`lla_to_ecef`."""
+    sl, cl = m.sin(lat), m.cos(lat)
+    so, co = m.sin(lon), m.cos(lon)
     z = np.zeros_like(sl)
     e = np.stack([-so, co, z], axis=-1)
     n = np.stack([-sl * co, -sl * so, cl], axis=-1)

@@ -10,6 +10,7 @@ from ..errors import SinsError
 from ..nav.rotation import conv_to_flu
 from ..sensors import load_sensor
 from ..types import GnssLog, ImuLog, NavState, Trajectory
+from . import pinned as pm
 from . import truth as truth_mod
 from .errors import apply_imu_errors, gnss_seedseq
 from .gnss import antenna_truth, gnss_times, make_gnss
@@ -91,18 +92,18 @@ def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: d
     c_flu_conv = conv_to_flu(conv).T.copy()          # C_FLU^conv
     idx = td.imu_idx
     tau = td.tau[idx]
-    cbn = td.cbn[idx] @ conv_to_flu(conv)            # Cbn_conv = Cbn_FLU C_conv^FLU
+    cbn = pm.matmul(td.cbn[idx], conv_to_flu(conv))  # Cbn_conv = Cbn_FLU C_conv^FLU
     truth = Trajectory(time=sc.t0 + tau, lat=td.lat[idx], lon=td.lon[idx], height=td.h[idx],
                        vel_n=td.vel_n[idx], Cbn=cbn, source=f"simulate:{sc.name}")
-    dtheta = td.dtheta_b @ c_flu_conv.T
-    dvel = td.dvel_b @ c_flu_conv.T
+    dtheta = pm.matmul(td.dtheta_b, c_flu_conv.T)
+    dvel = pm.matmul(td.dvel_b, c_flu_conv.T)
     realized = {}
     if sensor and (sensor.get("gyro") or sensor.get("accel")):
         dtheta, dvel, realized = apply_imu_errors(dtheta, dvel, np.diff(tau), sensor, seed)
     imu = ImuLog(time=sc.t0 + tau[1:], dtheta_b=dtheta, dvel_b=dvel, t0=sc.t0,
                  source=f"simulate:{sc.name}", kind="increments")
     gi = np.searchsorted(td.tau, tau_g)
-    lever_flu = conv_to_flu(conv) @ sc.gnss["lever_arm"]
+    lever_flu = pm.matmul(conv_to_flu(conv), sc.gnss["lever_arm"])
     lat_a, lon_a, h_a, v_a = antenna_truth(td.lat[gi], td.lon[gi], td.h[gi], td.vel_n[gi], td.cbn[gi],
                                            td.w_nb_b[gi], lever_flu)
     rng = None if perfect else np.random.default_rng(gnss_seedseq(seed))
