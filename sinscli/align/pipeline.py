@@ -82,7 +82,7 @@ class AlignResult:
     dropped: dict = field(default_factory=dict)     # outliers rejected: gnss_velocity, course, kf_updates
 
     def yaml_extra(self, conv_name: str) -> dict:
-        """The keys ``sins align`` adds to the FORMATS.md initial state."""
+        """The keys ``sins align`` adds to the docs/formats.md initial state."""
         d = math.degrees
         out = {"method": self.method, "duration": float(self.duration), "alignment_start": float(self.t0),
                "body": conv_name,

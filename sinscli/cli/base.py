@@ -32,7 +32,7 @@ SHORT_HELP = {
     "allan": "Allan deviation of a static IMU log: noise terms and a sensor.yaml in the presets' schema.",
     "align": "Initial alignment: the attitude (and state) where navigation starts, with its 1-sigma.",
     "compare": "Compare navigation results with a truth: error tables, time series, figures, index.html.",
-    "convert": "Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into FORMATS.md CSV files: "
+    "convert": "Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into docs/formats.md CSV files: "
                "DIR/imu.csv (increments, axes as in the messages) and DIR/gnss.csv (when the log has a "
                "NavSatFix topic).",
     "info": "Show the topics, message types, counts, rates, time span and gaps of a ROS 1 bag, ROS 2 bag "

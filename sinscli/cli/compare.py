@@ -38,7 +38,7 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
 @main.command("compare")
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("--truth", type=click.Path(path_type=Path),
-              help="Truth trajectory (CSV or Parquet, FORMATS.md). Without it, INPUTS is one BATCH.yaml.")
+              help="Truth trajectory (CSV or Parquet, docs/formats.md). Without it, INPUTS is one BATCH.yaml.")
 @click.option("-o", "--output", "outdir", required=True, type=click.Path(path_type=Path, file_okay=False),
               help="Report directory (created; report files in it are replaced).")
 @click.option("--label", multiple=True, help="Column name of each NAV file, in order (default: file stems).")
@@ -48,13 +48,13 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
               help="Interpolate the truth at the navigation epochs (default: exact time match only).")
 @click.option("--body", type=click.Choice(sorted(BODY)), default=None,
               help="Body axes of a file that does not tell them (no 'body' column or Parquet metadata, and "
-                   "attitude columns that do not match its roll/pitch/heading); default flu (FORMATS.md). "
+                   "attitude columns that do not match its roll/pitch/heading); default flu (docs/formats.md). "
                    "Each file's own axes are used otherwise, so files of different conventions compare.")
 @click.option("--timeseries-every", type=click.IntRange(min=1), default=1, show_default=True,
               help="Write every N-th epoch to timeseries.csv (tables and figures use all).")
 @click.option("--title", default=None, help="Report title (default: the files compared, by name).")
 @click.option("--gnss", "gnss_path", type=click.Path(path_type=Path), default=None,
-              help="GNSS fixes (CSV, FORMATS.md) drawn in the plan view, their outages shaded on the time plots.")
+              help="GNSS fixes (CSV, docs/formats.md) drawn in the plan view, their outages shaded on the time plots.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="Batch: worker processes of the local pool (default: all cores).")
 @click.option("--metrics", "metrics", default=None, metavar="ate,rpe",
@@ -240,7 +240,7 @@ def _to_flu(tracks, paths, default: int) -> list[str]:
         if not isinstance(tr, Trajectory):
             continue                              # TUM attitudes are FLU
         code = tr.body if tr.body is not None else default
-        how = {"marker": "its marker", "angles": "its attitude columns"}.get(tr.body_from, "--body or FORMATS.md")
+        how = {"marker": "its marker", "angles": "its attitude columns"}.get(tr.body_from, "--body or docs/formats.md")
         said.append(f"{printable(Path(path).name)} {BODY_NAMES[code].upper()} ({how})")
         if code != 0:
             tr.Cbn = body_flu_in_enu(tr.Cbn, code)

@@ -36,7 +36,7 @@ from .base import log, main, progress, quiet_option
 @quiet_option
 def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, time_source, start, end, allow_gaps,
                 quiet):
-    """Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into FORMATS.md CSV files:
+    """Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into docs/formats.md CSV files:
     DIR/imu.csv (increments, axes as in the messages), DIR/gnss.csv (when the log has a NavSatFix
     topic) and DIR/odom.csv (body velocity, when it has one nav_msgs/Odometry topic or --odom-topic;
     docs/io_formats.md).  Everything is read and checked before anything is written.

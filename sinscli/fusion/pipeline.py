@@ -45,7 +45,7 @@ SF_COLUMNS = ["gyro_sf_x", "gyro_sf_y", "gyro_sf_z", "accel_sf_x", "accel_sf_y",
 
 
 def fusion_columns(states: int) -> list[str]:
-    """The extra trajectory columns of a fused trajectory (FORMATS.md aided-trajectory columns)."""
+    """The extra trajectory columns of a fused trajectory (docs/formats.md aided-trajectory columns)."""
     return SIGMA_COLUMNS + BIAS_COLUMNS + (SF_COLUMNS if states == 21 else [])
 
 
@@ -550,7 +550,7 @@ class Fusion:
                      "(process noise scale now %.3g)", t, e[2], e[3])
 
     def _columns(self, var, bias) -> dict:
-        """FORMATS.md aided-trajectory columns from the row variances and the sensor estimates (SI)."""
+        """docs/formats.md aided-trajectory columns from the row variances and the sensor estimates (SI)."""
         d = math.degrees(1.0)
         out = {}
         for i, k in enumerate(SIGMA_COLUMNS[:6]):

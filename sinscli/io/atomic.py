@@ -125,7 +125,7 @@ def check_finite(path, columns: dict, time=None, first_row: int = 1, sigmas=()) 
 
 def output_lon_lat(path, lat_deg, lon_deg, time=None, first_row: int = 1):
     """The writers' guard of positions: ``(lat, lon)`` in degrees as every writer emits them, the longitude
-    wrapped into [-180, 180) (RFC 7946, KML, FORMATS.md; across the antimeridian a navigator's longitude
+    wrapped into [-180, 180) (RFC 7946, KML, docs/formats.md; across the antimeridian a navigator's longitude
     runs on past 180), after refusing a latitude outside [-90, 90] (a navigation that went over a pole,
     where the ENU mechanization does not hold) naming the output, row, epoch and column."""
     from ..nav.earth import wrap_lon

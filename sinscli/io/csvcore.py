@@ -2,7 +2,7 @@
 
 Reading parses every float exactly (pyarrow's parser is correctly rounded);
 writing uses pyarrow's shortest round-trip float formatting, so every float
-reads back to the identical float64 (FORMATS.md).
+reads back to the identical float64 (docs/formats.md).
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""GNSS CSV reader and writer (FORMATS.md ``gnss.csv``), and the check of a GNSS log against the IMU's time."""
+"""GNSS CSV reader and writer (docs/formats.md ``gnss.csv``), and the check of a GNSS log against the IMU's time."""
 from __future__ import annotations
 
 import logging

@@ -1,4 +1,4 @@
-"""IMU CSV reader and writer (FORMATS.md ``imu.csv``), plus the checks every IMU log gets.
+"""IMU CSV reader and writer (docs/formats.md ``imu.csv``), plus the checks every IMU log gets.
 
 Two forms are read: rates (``gyro_*`` rad/s, ``accel_*`` m/s^2 at ``time``)
 and increments (``dtheta_*`` rad, ``dvel_*`` m/s over (previous time, time]).
@@ -246,7 +246,7 @@ def check_static_start(imu: ImuLog, g_local: float, conv: int = 0, seconds: floa
 
 
 def write_imu_csv(path, imu: ImuLog) -> None:
-    """Write increments (FORMATS.md increment form), atomically, exact floats."""
+    """Write increments (docs/formats.md increment form), atomically, exact floats."""
     data = {"time": imu.time}
     for i, ax in enumerate("xyz"):
         data[f"dtheta_{ax}"] = imu.dtheta_b[:, i]

@@ -1,9 +1,9 @@
-"""Trajectory files (FORMATS.md trajectory CSV): read, and write as CSV or Parquet (streamed).
+"""Trajectory files (docs/formats.md trajectory CSV): read, and write as CSV or Parquet (streamed).
 
 Extra columns (e.g. the 1-sigma and bias columns of an aided trajectory,
 :mod:`sinscli.io.aided_columns`) are written and read as they are; every
 value must be finite and every ``*_std`` column positive, on writing and on
-reading (FORMATS.md).
+reading (docs/formats.md).
 
 Other formats register a writer in :data:`WRITERS` by suffix
 (``function(path, traj, conv)``, writing atomically).
@@ -35,7 +35,7 @@ DCM_COLUMNS = [f"c{i}{j}" for i in range(1, 4) for j in range(1, 4)]
 REQUIRED = BASE_COLUMNS
 ROTATION_TOL = 1e-3          # a read attitude (c11..c33, or the quaternion's norm) is a rotation within this
 # The body convention of the attitude (docs/io_formats.md): the CSV column ``body`` (the same text on every row,
-# after the numbers; written for RFU and FRD, a file without it is FLU as FORMATS.md says) and the Parquet
+# after the numbers; written for RFU and FRD, a file without it is FLU as docs/formats.md says) and the Parquet
 # key-value metadata ``sins.body`` (always written).
 BODY_COLUMN = "body"
 BODY_METADATA = b"sins.body"
@@ -47,7 +47,7 @@ WRITERS: dict = {}
 
 def trajectory_columns(traj: Trajectory, conv: int = 0, with_dcm: bool = True, path=None,
                        first_row: int = 1) -> dict[str, np.ndarray]:
-    """FORMATS.md columns of a trajectory (degrees for angles), plus its extra columns; latitude and
+    """docs/formats.md columns of a trajectory (degrees for angles), plus its extra columns; latitude and
     longitude through the writers' guard (:func:`sinscli.io.atomic.output_lon_lat`: longitude in
     [-180, 180), latitude within +-90) for the output ``path``."""
     cbn = np.ascontiguousarray(traj.Cbn, dtype=np.float64)
@@ -219,7 +219,7 @@ def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) 
     Rows beyond the physical ``limits`` (the config's section; default: the defaults), Euler angles
     out of range and an attitude that is not a rotation are refused naming the row and column.  A file
     in ``frame`` NED (``vel_d``, attitude body -> NED) or with angles in radians (``to_deg``, the factor to
-    degrees) is read into FORMATS.md's ENU and degrees (:mod:`sinscli.io.frames`, the config's ``init``
+    degrees) is read into docs/formats.md's ENU and degrees (:mod:`sinscli.io.frames`, the config's ``init``
     and ``truth`` sections).
     """
     lim = limits_mod.resolve(limits)
@@ -290,9 +290,9 @@ def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) 
 
 
 def body_from_angles(cbn, roll_deg, pitch_deg, heading_deg, rows: int = 64) -> int | None:
-    """The body convention under which the file's physical Euler angles (FORMATS.md roll, pitch, heading)
+    """The body convention under which the file's physical Euler angles (docs/formats.md roll, pitch, heading)
     give its attitude ``cbn``, from up to ``rows`` rows spread over the file: FLU, RFU or FRD, or None when
-    none fits within 1e-6 (a writer that does not follow FORMATS.md).  The three give different ``Cbn``
+    none fits within 1e-6 (a writer that does not follow docs/formats.md).  The three give different ``Cbn``
     for the same angles (a quarter turn about z, a half turn about x), so at most one fits."""
     n = cbn.shape[0]
     k = np.unique(np.linspace(0, n - 1, min(rows, n)).astype(np.int64))
@@ -341,7 +341,7 @@ def _check_columns(path, header, frame: str = "enu"):
     if missing:
         hint = " (a NED file: config frame: ned)" if frame != "ned" and "vel_d" in header else ""
         raise SinsError(f"{path}: missing trajectory column(s) {', '.join(missing)}; expected "
-                        f"{', '.join(required)} (FORMATS.md){hint}")
+                        f"{', '.join(required)} (docs/formats.md){hint}")
 
 
 # Result formats of other modules (MCAP for Foxglove/ROS, TUM for evo, GeoJSON and KML for maps).

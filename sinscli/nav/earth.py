@@ -1,4 +1,4 @@
-"""Earth model: WGS-84 ellipsoid, the FORMATS.md normal gravity, earth and transport rates.
+"""Earth model: WGS-84 ellipsoid, the docs/formats.md normal gravity, earth and transport rates.
 
 Each formula is written once, as a plain function of its arguments using only
 arithmetic and ``np.sqrt`` / ``np.sin`` / ``np.cos``; the ``*_py`` names are
@@ -28,7 +28,7 @@ def radii_py(sin_lat):
 
 
 def gravity_py(sin_lat, h):
-    """Normal gravity magnitude of FORMATS.md, m/s^2, acting along -Up.
+    """Normal gravity magnitude of docs/formats.md, m/s^2, acting along -Up.
 
     ``g = 9.7803267715 (1 + 0.0052790414 s^2 + 0.0000232718 s^4)
          + (-3.0876910891e-6 + 4.3977311e-9 s^2) h + 7.211e-13 h^2``

@@ -1,7 +1,7 @@
 """The mounting check of every ``sins navigate`` (issue 10): the specific force at rest against what the
 initial attitude predicts.
 
-At rest (or in unaccelerated motion) the accelerometers measure ``f^b = C_n^b (0, 0, g)`` (ENU, FORMATS.md):
+At rest (or in unaccelerated motion) the accelerometers measure ``f^b = C_n^b (0, 0, g)`` (ENU, docs/formats.md):
 the initial attitude ``Cbn`` predicts it, and a gross mismatch (tens of degrees) is not a sensor error but
 an axis mistake: a missing or wrong ``imu.mounting``, FRD data read as FLU (``imu.body``), or a wrong
 roll/pitch in the init.  Without an initial attitude (``--align`` takes it from the log), the body's up axis

@@ -203,7 +203,7 @@ def level_components(cbn_true: np.ndarray, att_n: np.ndarray, conv: int = 0) -> 
 
 def error_series(truth: Trajectory, nav: Trajectory, conv: int = 0) -> ErrorSeries:
     """Errors of ``nav`` against ``truth`` given at the same epochs (already matched), with the navigator's
-    1-sigma columns (FORMATS.md aided trajectory) when ``nav`` has them."""
+    1-sigma columns (docs/formats.md aided trajectory) when ``nav`` has them."""
     att_n = attitude_error_many(np.ascontiguousarray(truth.Cbn), np.ascontiguousarray(nav.Cbn))
     att_std = aided_columns.group(nav.extra, aided_columns.ATT_STD)
     return ErrorSeries(

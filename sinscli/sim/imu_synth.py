@@ -3,7 +3,7 @@
     w_ib^b = w_nb^b + C_n^b (w_ie^n + w_en^n)
     f^b    = C_n^b (dv^n/dt + (2 w_ie^n + w_en^n) x v^n - g^n)
 
-(the strapdown attitude and velocity equations, seed 004 / ALGORITHMS.md,
+(the strapdown attitude and velocity equations, seed 004 / docs/algorithms.md,
 solved for the sensor outputs), ENU navigation frame, FLU body axes.
 ``w_nb^b`` comes from the attitude jet: ``[w_nb^b x] = C_n^b dCbn/dt``.
 """
@@ -24,7 +24,7 @@ def body_rate_nb(cbn: np.ndarray, dcbn: np.ndarray) -> np.ndarray:
 
 
 def normal_gravity_n(lat: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """``g^n = (0, 0, -g(L, h))`` (n, 3), the FORMATS.md normal gravity along the ellipsoid normal."""
+    """``g^n = (0, 0, -g(L, h))`` (n, 3), the docs/formats.md normal gravity along the ellipsoid normal."""
     out = np.zeros(np.shape(lat) + (3,))
     out[..., 2] = -gravity_py(pm.sin(lat), h)
     return out

@@ -120,7 +120,7 @@ SIM_FILES = ("imu.csv", "gnss.csv", "truth.csv", "init.yaml")
 
 
 def write_sim(result: SimResult, outdir) -> list[Path]:
-    """Write ``imu.csv``, ``gnss.csv``, ``truth.csv``, ``init.yaml`` into ``outdir`` (FORMATS.md).
+    """Write ``imu.csv``, ``gnss.csv``, ``truth.csv``, ``init.yaml`` into ``outdir`` (docs/formats.md).
 
     The four files are one set (:func:`sinscli.io.atomic.staged_dir`): all of them replace an earlier
     set, or none does (a full disk never pairs new IMU data with an old truth).  Returns the paths.
