@@ -7,6 +7,7 @@ import os
 import signal
 import sys
 import threading
+from pathlib import Path
 
 import click
 
@@ -85,14 +86,16 @@ def _bytes_as_escapes(exc):
 
 
 def _printable_stderr() -> None:
-    """stderr writes a name's non-UTF-8 bytes as ``\\xNN`` (not Python's ``\\udcNN``)."""
+    """stdout and stderr write a name's non-UTF-8 bytes as ``\\xNN`` (not Python's ``\\udcNN``, and never a
+    UnicodeEncodeError: `sins info` prints file names on stdout)."""
     import codecs
     try:
         codecs.lookup_error("sins-bytes")
     except LookupError:
         codecs.register_error("sins-bytes", _bytes_as_escapes)
-    with contextlib.suppress(AttributeError, ValueError, OSError):
-        sys.stderr.reconfigure(errors="sins-bytes")
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(AttributeError, ValueError, OSError):
+            stream.reconfigure(errors="sins-bytes")
 
 
 def _raise_interrupted(signum, frame):
@@ -224,6 +227,12 @@ class _Group(click.Group):
         except Exception as exc:  # an internal bug: still one line, traceback with --debug
             if ctx.obj and ctx.obj.get("debug"):
                 raise
+            from ..io.atomic import is_fault, os_errno, target_of
+            if is_fault(exc):     # the file system (a device error reading an input, a folder removed): not a bug
+                name = getattr(exc, "filename", None)
+                where = f"{target_of(Path(name))}: " if name else ""
+                click.echo(f"sins: error: {where}{os.strerror(os_errno(exc))}", err=True)
+                sys.exit(SinsError.exit_code)
             click.echo(f"sins: internal error: {type(exc).__name__}: {exc} (rerun with --debug for a traceback)",
                        err=True)
             sys.exit(1)

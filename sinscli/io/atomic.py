@@ -142,17 +142,57 @@ def output_lon_lat(path, lat_deg, lon_deg, time=None, first_row: int = 1):
     return lat_deg, wrap_lon(lon_deg, 180.0)
 
 
+# temporary names shortened because the target's name is near the file system's limit (255 bytes):
+# shortened name -> target name (for target_of)
+_SHORT_NAMES: dict[str, str] = {}
+NAME_MAX = 255
+
+
 def target_of(path: Path) -> Path:
     """``path`` with every temporary name of this process in it (``.<name>.<pid>.part<suffix>``, a file
     of :func:`atomic_path` or a folder of :func:`staged_dir`) replaced by its target's name."""
     tag = f".{os.getpid()}.part"
-    parts = [p[1:p.index(tag)] if p.startswith(".") and tag in p else p for p in path.parts]
+
+    def one(p: str) -> str:
+        if p in _SHORT_NAMES:
+            return _SHORT_NAMES[p]
+        base = p.split(".part", 1)[0] + ".part" if tag in p else p
+        if base in _SHORT_NAMES:
+            return _SHORT_NAMES[base]
+        return p[1:p.index(tag)] if p.startswith(".") and tag in p else p
+    parts = [one(p) for p in path.parts]
     return Path(*parts) if parts else path
 
 
 def temp_sibling(path: Path, suffix: str = "") -> Path:
-    """``<folder>/.<name>.<pid>.part<suffix>``: the temporary name of ``path`` for this process."""
-    return path.parent / f".{path.name}.{os.getpid()}.part{suffix}"
+    """``<folder>/.<name>.<pid>.part<suffix>``: the temporary name of ``path`` for this process.  A target
+    name near the 255-byte limit gets a shortened temporary name (its start and a hash), so that every
+    name the file system allows can be written."""
+    name = f".{path.name}.{os.getpid()}.part"
+    if len(os.fsencode(name + suffix)) > NAME_MAX:
+        import hashlib
+        digest = hashlib.sha1(os.fsencode(path.name)).hexdigest()[:12]
+        head = os.fsdecode(os.fsencode(path.name)[:120])
+        name = f".{head}~{digest}.{os.getpid()}.part"
+        _SHORT_NAMES[name] = path.name
+    return path.parent / f"{name}{suffix}"
+
+
+def _read_only(path: Path) -> str | None:
+    """Why ``path`` (an existing file or folder) cannot be written, or None: a read-only file system, or a
+    file without any write permission (replacing it, as a rename would, would defeat its protection)."""
+    try:
+        if os.statvfs(path).f_flag & os.ST_RDONLY:
+            return "read-only file system"
+    except (OSError, AttributeError):
+        pass
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    if not path.is_dir() and not (st.st_mode & 0o222):
+        return "the file is read-only: no write permission; remove it or give another name"
+    return None
 
 
 def _alive(pid: int) -> bool:
@@ -191,6 +231,10 @@ def prepare_output(path, directory: bool = False, create: bool = False) -> Path:
     outputs, not a file), inside a folder that exists or can be made, writable.  Stale temporaries
     of it are removed; ``create`` makes its folder."""
     path = Path(path)
+    for part in path.parts:
+        if len(os.fsencode(part)) > NAME_MAX:
+            raise SinsError(f"{path}: file name too long ({len(os.fsencode(part))} bytes; a name has at most "
+                            f"{NAME_MAX})")
     check_not_input(path)
     if not directory and path.is_dir():
         raise SinsError(f"{path}: output is a directory; give a file name")
@@ -201,8 +245,15 @@ def prepare_output(path, directory: bool = False, create: bool = False) -> Path:
         folder = folder.parent
     if not folder.is_dir():
         raise SinsError(f"{path}: {folder} is a file, not a folder")
+    why = _read_only(folder)
+    if why is not None:
+        raise SinsError(f"{path}: cannot write in {folder} ({why})")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise SinsError(f"{path}: cannot write in {folder} (permission denied)")
+    if not directory and path.is_file():
+        why = _read_only(path)
+        if why is not None:
+            raise SinsError(f"{path}: cannot write the output: {why}")
     if create:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)

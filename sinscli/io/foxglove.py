@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import SinsError
+from ..errors import SinsError, printable
 from ..nav.earth import local_enu_to_lla
 from ..nav.rotation import body_flu_in_enu, cbn_from_flu, dcm_to_euler_many, level_heading_frame, quat_to_dcm_many
 from ..types import Trajectory
@@ -227,7 +227,7 @@ def write_trajectory_mcap(path, traj: Trajectory, conv: int = 0) -> None:
             w.add_metadata("sins", {
                 "enu_origin_lat_deg": repr(float(np.degrees(origin[0]))),
                 "enu_origin_lon_deg": repr(float(lon_deg[0])),
-                "enu_origin_height_m": repr(float(origin[2])), "body_axes": "FLU", "source": str(traj.source)})
+                "enu_origin_height_m": repr(float(origin[2])), "body_axes": "FLU", "source": printable(traj.source)})
             for k, r in enumerate(rows):
                 tk, s_, ns_ = t_l[k], sec_l[k], nsec_l[k]
                 w.add_message(c_fix, log_time=tk, publish_time=tk, sequence=k,

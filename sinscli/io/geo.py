@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import SinsError
+from ..errors import SinsError, printable
 from ..types import Trajectory
 from . import aided_columns as ac
 from .atomic import atomic_path, output_lon_lat
@@ -58,7 +58,7 @@ def write_geojson(path, traj: Trajectory, conv: int = 0) -> None:
     """A FeatureCollection with one LineString feature (``[lon, lat, height]``) and the times."""
     lon, lat, h = _track(path, traj)
     cols = _columns(traj)
-    props = {"name": "sins trajectory", "source": str(traj.source)}
+    props = {"name": "sins trajectory", "source": printable(traj.source)}
     props.update({c: v.tolist() for c, v in cols.items()})
     units = {c: ac.UNITS.get(c, "") for c in cols if c != "time"}
     if units:
@@ -130,7 +130,7 @@ def write_kml(path, traj: Trajectory, conv: int = 0) -> None:
             items.append(f'<Data name={quoteattr(c)}><displayName>{escape(label)}</displayName><value>'
                          + " ".join(repr(x) for x in v.tolist()) + "</value></Data>\n")
         extended = "<ExtendedData>\n" + "".join(items) + "</ExtendedData>\n"
-    name = str(traj.source).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    name = printable(traj.source).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write('<?xml version="1.0" encoding="UTF-8"?>\n'

@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import heapq
 import io
+import os
 import sqlite3
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -160,8 +161,9 @@ class _RosbagsLog(_Log):
         what = "cannot open log (truncated, corrupt or unsupported)"
         if path.suffix.lower() == ".bag":
             what += "; a ROS 1 bag with a damaged index can be rebuilt with `rosbag reindex` (or rosbags-convert)"
+        self._alias_dir = None
         with guard(path, None, what):
-            self.reader = AnyReader([path])
+            self.reader = AnyReader([self._plain_name(path)])
             self.reader.open()
         self.is2 = self.reader.is2
         try:
@@ -220,8 +222,26 @@ class _RosbagsLog(_Log):
             meta = load_yaml(self.path / "metadata.yaml", "bag metadata")["rosbag2_bagfile_information"]
         return meta
 
+    def _plain_name(self, path: Path) -> Path:
+        """``path``, or for a name that is not UTF-8 (which rosbags cannot open: SQLite and its metadata take
+        text) a symbolic link to it with a plain name in a private temporary folder."""
+        try:
+            str(path).encode("utf-8")
+            return path
+        except UnicodeEncodeError:
+            import tempfile
+            self._alias_dir = tempfile.mkdtemp(prefix="sins-log-")
+            alias = Path(self._alias_dir) / ("log" + (path.suffix if path.suffix.isascii() else ""))
+            os.symlink(os.path.abspath(path), alias)
+            return alias
+
     def close(self):
-        self.reader.close()
+        try:
+            self.reader.close()
+        finally:
+            if self._alias_dir is not None:
+                import shutil
+                shutil.rmtree(self._alias_dir, ignore_errors=True)
 
     def iter_raw(self, topic):
         conns = self.topics[topic].extra["connections"]
