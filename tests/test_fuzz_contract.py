@@ -1078,6 +1078,8 @@ def small_disk(tmp_path_factory):
 
 def test_fuzz_faults_and_edges(seeds, tmp_path, small_disk):
     rng = np.random.default_rng(SEED + 22)
+    import faulthandler
+    stacks = open(os.environ["SINS_FUZZ_TRACE"] + ".stacks", "w") if os.environ.get("SINS_FUZZ_TRACE") else None
     counts = collections.Counter()
     by_kind = collections.defaultdict(collections.Counter)
     failures = collections.defaultdict(list)
@@ -1086,10 +1088,8 @@ def test_fuzz_faults_and_edges(seeds, tmp_path, small_disk):
         case_dir = tmp_path / f"f{k:04d}"
         case_dir.mkdir()
         desc, args, outputs, out_dir, names, kind, setup = make_fault_case(rng, seeds, case_dir, small_disk)
-        if os.environ.get("SINS_FUZZ_TRACE"):                  # the case running now (to find a hang)
+        if stacks is not None:                  # the case running now, and every thread's stack on a hang
             Path(os.environ["SINS_FUZZ_TRACE"]).write_text(f"#{k} {desc}\n", errors="backslashreplace")
-            import faulthandler
-            stacks = open(os.environ["SINS_FUZZ_TRACE"] + ".stacks", "w")
             faulthandler.dump_traceback_later(4 * HANG_S, file=stacks)
         before = _tree(out_dir)
         try:
@@ -1106,6 +1106,9 @@ def test_fuzz_faults_and_edges(seeds, tmp_path, small_disk):
             with contextlib.suppress(OSError):
                 p.chmod(0o755 if p.is_dir() else 0o644)
         shutil.rmtree(case_dir, ignore_errors=True)
+    if stacks is not None:
+        faulthandler.cancel_dump_traceback_later()
+        stacks.close()
     elapsed = time.perf_counter() - t_start
     summary = {"cases": N_FAULT_CASES, "seconds": round(elapsed, 1), "disk_full_cases": small_disk is not None,
                "classes": dict(counts), "by_kind": {k: dict(v) for k, v in sorted(by_kind.items())}}
