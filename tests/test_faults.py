@@ -23,6 +23,7 @@ import pytest
 import yaml
 
 from test_contract import refused, sins
+from test_fuzz_contract import _Failing
 
 from sinscli.io import atomic, ros
 from sinscli.report.batch_job import describe
@@ -170,33 +171,6 @@ def test_describe_a_file_system_error_of_a_job():
 
 # --------------------------------------------------------------------------- injected: EIO, EDQUOT
 
-class _FailingFile:
-    """A writer's own file object whose writes fail with ``code`` once ``limit`` bytes (or characters)
-    are written."""
-
-    def __init__(self, real, code, limit):
-        self.real, self.code, self.limit, self.n = real, code, limit, 0
-
-    def write(self, b):
-        self.n += len(b)
-        if self.n > self.limit:
-            raise OSError(self.code, os.strerror(self.code))
-        return self.real.write(b)
-
-    def writelines(self, lines):
-        for line in lines:
-            self.write(line)
-
-    def __getattr__(self, name):
-        return getattr(self.real, name)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.real.close()
-
-
 @pytest.fixture()
 def failing_writes(monkeypatch):
     """Every file a writer opens under a staged temporary name fails with the given errno after a few kB."""
@@ -206,7 +180,7 @@ def failing_writes(monkeypatch):
         def fake_open(file, mode="r", *args, **kwargs):
             f = real_open(file, mode, *args, **kwargs)
             if any(c in mode for c in "wax") and ".part" in os.fsdecode(os.fspath(file)):
-                return _FailingFile(f, code, limit)
+                return _Failing(f, code, limit)
             return f
         monkeypatch.setattr(builtins, "open", fake_open)
         monkeypatch.setattr(io, "open", fake_open)

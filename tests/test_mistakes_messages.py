@@ -146,6 +146,11 @@ def test_no_offset_is_reported_for_synchronized_logs():
     imu, g = read_imu_csv(SAMPLE / "imu.csv"), read_gnss_csv(SAMPLE / "gnss.csv")
     est = estimate_offset(imu.time, imu.dtheta_b, imu.dvel_b, 0.0, g.time, g.lat, g.lon, g.height, g.vel_n)
     assert abs(est.shift) < 0.1 and est.peak > 0.99 and offset_refusal(est, "gnss.csv") is None
+    # GNSS times on another scale (ms, or 1e-4 s apart): too short an overlap, no estimate, and no runaway
+    # grid of lags (the fuzzer found a fused run that did not end)
+    for scale in (1e-4, 1e3):
+        assert estimate_offset(imu.time, imu.dtheta_b, imu.dvel_b, 0.0, g.time * scale, g.lat, g.lon, g.height,
+                               g.vel_n) is None
 
 
 # --------------------------------------------------------------------------- logs too short

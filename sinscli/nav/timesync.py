@@ -28,6 +28,9 @@ MIN_OFFSET = 1.0         # s: smaller offsets (latency) are the filter's busines
 MIN_PEAK = 0.6           # mean correlation of the two signals at the peak
 MIN_GAIN = 0.3           # the peak beats the correlation without a shift by this much
 MIN_MOTION = 8           # GNSS epochs with motion (turns or accelerations) needed
+MAX_EPOCHS = 20_000      # GNSS epochs compared at most (a longer log is thinned evenly)
+COARSE_LAGS = 1_000      # lags of the first search; the second refines around its best over FINE_LAGS
+FINE_LAGS = 200
 POSITION_SMOOTH = 5      # GNSS epochs: both signals averaged over this many more when the GNSS has no velocity
 
 
@@ -99,11 +102,19 @@ def estimate_offset(imu_time, dtheta_b, dvel_b, imu_t0: float, gnss_time, lat_de
     gt = np.asarray(gnss_time, dtype=float)
     if gt.size < MIN_MOTION:
         return None
+    thin = slice(None, None, max(1, gt.size // MAX_EPOCHS))
+    gt = gt[thin]
+    lat_deg, lon_deg, h = (np.asarray(a, float)[thin] for a in (lat_deg, lon_deg, h))
+    vel_n = None if vel_n is None else np.asarray(vel_n, float)[thin]
+    imu_time = np.asarray(imu_time, dtype=float)
+    dt_i = float(np.median(np.diff(imu_time))) if imu_time.size > 1 else 0.0
     dt_g = float(np.median(np.diff(gt)))
+    if not (dt_g > 0.0 and dt_i > 0.0):
+        return None
     vel = (np.asarray(vel_n, dtype=float) if vel_n is not None else
            _enu_velocity(gt, np.asarray(lat_deg, float), np.asarray(lon_deg, float), np.asarray(h, float)))
     g_turn, g_acc = _gnss_signals(gt, vel)
-    step = min(0.1, dt_g / 4.0)
+    step = max(min(0.1, dt_g / 4.0), dt_i, 1e-3)   # the IMU blocks: at least one sample, at most 0.1 s
     tb, i_turn, i_acc = _imu_signals(np.asarray(imu_time, float), np.asarray(dtheta_b, float),
                                      np.asarray(dvel_b, float), float(imu_t0), step)
     if tb.size < 10:
@@ -131,7 +142,13 @@ def estimate_offset(imu_time, dtheta_b, dvel_b, imu_t0: float, gnss_time, lat_de
         r2 = _corr(np.interp(tq[sel], tb, i_acc), g_acc[sel])
         return 0.5 * (r1 + r2), int(sel.sum())
 
-    lags = np.arange(-max_lag, max_lag + 0.5 * step, max(step, dt_g / 10.0))
+    fine = max(step, dt_g / 10.0)               # coarse, then fine around the coarse best: bounded work
+    coarse = max(fine, 2.0 * max_lag / COARSE_LAGS)
+    lags = np.arange(-max_lag, max_lag + 0.5 * coarse, coarse)
+    best = float(lags[int(np.argmax([score(tau)[0] for tau in lags]))])
+    if coarse > fine:
+        half = min(2.0 * coarse, 0.5 * FINE_LAGS * fine)
+        lags = np.arange(best - half, best + half + 0.5 * fine, fine)
     scores = np.array([score(tau)[0] for tau in lags])
     k = int(np.argmax(scores))
     tau = float(lags[k])
