@@ -307,7 +307,9 @@ def run_study(outdir, store: JobStore, keys: list[tuple], make_tasks: Callable[[
                     on_resumed(counts.resumed)
                 run_tasks(runner, store, make_tasks(runner), describe, on_job, counts)
             stage = Path(tempfile.mkdtemp(prefix=".report.", suffix=".part", dir=outdir))
-            result = finish(stage, counts)
+            from ..io.atomic import immediate_outputs
+            with immediate_outputs():         # the report's files complete in the stage before publish moves them
+                result = finish(stage, counts)
             publish(stage, outdir)
             stage.rmdir()
             return result, counts
