@@ -120,7 +120,7 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     guard_trajectory(output, traj)               # both outputs or neither: the guard before either is written
     if innovations_path is not None:               # both staged in the command's output set (io/atomic.py):
         write_innovations(innovations_path, records)   # in place together, or neither (an earlier pair kept)
-    write_trajectory(output, traj, opts.conv, limits=cfg["limits"])
+    write_trajectory(output, traj, opts.conv)
     click.echo(f"sins: {summary.text()}", err=True)
     if not quiet:
         summary_line(imu_path, len(traj), float(traj.time[0]), float(traj.time[-1]), output)

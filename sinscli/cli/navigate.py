@@ -185,13 +185,13 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
             chunks = windowed(chunks, window, str(imu))
         if streaming:
             extra = list(_extra_columns(opts))
-            with TrajectoryWriter(output, conv, extra_columns=extra, limits=cfg["limits"]) as writer:
+            with TrajectoryWriter(output, conv, extra_columns=extra) as writer:
                 for chunk in chunks:
                     writer.write(chunk)
                     _count(written, chunk)
         else:
             traj = concat(list(chunks))
-            write_trajectory(output, traj, conv, limits=cfg["limits"])
+            write_trajectory(output, traj, conv)
             _count(written, traj)
         finish_progress(bar)
     if quiet:

@@ -148,31 +148,6 @@ _SHORT_NAMES: dict[str, str] = {}
 NAME_MAX = 255
 
 
-def check_physical(path, height, vel, time=None, first_row: int = 1, limits=None) -> None:
-    """The writers' guard of the physical range: a trajectory whose height or speed leaves the run's
-    ``limits`` (the config's section; default: the defaults) is refused as :func:`check_finite` refuses a
-    NaN, so that `sins` never writes a trajectory it would refuse to read (a navigation started at a
-    height where the normal gravity formula no longer holds, a velocity run away)."""
-    from . import limits as limits_mod
-    lim = limits_mod.resolve(limits)
-    h = np.asarray(height, dtype=np.float64).reshape(-1)
-    v = np.asarray(vel, dtype=np.float64).reshape(h.shape[0], -1)
-    speed = np.sqrt(np.sum(v * v, axis=1))
-    bad_h = (h < lim["height_min"]) | (h > lim["height_max"])
-    bad_v = speed > lim["speed"]
-    if not (bad_h.any() or bad_v.any()):
-        return
-    k = int(np.argmax(bad_h | bad_v))
-    t = np.asarray(time).reshape(-1) if time is not None else None
-    epoch = f" (time {num(t[k])} s)" if t is not None and k < t.shape[0] else ""
-    what = (f"column 'height': {num(h[k])} m is outside [{num(lim['height_min'])}, {num(lim['height_max'])}] m "
-            f"(limits.height_min/height_max)" if bad_h[k] else
-            f"speed {num(speed[k])} m/s is beyond the physical limit {num(lim['speed'])} m/s (limits.speed)")
-    raise NonFiniteOutput(f"{target_of(Path(path))}: internal consistency check: row {first_row + k}{epoch}, "
-                          f"{what}: the navigation left the physical range (check the initial state, units "
-                          f"and time stamps); nothing written")
-
-
 def target_of(path: Path) -> Path:
     """``path`` with every temporary name of this process in it (``.<name>.<pid>.part<suffix>``, a file
     of :func:`atomic_path` or a folder of :func:`staged_dir`) replaced by its target's name."""

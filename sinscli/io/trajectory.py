@@ -25,7 +25,7 @@ from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, euler_to_dcm_man
 from ..types import Trajectory
 from . import aided_columns
 from . import limits as limits_mod
-from .atomic import StagedFile, check_finite, check_physical, output_lon_lat, prepare_output
+from .atomic import StagedFile, check_finite, output_lon_lat, prepare_output
 from .csvcore import CsvTableWriter, float64_table, float_column, read_header, read_numeric_columns
 from .frames import cbn_to_enu, file_name, to_enu
 
@@ -76,10 +76,9 @@ class TrajectoryWriter:
     full, I/O error) as the one-line write error naming the target.
     """
 
-    def __init__(self, path, conv: int = 0, extra_columns=(), limits=None):
+    def __init__(self, path, conv: int = 0, extra_columns=()):
         self.path = check_trajectory_output(path)
         self.conv = conv
-        self.limits = limits                  # the run's physical limits (the writers' range guard)
         self.suffix = self.path.suffix.lower()
         if self.suffix not in (".csv", ".parquet"):
             raise SinsError(f"{path}: streaming output supports .csv and .parquet")
@@ -102,7 +101,6 @@ class TrajectoryWriter:
 
     def _write(self, traj: Trajectory) -> None:
         cols = trajectory_columns(traj, self.conv, path=self.path, first_row=self._rows + 1)
-        check_physical(self.path, traj.height, traj.vel_n, traj.time, self._rows + 1, self.limits)
         if self.suffix != ".csv":            # (the CSV table writer applies the same guard)
             check_finite(self.path, {c: cols[c] for c in self.columns}, cols["time"], self._rows + 1, self.sigmas)
         self._rows += len(traj)
@@ -180,18 +178,15 @@ class TrajectoryWriter:
         return False
 
 
-def write_trajectory(path, traj: Trajectory, conv: int = 0, limits=None) -> None:
-    """Write a whole trajectory; the format follows the suffix (.csv, .parquet, or a registered one).
-    ``limits``: the run's physical limits (the config's section; default: the defaults), which no row
-    written may leave (:func:`sinscli.io.atomic.check_physical`)."""
+def write_trajectory(path, traj: Trajectory, conv: int = 0) -> None:
+    """Write a whole trajectory; the format follows the suffix (.csv, .parquet, or a registered one)."""
     suffix = Path(path).suffix.lower()
     if suffix in (".csv", ".parquet"):
-        with TrajectoryWriter(path, conv, extra_columns=list(traj.extra), limits=limits) as w:
+        with TrajectoryWriter(path, conv, extra_columns=list(traj.extra)) as w:
             w.write(traj)
         return
     check_trajectory_output(path)
     guard_trajectory(path, traj)
-    check_physical(path, traj.height, traj.vel_n, traj.time, 1, limits)
     WRITERS[suffix](path, traj, conv)
 
 

@@ -142,26 +142,33 @@ def mounting_warning(imu, t0: float, g: float, conv: int, cbn0, imu_cfg: dict) -
 # --- gyro units (issue 22) ---------------------------------------------------------------------------
 #
 # At rest the gyros measure the earth rate W (7.29e-5 rad/s) plus their bias.  Rates in deg/s read as rad/s
-# are 57.3 times that, and the data are physically impossible as declared when either
-#   * the mean rate at rest, read as deg/s, has the earth rate's geometry (its component along the up axis,
-#     the specific force's direction, W sin L, the horizontal one W cos L, both within UNIT_MATCH W) while as
-#     declared it is at least UNIT_MIN_EXCESS earth rates (a good gyro's deg/s data), or
-#   * as declared it needs a bias beyond the sensor description's (BIAS_SIGMAS times its turn-on and
-#     in-run bias sigmas, per axis; without a description the 'mems' preset, the worst the project ships),
-#     while read as deg/s it is within that bound.
+# are 57.3 times that.  The window is "at rest" by the accelerometers: over it the specific force keeps its
+# direction to within STILL of the tilt that the declared horizontal rate would have turned it by (so the
+# rate is not a real rotation: a slow turn, a swaying base tilt it; a turn about the vertical is not used).
+# The data are then physically impossible as declared when either
+#   * the mean rate, read as deg/s, has the earth rate's geometry (its component along the up axis W sin L,
+#     the horizontal one W cos L, both within UNIT_MATCH W) while as declared it is at least
+#     UNIT_MIN_EXCESS earth rates (a good gyro's deg/s data), or
+#   * its horizontal part needs a bias beyond any shipped sensor's (BIAS_SIGMAS times the turn-on and
+#     in-run bias sigmas per axis of the 'mems' preset, the worst the project ships, or of the sensor
+#     description when that is looser: a wrong description never refuses real data), while read as deg/s
+#     the whole rate is within that bound.
 # A warning with a plausible-but-wrong trajectory is not enough: the run is refused, naming the unit to
-# set; --force accepts the data as declared (a gyro with a bias beyond its description).
+# set; --force accepts the data as declared (a gyro with a bias beyond every preset).
 
 UNIT_MATCH = 0.25          # of W: largest departure of (up, horizontal) of the rate/57.3 from the earth rate's
 UNIT_MIN_EXCESS = 10.0     # the declared mean rate at rest is at least this many earth rates
+STILL = 0.1                # the specific force turns by at most this fraction of the declared tilt rotation
+MIN_REST = 5.0             # s: the shortest rest window used
 BIAS_SIGMAS = 5.0          # the bias bound, in sigmas per axis (the norm bound is sqrt(3) times this)
 REST_AVERAGE = 60.0        # s: the rest average runs over at most this many consecutive rest seconds
 
 
 def rest_mean_rate(time, dtheta_b, dvel_b, t0: float, g: float):
-    """``(w_b, f_b, seconds, start)``: the mean angular rate and specific force over the first run of
-    consecutive rest-like seconds (:func:`rest_window`'s test) of the first :data:`SEARCH` s, at most
-    :data:`REST_AVERAGE` s long; None without one."""
+    """``(w_b, f_b, seconds, start, turned)``: the mean angular rate and specific force over the first run
+    of consecutive rest-like seconds (:func:`rest_window`'s test) of the first :data:`SEARCH` s, at most
+    :data:`REST_AVERAGE` s long, and the angle (rad) by which the specific force turned from its first to
+    its last second; None without one."""
     time = np.asarray(time, dtype=float)
     sel = time <= t0 + SEARCH + REST_AVERAGE
     if sel.sum() < 2 or time[sel][-1] - t0 < 1.0:
@@ -174,18 +181,21 @@ def rest_mean_rate(time, dtheta_b, dvel_b, t0: float, g: float):
     k0 = k1 = int(idx[0])
     while k1 + 1 < rest.size and rest[k1 + 1] and k1 + 1 - k0 < REST_AVERAGE:
         k1 += 1
-    return w[k0:k1 + 1].mean(axis=0), f[k0:k1 + 1].mean(axis=0), float(k1 + 1 - k0), t0 + k0
+    turned = _angle(f[k0], f[k1]) * math.pi / 180.0          # the specific force's turn over the window, rad
+    return w[k0:k1 + 1].mean(axis=0), f[k0:k1 + 1].mean(axis=0), float(k1 + 1 - k0), t0 + k0, turned
 
 
 def gyro_bias_bound(sensor: dict | None) -> float:
-    """rad/s: the largest norm of a gyro bias the description allows (:data:`BIAS_SIGMAS` sigmas per axis)."""
-    if not sensor or not (sensor.get("gyro") or {}):
-        from ..sensors import load_sensor
-        sensor = load_sensor("mems", None, "preset", None)
-    gyro = sensor.get("gyro") or {}
-    sig = np.hypot(np.asarray(gyro.get("bias_sigma", 0.0), dtype=float),
-                   np.asarray(gyro.get("bias_instability", 0.0), dtype=float)) * np.ones(3)
-    return float(BIAS_SIGMAS * np.linalg.norm(sig))
+    """rad/s: the largest norm of a gyro bias (:data:`BIAS_SIGMAS` sigmas per axis) of the 'mems' preset, or
+    of the sensor description when that allows more."""
+    from ..sensors import load_sensor
+
+    def bound(s):
+        gyro = (s or {}).get("gyro") or {}
+        sig = np.hypot(np.asarray(gyro.get("bias_sigma", 0.0), dtype=float),
+                       np.asarray(gyro.get("bias_instability", 0.0), dtype=float)) * np.ones(3)
+        return float(BIAS_SIGMAS * np.linalg.norm(sig))
+    return max(bound(load_sensor("mems", None, "preset", None)), bound(sensor))
 
 
 def gyro_unit_refusal(time, dtheta_b, dvel_b, t0: float, g: float, lat: float | None, declared: str,
@@ -199,24 +209,29 @@ def gyro_unit_refusal(time, dtheta_b, dvel_b, t0: float, g: float, lat: float | 
     found = rest_mean_rate(time, dtheta_b, dvel_b, t0, g)
     if found is None:
         return None
-    w_b, f_b, seconds, start = found
+    w_b, f_b, seconds, start, turned = found
+    if seconds < MIN_REST:
+        return None
     from .earth import OMEGA_IE
+    up = f_b / np.linalg.norm(f_b)
+    w_h = float(np.linalg.norm(w_b - float(w_b @ up) * up))   # the declared rate that would tilt the body
+    if turned > STILL * w_h * seconds:                     # the accelerometers see (part of) that rotation
+        return None
     as_deg = w_b * math.pi / 180.0                       # the same numbers read as deg/s
     norm, norm_deg = float(np.linalg.norm(w_b)), float(np.linalg.norm(as_deg))
     bound = gyro_bias_bound(sensor)
     why = None
     if lat is not None and norm >= UNIT_MIN_EXCESS * OMEGA_IE:
-        up = f_b / np.linalg.norm(f_b)
         v_up = float(as_deg @ up)
         v_h = float(np.linalg.norm(as_deg - v_up * up))
         if math.hypot(v_up - OMEGA_IE * math.sin(lat), v_h - OMEGA_IE * math.cos(lat)) <= UNIT_MATCH * OMEGA_IE:
             why = (f"{norm / OMEGA_IE:.0f} times the earth rate; read as deg/s they are the earth rate ({v_up:.3g} "
                    f"rad/s up, {v_h:.3g} horizontal; expected {OMEGA_IE * math.sin(lat):.3g}, "
                    f"{OMEGA_IE * math.cos(lat):.3g})")
-    if why is None and norm > bound + OMEGA_IE and norm_deg <= bound + OMEGA_IE:
-        what = "the sensor description's" if sensor else "any shipped sensor preset's (mems)"
-        why = (f"a bias beyond {what} bound of {bound:.3g} rad/s; read as deg/s they are {norm_deg:.3g} rad/s, "
-               "within it")
+    if why is None and w_h > bound + OMEGA_IE and norm_deg <= bound + OMEGA_IE:
+        why = (f"{w_h:.3g} rad/s of it horizontal while the specific force stays put ({turned:.2g} rad in "
+               f"{seconds:.0f} s): a bias beyond every shipped sensor's bound of {bound:.3g} rad/s; read as deg/s "
+               f"they are {norm_deg:.3g} rad/s, within it")
     if why is None:
         return None
     key, unit = ("imu.units.gyro", "deg/s") if declared == "rad/s" else ("imu.units.dtheta", "deg")
