@@ -368,8 +368,8 @@ def test_sensor_description_forms_give_one_budget(tmp_path):
     assert preset.gyro_bias_rw == pytest.approx(math.sqrt(2.0 * 0.5 ** 2 / 600) * math.pi / 180 / 3600)
     legacy = build_options(merge_section({"sensor": {"gyro_bias": 1.118, "accel_vrw": 50}}, "t"), "t").sensor
     assert legacy.gyro_bias == pytest.approx(1.118 * math.pi / 180 / 3600) and legacy.gyro_arw is None
-    with pytest.raises(SinsError, match="align.sensor: no sensor preset or file 'consumer'"):
-        build_options(merge_section({"sensor": "consumer"}, "t"), "t")
+    with pytest.raises(SinsError, match="align.sensor: no sensor preset or file 'phone'"):
+        build_options(merge_section({"sensor": "phone"}, "t"), "t")
     with pytest.raises(SinsError, match="gyro.bais: unknown key"):
         build_options(merge_section({"sensor": {"gyro": {"bais": 1}}}, "t"), "t")
 

@@ -114,8 +114,8 @@ def make_seeds(d: Path) -> dict[str, Path]:
         "  zupt: {enabled: true, sigma: 0.02, max_speed: 0.5}\n"
         "  standstill: {window: 1.0, rate_std: 0.5, accel_std: 0.3, accel_mag: 0.3}\n"
         "  nhc: {enabled: true, sigma: [0.1, 0.1], interval: 0.1}\n"
-        "  heading_init: {max_sigma: 20.0, min_speed: 2.0, sigma_floor: 2.0}\n"
-        "  adapt: {enabled: true, probability: 0.99999, window: 30, max_scale: 10000.0}\n  outage: 3.0\n  smoother_interval: 1.0\n"
+        "  vehicle: car\n  estimate: [lever_arm]\n  heading_init: {max_sigma: 20.0, max_course_sigma: 10.0, min_speed: 2.0, sigma_floor: 2.0}\n"
+        "  adapt: {enabled: true, window: 30, max_scale: 10000.0, max_bias_scale: 100.0, exit_ratio: 4.0, decay: 600.0}\n  outage: 3.0\n  smoother_interval: 1.0\n"
         "  sensor:\n    gyro: {arw: 0.3, bias_sigma: 360, bias_instability: 10, bias_tau: 100}\n"
         "    accel: {vrw: 100, bias_sigma: 5000, bias_instability: 50, bias_tau: 100}\n")
     from sinscli.io.trajectory import read_trajectory, write_trajectory
@@ -743,6 +743,7 @@ def test_seed_inputs_pass(seeds, tmp_path):
             assert cls == "ok", f"sins {' '.join(args)}: {cls}: {detail or err}"
 
 
+@pytest.mark.slow
 def test_fuzz_contract(seeds, tmp_path):
     rng = np.random.default_rng(SEED)
     counts = collections.Counter()

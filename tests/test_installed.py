@@ -102,7 +102,7 @@ def test_sample_data_recipe_reproduces_the_shipped_files(sins, workdir):
     args = recipe.split()[1:]
     args[1] = str(ROOT / args[1])                        # the scenario in the repository, output here
     run(sins, args + ["-q"], workdir)
-    for name in ("imu.csv", "gnss.csv", "truth.csv", "init.yaml"):
+    for name in ("imu.csv", "gnss.csv", "truth.csv", "init.yaml", "sim_truth.yaml"):
         assert filecmp.cmp(workdir / "sample_data" / name, ROOT / "sample_data" / name, shallow=False), name
 
 

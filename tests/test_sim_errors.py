@@ -81,7 +81,7 @@ def test_quantization_keeps_the_remainder():
 
 
 def test_presets_load_and_unknown_keys_are_refused(tmp_path):
-    for name in ("navigation", "tactical", "mems"):
+    for name in ("navigation", "tactical", "mems", "consumer"):
         s = load_sensor(name, None, "<t>", tmp_path)
         assert set(s["gyro"]) <= set(GYRO_UNITS) and set(s["accel"]) <= set(ACCEL_UNITS)
         assert s["gyro"]["arw"][0] > 0 and s["accel"]["vrw"][0] > 0
@@ -89,8 +89,8 @@ def test_presets_load_and_unknown_keys_are_refused(tmp_path):
     assert nav["gyro"]["bias_sigma"][0] < mems["gyro"]["bias_sigma"][0] / 1000
     with pytest.raises(SinsError, match=r"gyro\.bais: unknown key"):
         load_sensor({"gyro": {"bais": 1.0}}, None, "s.yaml", tmp_path)
-    with pytest.raises(SinsError, match="no sensor preset or file 'consumer'"):
-        load_sensor("consumer", None, "s.yaml", tmp_path)
+    with pytest.raises(SinsError, match="no sensor preset or file 'phone'"):
+        load_sensor("phone", None, "s.yaml", tmp_path)
     with pytest.raises(SinsError, match="bias_tau: required with bias_instability"):
         load_sensor({"accel": {"bias_instability": 10}}, None, "s.yaml", tmp_path)
 

@@ -61,7 +61,7 @@ def _bad(tmp_path, mutate):
      r"segments\[3\]: 'rest' needs the vehicle at rest at its start \(speed 10 m/s"),
     (lambda d: d["segments"].append({"type": "decelerate", "accel": -5, "duration": 6}),
      r"segments\[3\]: the speed would become negative"),
-    (lambda d: d["imu"].update(sensor="consumer"), r"imu\.sensor: no sensor preset or file 'consumer'"),
+    (lambda d: d["imu"].update(sensor="phone"), r"imu\.sensor: no sensor preset or file 'phone'"),
     (lambda d: d["start"].update(lat=91), r"start\.lat: must be within \(-89\.9, 89\.9\) degrees"),
     (lambda d: d["segments"].insert(1, {"type": "coning", "half_angle": 1, "freq": 1, "duration": 4,
                                         "ramp": 0}), r"segments\[1\]\.ramp: 0 is allowed only for the first"),
@@ -92,7 +92,7 @@ def test_cli_writes_files_that_read_back_exactly(tmp_path):
     out = tmp_path / "run"
     res = _run(["simulate", str(p), "-o", str(out), "--quiet"])
     assert res.exit_code == 0, res.output
-    assert sorted(x.name for x in out.iterdir()) == ["gnss.csv", "imu.csv", "init.yaml", "truth.csv"]
+    assert sorted(x.name for x in out.iterdir()) == ["gnss.csv", "imu.csv", "init.yaml", "sim_truth.yaml", "truth.csv"]
     ref = simulate(SMALL)                                    # the scenario's seed 3
     imu = read_imu_csv(out / "imu.csv")
     assert np.array_equal(imu.time, ref.imu.time)

@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import SinsError
 from ..nav.earth import dlon, gravity, radii
 from ..nav.pipeline import NavOptions
+from ..nav import imu_stats
 from ..nav.rotation import conv_to_flu, dcm_to_euler, dcm_to_euler_many, euler_to_dcm, rotvec_to_dcm
 from ..types import GnssLog, ImuLog, NavState, time_tolerance
 from . import budget as budget_mod
@@ -262,14 +263,14 @@ def _epoch_rows(time_rel: np.ndarray, interval: float) -> np.ndarray:
 
 def _rest_statistics(w: Window, opts: AlignOptions):
     """Motion statistics of the window: ``(moving, rate deviation, force deviation)``."""
-    dw, df, _, _ = coarse.motion_statistics(w.time, w.dtheta_b, w.dvel_b, w.t0, opts.static_block)
+    dw, df, _, _ = imu_stats.motion_statistics(w.time, w.dtheta_b, w.dvel_b, w.t0, opts.static_block)
     moving = dw > opts.static_rate or df > opts.static_accel
     return moving, dw, df
 
 
 def check_gravity(w: Window, g: float) -> None:
     """A base at rest or swaying measures gravity on average: refuse a log that cannot be levelled."""
-    _, f = coarse.mean_rates(w.time, w.dtheta_b, w.dvel_b, w.t0)
+    _, f = imu_stats.mean_rates(w.time, w.dtheta_b, w.dvel_b, w.t0)
     mag = float(np.linalg.norm(f))
     if 0.5 * g <= mag <= 1.5 * g:
         return
@@ -307,7 +308,7 @@ def _turning(w: Window) -> bool:
     """Does the body turn (its rate change) by more than ``TURN_MIN`` over the window?  Without it the
     gyro scale factor and misalignment act as a constant bias (``E w`` with ``w`` constant), which
     the bias term already carries."""
-    dw, _ = coarse.block_deviations(w.time, w.dtheta_b, w.dvel_b, w.t0, 1.0)
+    dw, _ = imu_stats.block_deviations(w.time, w.dtheta_b, w.dvel_b, w.t0, 1.0)
     return float(dw.sum()) > TURN_MIN
 
 
@@ -349,7 +350,7 @@ def _static(w: Window, opts: AlignOptions, lat: float, g: float, b) -> _Solution
                         f"{math.degrees(dw):.3g} deg/s, limit {math.degrees(opts.static_rate):.3g}; specific force by "
                         f"{df:.3g} m/s^2, limit {opts.static_accel:.3g}): --method static needs a base at rest; "
                         f"use --method inertial (swaying base) or gnss-inertial (moving)")
-    w_mean, f_mean = coarse.mean_rates(w.time, w.dtheta_b, w.dvel_b, w.t0)
+    w_mean, f_mean = imu_stats.mean_rates(w.time, w.dtheta_b, w.dvel_b, w.t0)
     cbn = coarse.triad(f_mean, w_mean, lat)
     rows = _epoch_rows(w.time - w.t0, opts.obs_interval)
     times = w.all_times[rows]
@@ -685,9 +686,12 @@ class _Heading:
     dropped: int = 0
 
 
-def _resolve_heading(sol: _Solution, opts: AlignOptions, notes: list, b, t0: float, t1: float) -> _Heading:
+def _resolve_heading(sol: _Solution, opts: AlignOptions, notes: list, b, t0: float, t1: float,
+                     heading_optional: bool = False) -> _Heading:
     """The heading from its proper source: the user, the method (earth rate or motion), else the GNSS
-    course (``t0``, ``t1``: the window's start and last sample)."""
+    course (``t0``, ``t1``: the window's start and last sample).  With ``heading_optional`` (the fused
+    run, which gets it from the motion later) an unobservable heading is left unknown (sigma nan) instead
+    of refused."""
     cur = sol.propagate(sol.cbn0)
     end = sol.at_end(sol.cbn0)
     if opts.heading is not None:
@@ -718,8 +722,13 @@ def _resolve_heading(sol: _Solution, opts: AlignOptions, notes: list, b, t0: flo
                          f"{opts.course_min_speed:g} m/s{extra} (robust fit with the heading drift, residual "
                          f"chi-square/dof {co.factor:.3g}): 1-sigma {math.degrees(s_end):.3g} deg")
             return _Heading(cbn0, cur, cbn_end, s_end, co.sigma(-t_last), "gnss-course", co.dropped)
-        raise SinsError(sol.heading.reason + f"; the GNSS course cannot replace it (fewer than 2 epochs faster "
-                        f"than {opts.course_min_speed:g} m/s): give --heading DEG")
+        if not heading_optional:
+            raise SinsError(sol.heading.reason + f"; the GNSS course cannot replace it (fewer than 2 epochs faster "
+                            f"than {opts.course_min_speed:g} m/s): give --heading DEG")
+    if heading_optional:
+        notes.append(sol.heading.reason + "; the heading is left to the fused run (heading from motion)")
+        nan = float("nan")
+        return _Heading(sol.cbn0, cur, end, nan, nan, "none")
     raise SinsError(sol.heading.reason + "; give --heading DEG, or --gnss with a moving vehicle "
                     "(heading from the GNSS course)")
 
@@ -748,8 +757,10 @@ SIGMA_MIN = 1e-9     # rad: no sigma is ever written as 0 (a perfect, noise-free
 
 # --------------------------------------------------------------------------- main entry
 
-def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress=None) -> AlignResult:
-    """Align over the selected interval (see the module docstring)."""
+def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress=None,
+          heading_optional: bool = False) -> AlignResult:
+    """Align over the selected interval (see the module docstring); ``heading_optional``: an unobservable
+    heading is left unknown (sigma nan) instead of refused (the fused run gets it from the motion)."""
     if opts.method == "kf" and opts.epoch == "start":
         raise SinsError("--epoch start: the Kalman filter gives the attitude at the end of the interval; "
                         "use --epoch end with --method kf")
@@ -792,7 +803,7 @@ def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress
     else:
         sol = _inertial(wc, opts, lat, h, g, b, gnss, notes=notes)
     t1c = float(wc.time[-1])
-    hd = _resolve_heading(sol, opts, notes, b, w.t0, t1c)
+    hd = _resolve_heading(sol, opts, notes, b, w.t0, t1c, heading_optional)
     dropped = dict(sol.dropped)
     if hd.source == "gnss-course":
         dropped["course"] = hd.dropped
@@ -812,7 +823,7 @@ def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress
     start = opts.epoch == "start"
     cov = sol.cov0 if start else sol.cov_end
     floor = sol.floor0 if start else sol.floor_end
-    if hd.source in ("user", "gnss-course"):
+    if hd.source in ("user", "gnss-course", "none"):
         # the heading does not come from the fit: neither its covariance nor its floor apply
         hv = hd.sigma0 if start else hd.sigma
         cov = _with_heading_var(cov, hv ** 2 if np.isfinite(hv) else 0.0)
@@ -827,7 +838,7 @@ def align(imu: ImuLog, opts: AlignOptions, gnss: GnssLog | None = None, progress
         vel, pos = _end_velocity_position(w, opts, gnss, hd.cbn_end, (lat, lon, h), moving_gnss)
         state = NavState(t1, pos[0], pos[1], pos[2], vel, hd.cbn_end)
     sigma, s_floor = _final_sigmas(cov, floor, state.Cbn, opts.conv)
-    if hd.source == "user" and not np.isfinite(hd.sigma):
+    if hd.source in ("user", "none") and not np.isfinite(hd.sigma):
         sigma[2] = float("nan")
     return AlignResult(state, opts.method, w.t0, w.T, sigma, hd.source, gyro_bias=sol.gyro_bias,
                        accel_bias=sol.accel_bias, notes=notes, series=series, roll_window=opts.roll_window,
@@ -989,9 +1000,9 @@ def _fine(w, opts, gnss, sol, hd, pos0, g, notes, moving_gnss, progress, b):
                  f"coarse solution, {len(k_up)} velocity updates"
                  + (f" ({bad_t.size} GNSS fixes left out as outliers)" if bad_t.size else "")
                  + f"; mean normalized innovation squared {nis:.3g} per axis"
-                 + (f": the covariance is scaled by it" if factor > 1.0 else ""))
+                 + (": the covariance is scaled by it" if factor > 1.0 else ""))
     sigma, s_floor = _final_sigmas(cov, floor, cbn_end, opts.conv)
-    if hd.source == "user" and not np.isfinite(hd.sigma):
+    if hd.source in ("user", "none") and not np.isfinite(hd.sigma):
         sigma[2] = float("nan")
     series = Series(res.times, res.cbn, None)
     return AlignResult(state, "kf", w.t0, w.T, sigma, hd.source, gyro_bias=res.gyro_bias,

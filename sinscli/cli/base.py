@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import contextlib
+import importlib
 import logging
 import os
 import signal
@@ -11,6 +12,8 @@ from pathlib import Path
 
 import click
 
+from .. import NUMBA_CACHE_NOTE
+from .._numba_cache import announce_compiles
 from ..errors import SinsError
 
 log = logging.getLogger("sins")
@@ -19,10 +22,10 @@ log = logging.getLogger("sins")
 # command name -> module under sinscli.cli that defines it; imported on first use, so that
 # `sins navigate` does not pay for the simulator, reports or alignment at start-up.
 COMMANDS = {"navigate": "navigate", "align": "align", "simulate": "simulate", "compare": "compare",
-            "info": "info", "convert": "convert", "allan": "allan"}
+            "info": "info", "convert": "convert", "allan": "allan", "gnss": "gnss"}
 
 # commands that run numba kernels: the first compile in a process says so (sinscli/_numba_cache.py)
-COMPILING_COMMANDS = frozenset({"navigate", "align", "simulate", "compare", "allan"})
+COMPILING_COMMANDS = frozenset({"navigate", "align", "simulate", "compare", "allan", "spp"})
 
 # The first paragraph of each command's help, for the listing of `sins --help`: with it the
 # listing imports no command module (numpy, numba, the simulator, the ROS readers), so it takes
@@ -39,6 +42,7 @@ SHORT_HELP = {
     "info": "Show the topics, message types, counts, rates, time span and gaps of a ROS 1 bag, ROS 2 bag "
             "(directory or .db3) or MCAP LOG, and for Imu topics the mean specific force and angular rate "
             "at the start (a quick look at units and mounting).",
+    "gnss": "Raw GNSS observations: single-point positioning (see docs/raw_gnss.md).",
     "navigate": "Navigate IMU increments from an initial state and write the trajectory.",
     "simulate": "Simulate SCENARIO.yaml: IMU increments, GNSS fixes and the exact truth (see docs/simulate.md).",
 }
@@ -136,7 +140,8 @@ class _Command(click.Command):
     before it runs, so that an output naming one of them is refused, whatever the command."""
 
     def invoke(self, ctx):
-        from ..io.atomic import end_inputs, output_set, reset_inputs
+        from ..inputs import end_inputs, reset_inputs   # PyYAML: not for --help (tests/test_cli_startup.py)
+        from ..io.atomic import output_set              # numpy: not for --help either
         paths = []
         for param in self.params:
             if param.name in OUTPUT_PARAMS or not isinstance(param.type, click.Path):
@@ -148,8 +153,8 @@ class _Command(click.Command):
             with output_set():          # every output of the command appears at its end, or none
                 if self.name not in COMPILING_COMMANDS or ctx.params.get("quiet"):
                     return super().invoke(ctx)
-                from .._numba_cache import announce_compiles
-                note = f"sins: compiling the kernels of sins {self.name} (first run only; later runs load them)"
+                path = ctx.command_path.split(" ", 1)[1] if " " in ctx.command_path else self.name   # "gnss spp"
+                note = f"sins: compiling the kernels of sins {path} (first run only; later runs load them)"
                 with announce_compiles(lambda text: click.echo(text, err=True), note):
                     return super().invoke(ctx)
         finally:
@@ -167,7 +172,6 @@ class _Group(click.Group):
 
     def get_command(self, ctx, name):
         if name not in self.commands and name in COMMANDS:
-            import importlib
             importlib.import_module(f"{__package__}.{COMMANDS[name]}")   # registers on ``main``
         return self.commands.get(name)
 
@@ -252,7 +256,6 @@ def main(ctx, debug, verbose):
     # the root logger stays at WARNING: --debug is for sins, not for numba's compiler dumps
     logging.basicConfig(level=logging.WARNING, format="sins: %(levelname)s: %(message)s", stream=sys.stderr)
     logging.getLogger("sins").setLevel(level)
-    from .. import NUMBA_CACHE_NOTE
     if NUMBA_CACHE_NOTE:
         log.warning(NUMBA_CACHE_NOTE)
 

@@ -4,6 +4,7 @@ Kept apart from :mod:`sinscli.cli.navigate` so that plain navigation does not im
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -11,11 +12,12 @@ import numpy as np
 
 from ..errors import SinsError
 from ..io.gnss_csv import check_gnss_against_imu
-from ..io.atomic import prepare_output
+from ..io.atomic import atomic_path, prepare_output
 from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
 from ..io.readers import read_body_velocity, read_gnss, read_imu
 from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
+from ..nav.earth import radii_py
 from ..types import ImuLog
 from .base import log, progress, summary_line
 
@@ -25,18 +27,21 @@ def _span(t) -> str:
 
 
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-              opts, output, quiet, window=None, odom_path=None, force=False):
+              opts, output, quiet, window=None, odom_path=None, vehicle=None, force=False):
+    from dataclasses import replace
+
+    from ..allan.rest import noise_from_rest
     from ..fusion.options import build_fusion_options
-    from ..fusion.pipeline import Fusion, fuse_blocks
+    from ..fusion.pipeline import Fusion, calibrated_run, fuse_blocks
     from ..nav.pipeline import concat
 
     src = str(config_path) if config_path else "config"
     base = Path(config_path).parent if config_path else Path.cwd()
-    fopts = build_fusion_options(cfg.get("fusion"), src, base_dir=base)
+    fopts = build_fusion_options(cfg.get("fusion"), src, base_dir=base, vehicle=vehicle)
     if sensor is not None:
-        fopts.sensor, fopts.base_dir = sensor, Path.cwd()
+        fopts = replace(fopts, sensor=sensor, base_dir=Path.cwd())
     if fopts.lever_arm is None:
-        fopts.lever_arm = np.asarray(cfg["gnss"]["lever_arm"], dtype=float)
+        fopts = replace(fopts, lever_arm=np.asarray(cfg["gnss"]["lever_arm"], dtype=float))
     check_trajectory_output(output)
     if innovations_path is not None:
         prepare_output(innovations_path)
@@ -67,13 +72,23 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         text = offset_refusal(est, str(gnss.source), float(cfg["gnss"]["time_offset"]))
         if text:
             raise SinsError(text)
+    from ..io.readers import _is_log
+    from ..nav.earth import gravity
+    from ..nav.sanity import gyro_unit_check
+    from ..sensors import load_sensor
+    lat_g = float(np.radians(gnss.lat[0]))     # before anything runs on the increments (the mounting too)
+    gyro_unit_check(imu, t0, gravity(np.sin(lat_g), float(gnss.height[0])), lat_g, cfg["imu"],
+                    load_sensor(fopts.sensor or "mems", None, src, fopts.base_dir or base), force,
+                    ros=_is_log(imu_path))
+    mounting = None
+    if cfg["imu"].get("mounting") == "auto":
+        imu, mounting = _auto_mounting(imu, gnss, opts.conv, fopts, output)
     body_vel = None
     if odom_path is not None:
         body_vel = read_body_velocity(odom_path, cfg)
         if len(body_vel.time) == 0 or body_vel.time[-1] < t0 or body_vel.time[0] > imu.time[-1]:
             raise SinsError(f"{body_vel.source}: the body velocity ({_span(body_vel.time)}) does not overlap the "
                             f"IMU log ({t0!r} to {float(imu.time[-1])!r} s)")
-    from ..nav.earth import gravity
     from ..nav.sanity import mounting_warning
     init_bias = None
     if align_method is not None:             # the attitude comes from the log: check its up axis
@@ -81,7 +96,7 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
                                 None, cfg["imu"])
         if note:
             log.warning(note)
-        init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts.gnss_pos_sigma)
+        init, init_sigma, init_bias = _align(imu, gnss, align_method, cfg, config_path, opts.conv, fopts)
     else:
         init = read_init(init_path, t0 if window.start is None else window.start, opts.conv, cfg["limits"],
                          cfg["init"])
@@ -91,23 +106,29 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
                                 init.Cbn, cfg["imu"])
         if note:
             log.warning(note)
-    from ..io.readers import _is_log
-    from ..nav.sanity import gyro_unit_check
-    from ..sensors import load_sensor
-    lat0 = float(init.lat) if align_method is None else float(np.radians(gnss.lat[0]))
-    h0 = float(init.height) if align_method is None else float(gnss.height[0])
-    gyro_unit_check(imu, t0 if align_method is not None else max(t0, init.time), gravity(np.sin(lat0), h0), lat0,
-                    cfg["imu"], load_sensor(fopts.sensor or "mems", None, src, fopts.base_dir or base), force,
-                    ros=_is_log(imu_path))
-    fusion = Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, smooth=smooth, src=src, init_bias=init_bias,
-                    body_vel=body_vel)
+    data_noise = noise_from_rest(imu, fopts, gnss) if fopts.noise_from_data else None
+    if mounting is not None:                 # stage 3 of imu.mounting: auto: a fused pass without NHC refines it
+        imu, mounting, init = _refine_mounting(imu, mounting, init, opts, fopts, gnss, init_sigma, init_bias,
+                                               data_noise, t0, src)
+
+    def make(**kw):
+        return Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, src=src, init_bias=init_bias,
+                      body_vel=body_vel, data_noise=data_noise, t_log0=t0, **kw)
+
     step = 1 << 16
-    blocks = (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],
-                     t0=imu.t0 if a == 0 else None, source=imu.source) for a in range(0, len(imu), step))
+
+    def blocks():
+        return (ImuLog(imu.time[a:a + step], imu.dtheta_b[a:a + step], imu.dvel_b[a:a + step],
+                       t0=imu.t0 if a == 0 else None, source=imu.source) for a in range(0, len(imu), step))
     with progress(len(imu), "fusing", quiet or len(imu) < 200_000) as bar:
-        traj = concat(list(fuse_blocks(blocks, fusion, progress=bar.update)))
+        def run(f):                             # each calibration pass restarts the bar
+            bar.update(-bar.pos if hasattr(bar, "pos") else 0)
+            return list(fuse_blocks(blocks(), f, progress=bar.update))
+        fusion, chunks = calibrated_run(lambda **kw: make(smooth=smooth, **kw), run)
+        traj = concat(chunks)
     if smooth:
         traj = fusion.smoothed()
+    traj = fusion.on_gnss_clock(traj)
     if window.active:
         traj = trim(traj, window)
         if len(traj) == 0:
@@ -121,28 +142,140 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     if innovations_path is not None:               # both staged in the command's output set (io/atomic.py):
         write_innovations(innovations_path, records)   # in place together, or neither (an earlier pair kept)
     write_trajectory(output, traj, opts.conv)
-    click.echo(f"sins: {summary.text()}", err=True)
+    if mounting is not None:
+        with atomic_path(mounting_snippet_path(output), suffix=".yaml") as tmp:
+            Path(tmp).write_text(mounting.snippet(), encoding="utf-8")
+    for line in summary.lines():
+        click.echo(f"sins: {line}", err=True)
+    for w in summary.warnings:
+        log.warning("fusion: %s", w)
     if not quiet:
         summary_line(imu_path, len(traj), float(traj.time[0]), float(traj.time[-1]), output)
 
 
-def _align(imu, gnss, method, cfg, config_path, conv, gnss_pos_sigma):
-    """``sins align --method METHOD`` on the log's first window (the align section of the same config)."""
+def mounting_snippet_path(output) -> Path:
+    """Where ``imu.mounting: auto`` writes its estimate as a config snippet: beside the output."""
+    return Path(output).with_name(Path(output).stem + ".mounting.yaml")
+
+
+def _auto_mounting(imu, gnss, conv, fopts, output):
+    """``imu.mounting: auto``: the mounting estimated from the log (:mod:`sinscli.fusion.mounting`), applied
+    to the increments read in sensor axes, reported and written as a config snippet beside the output."""
+    from ..fusion.mounting import estimate_mounting
+    from ..io.imu_csv import apply_mounting
+    est = estimate_mounting(imu, gnss, conv, fopts)
+    r, p, y = est.rpy
+    sr, sp, sy = est.sigma
+    snippet = mounting_snippet_path(output)
+    prepare_output(snippet)
+    click.echo(f"sins: mounting: imu.mounting estimated as {{roll: {r:.2f}, pitch: {p:.2f}, yaw: {y:.2f}}} deg "
+               f"(1-sigma {sr:.2g}, {sp:.2g}, {sy:.2g} deg): {'; '.join(est.notes)}; the config snippet goes to "
+               f"{snippet}", err=True)
+    return apply_mounting(imu, est.C), est
+
+
+def _refine_mounting(imu, est, init, opts, fopts, gnss, init_sigma, init_bias, data_noise, t0, src):
+    """Stage 3 of ``imu.mounting: auto`` (:func:`sinscli.fusion.mounting.refine`): a forward pass with the
+    stages 1-2 mounting, GNSS only (no NHC, no adaptation passes), gives the vehicle's axes in that body
+    frame; the increments and the initial attitude are turned by the residual rotation."""
+    from dataclasses import replace
+
+    from ..fusion.mounting import refine
+    from ..fusion.pipeline import Fusion, fuse_blocks
+    from ..io.imu_csv import apply_mounting
+    from ..nav.pipeline import concat
+    f = Fusion(init, opts, replace(fopts, nhc=False, adapt=False), gnss, init_sigma=init_sigma, src=src,
+               init_bias=init_bias, data_noise=data_noise, t_log0=t0)
+    traj = concat(list(fuse_blocks([imu], f)))
+    new = refine(est, traj, opts.conv)
+    D = new.C @ est.C.T                             # body_new = D body_old
+    r, p, y = new.rpy
+    sr, sp, sy = new.sigma
+    click.echo(f"sins: mounting: refined by a fused pass to {{roll: {r:.2f}, pitch: {p:.2f}, yaw: {y:.2f}}} deg "
+               f"(1-sigma {sr:.2g}, {sp:.2g}, {sy:.2g} deg)", err=True)
+    init = replace(init, Cbn=np.asarray(init.Cbn, dtype=float) @ D.T)
+    return apply_mounting(imu, D), new, init
+
+
+ALIGN_WINDOW = 60.0          # s: the alignment window of a log that does not start at rest
+NEEDS_REST = ("static", "inertial")
+
+
+def first_rest(imu, fopts, gnss) -> float:
+    """Seconds the log stays at rest from its start (the fused filter's detector, still by the GNSS too);
+    0 when it starts moving."""
+    from ..fusion.standstill import StandstillDetector, gnss_still
+    t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
+    k = int(np.searchsorted(imu.time, t0 + 600.0))
+    det = StandstillDetector(fopts.standstill_window, fopts.standstill_rate_std, fopts.standstill_accel_std,
+                             fopts.standstill_accel_mag, 9.80665, fopts.standstill_lowpass)
+    a, b, _ = det.feed(imu.time[:k], imu.dtheta_b[:k], imu.dvel_b[:k], t_start=t0)
+    end = t0
+    for x, y, still in zip(a, b, gnss_still(gnss, a, b) if len(a) else []):
+        if abs(x - end) > 1e-6 * max(1.0, abs(end)) or still == 0:
+            break
+        end = float(y)
+    return end - t0
+
+
+def _align(imu, gnss, method, cfg, config_path, conv, fopts):
+    """``--align METHOD`` inside the fused run: ``sins align`` on the log's first window (``align.duration``,
+    else the first standstill, else 60 s), its state at the window's start (the filter then runs the log
+    from its start); an unobservable heading is left to the heading from motion.  ``kf`` gives the
+    attitude at its window's end only: inside the fused run its coarse stage gives the start and the
+    fusion filter is the fine alignment."""
     from ..align.options import build_options, merge_section
     from ..align.pipeline import align
     src = str(config_path) if config_path else "config"
     al = merge_section(cfg.get("align"), src)
+    if method == "kf":
+        coarse = al["kf"]["coarse"]
+        method = coarse if coarse != "auto" else "gnss-inertial"
+        click.echo(f"sins: note: --align kf inside the fused run: its coarse stage ({method}) gives the state at "
+                   f"the log's start and the fusion filter is the fine alignment", err=True)
     al["method"] = method
+    al["epoch"] = "start"
+    rest = first_rest(imu, fopts, gnss)
+    if al["duration"] is None:
+        span = float(imu.time[-1] - (imu.t0 if imu.t0 is not None else imu.time[0]))
+        al["duration"] = min(rest if rest >= 5.0 else ALIGN_WINDOW, span)
+        why = f"the first standstill ({rest:.3g} s)" if rest >= 5.0 else f"the first {al['duration']:.3g} s"
+    else:
+        why = f"align.duration {al['duration']:g} s"
+    if method in NEEDS_REST and rest < min(al["duration"], 5.0):
+        raise SinsError(f"{imu.source}: --align {method} needs the log to start at rest, and its first "
+                        f"{al['duration']:.3g} s move (at rest for {rest:.3g} s); use --align gnss-inertial, or "
+                        f"--init with the initial state")
     aopts = build_options(al, src, conv=conv, lever_arm=cfg["gnss"]["lever_arm"])
-    res = align(imu, aopts, gnss)
+    res = align(imu, aopts, gnss, heading_optional=True)
     for note in res.notes:
         click.echo(f"sins: note: {note}", err=True)
-    sig = {"attitude": np.array([res.sigma[0], res.sigma[1],
-                                 res.sigma[2] if np.isfinite(res.sigma[2]) else np.inf])}
+    head_sigma = res.sigma[2] if np.isfinite(res.sigma[2]) else np.inf
+    if res.heading_source == "gnss-course":
+        # the course's heading carried back to the window's start through the gyros (their bias over the
+        # window): the filter's own heading from motion does the same job where it happens, consistently
+        click.echo("sins: note: the alignment's heading came from the GNSS course: the fused run takes its "
+                   "heading from the motion itself (fusion.heading_init) instead", err=True)
+        head_sigma = np.inf
+    sig = {"attitude": np.array([res.sigma[0], res.sigma[1], head_sigma])}
     k = int(np.clip(np.searchsorted(gnss.time, res.state.time), 0, len(gnss) - 1))
-    sig["position"] = np.maximum(gnss.position_sigma(gnss_pos_sigma)[k], 0.01) * 2.0
+    sig["position"] = np.maximum(gnss.position_sigma(fopts.gnss_pos_sigma)[k], 0.01) * 2.0
+    # the IMU's position from the antenna's fix, whatever the method took (static and inertial take the
+    # fix as it is): the lever arm through the aligned attitude; with the heading unknown its horizontal
+    # part points anywhere (variance |l_h|^2 / 2 per axis)
+    arm = np.asarray(fopts.lever_arm if fopts.lever_arm is not None else cfg["gnss"]["lever_arm"], float)
+    st = res.state
+    lat = math.radians(float(np.interp(st.time, gnss.time, gnss.lat)))
+    lon = float(np.interp(st.time, gnss.time, np.unwrap(np.radians(gnss.lon))))
+    lon = (lon + math.pi) % (2.0 * math.pi) - math.pi
+    h = float(np.interp(st.time, gnss.time, gnss.height))
+    d = st.Cbn @ arm
+    rm, rn = radii_py(math.sin(lat))
+    st.lat, st.lon, st.height = lat - d[1] / (rm + h), lon - d[0] / ((rn + h) * math.cos(lat)), h - d[2]
+    if not np.isfinite(head_sigma):
+        sig["position"][:2] = np.hypot(sig["position"][:2], math.hypot(d[0], d[1]) / math.sqrt(2.0))
     bias = None
     if res.gyro_bias is not None:
         bias = {"gyro": res.gyro_bias, "accel": res.accel_bias}
-    log.info("aligned (%s): initial state at %.6f s", method, res.state.time)
+    log.info("aligned (%s over %s): initial state at %.6f s", method, why, res.state.time)
     return res.state, sig, bias

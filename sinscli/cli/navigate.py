@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ..conventions import BODY_CONVENTIONS
+from ..conventions import BODY_CONVENTIONS, VEHICLES
 from ..errors import SinsError
 from .base import finish_progress, log, main, progress, quiet_option, summary_line
 
@@ -16,6 +16,7 @@ from .base import finish_progress, log, main, progress, quiet_option, summary_li
 
 def _extra_columns(opts):
     """Extra trajectory columns the options add (``--angles``, ``--frame launch-inertial``)."""
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..nav.inertial import COLUMNS as INERTIAL_COLUMNS
     cols = ("k_phi", "k_psi", "k_gamma", "k_xi", "k_set") if opts.angles else ()
     return cols + (INERTIAL_COLUMNS if opts.frame == "launch-inertial" else ())
@@ -48,6 +49,10 @@ def _count_rows(path: Path) -> int:
 @click.option("--odom", "odom_path", default=None, type=click.Path(path_type=Path),
               help="With --gnss: body velocity (odometry): a body-velocity CSV, or a bag/MCAP with an Odometry "
                    "topic (ros.odom_topic, else auto-detected).")
+@click.option("--vehicle", default=None, type=click.Choice(VEHICLES),
+              help="With --gnss: the platform, for its constraints: car and robot NHC + ZUPT/ZARU at rest, pedestrian "
+                   "ZUPT/ZARU at rest and heading from motion, aircraft and none (default) no constraint "
+                   "(config fusion.vehicle).")
 @click.option("--sensor", default=None,
               help="With --gnss: sensor description (preset mems|tactical|navigation or a sensor YAML).")
 @click.option("--attitude", type=click.Choice(["dcm", "quat", "krylov", "euler"]), default=None,
@@ -90,7 +95,7 @@ def _count_rows(path: Path) -> int:
               help="Navigate data that a plausibility check refuses (gyro rates impossible in their declared unit, "
                    "a GNSS time offset found by cross-correlation): for the rare real case.")
 @quiet_option
-def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_path, odom_path, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
+def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_path, odom_path, vehicle, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
                  frame, imu_topic, start, end, duration, time_offset, output, force, quiet):
     """Navigate IMU increments from an initial state and write the trajectory.
@@ -102,7 +107,8 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     """
     if gnss_path is None:
         for name, value in (("--align", align_method), ("--smooth", smooth or None),
-                            ("--innovations", innovations_path), ("--odom", odom_path), ("--sensor", sensor)):
+                            ("--innovations", innovations_path), ("--odom", odom_path), ("--sensor", sensor),
+                            ("--vehicle", vehicle)):
             if value is not None:
                 raise SinsError(f"{name} needs --gnss (fused navigation)")
         if init_path is None:
@@ -111,6 +117,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
             raise SinsError("--time-offset needs --gnss (it shifts the GNSS times)")
     elif (init_path is None) == (align_method is None):
         raise SinsError("with --gnss give exactly one of --init FILE and --align METHOD")
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from .. import config as config_mod
     from ..io.imu_csv import check_static_start
     from ..io.init_state import read_init
@@ -140,10 +147,12 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
                       launch=nav["launch"], krylov_substep_tol=nav["krylov_substep_tol"])
     opts.check()
     if gnss_path is not None:
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from .fusion_run import run_fused
         run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-                  opts, output, quiet, window, odom_path=odom_path, force=force)
+                  opts, output, quiet, window, odom_path=odom_path, vehicle=vehicle, force=force)
         return
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from .._numba_cache import set_compile_note
     from ..nav.pipeline import first_run_seconds
     set_compile_note(f"sins: compiling navigation kernels (first run only, about {first_run_seconds(opts)} s)")
@@ -162,6 +171,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
         opts.launch = init.extra["launch"]
     if cfg["imu"]["static_start"]:
         check_static_start(first, gravity(math.sin(init.lat), init.height), conv)
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..nav.sanity import mounting_warning
     note = mounting_warning(first, max(t_start, init.time), gravity(math.sin(init.lat), init.height), conv, init.Cbn,
                             cfg["imu"])

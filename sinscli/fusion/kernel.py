@@ -8,98 +8,158 @@ no second mechanization) on increments compensated by the filter's bias and scal
 times: a measurement inside an IMU interval splits that interval's increments at its time (as KF-GINS
 does), closes the attitude interval there and propagates P to it.  Every estimate is fed back into
 the mechanization's state (position, velocity, ``Cbn`` and ``q`` together, compensated-summation
-residues cleared) and the error state is zero again (closed loop).
+residues cleared) and into the parameter estimates (lever arm, GNSS time offset); the error state is
+zero again (closed loop).
 
 Nothing is allocated per sample or per update: the matrices the filter works in are the slices of one
-workspace (:func:`workspace`), 3-vectors and Cbn are tuples on the stack.
+workspace (:func:`workspace`), 3-vectors and Cbn are tuples on the stack.  The flat vectors are laid
+out by name (:class:`sinscli.layout.Layout`): the configuration ``cv`` (:data:`CV`), the filter's
+scalars ``fs`` (:data:`FS`), the measurement rows (:data:`ROW`).
 
-Measurement rows (``meas``, float64, sorted by time then kind) are ``[time, kind, z0, z1, z2, s0, s1,
-s2, aux0, aux1]`` with ``kind`` one of the ``MT_*`` codes and ``s`` 1-sigmas (see
-:mod:`sinscli.fusion.pipeline` for what each kind carries).
+Measurement rows (``meas``, float64, sorted by time then kind): ``[time, kind, z (3), s (3), aux
+(2)]`` with ``kind`` one of the ``MT_*`` codes and ``s`` 1-sigmas (see :mod:`sinscli.fusion.pipeline`
+for what each kind carries).
 
-Consistency guard (:func:`_adapt`, docs/fusion.md): the normalized innovations of the GNSS fixes tell
-whether the covariance is as large as the errors are; a run of ``rejection_run`` consecutive rejected
-GNSS fixes adds each axis' squared innovation to the position variance and accepts the fix (a
-diverged filter, or a GNSS jump that stays), reported as an event.
+Robustness (docs/fusion.md):
+
+* **gate**: a measurement whose normalized innovation squared (NIS) exceeds ``chi2(gate_probability,
+  m)`` is rejected; ``rejection_run`` consecutive rejected GNSS fixes add each axis' squared innovation
+  to the position variance and accept the fix (a diverged filter, or a GNSS jump that stays);
+* **robust weight** (IGG-III): between the ``robust.probability`` quantile and the gate, the noise of
+  the measurement is inflated smoothly instead of the measurement being taken at full weight;
+* **measurement-noise adaptation**: per kind (GNSS position, GNSS velocity, NHC, odometry) the
+  variance scale of R is estimated by covariance matching over windows of measurements, never below
+  1 (the stated sigma), at most ``adapt.max_scale``: where the innovations say the measurements are
+  noisier than stated, R grows, never the process noise;
+* **outage exit**: the first fix after a GNSS outage tests the dead-reckoning prediction; an exit
+  fix beyond the gate widens the navigation block of P by its ratio to the predicted variance and is
+  accepted (reacquisition), and a ratio over ``adapt.exit_ratio`` raises the scale of the drift process
+  noise only (bias instability, scale factor, misalignment: the terms that make dead reckoning drift),
+  at most ``adapt.max_bias_scale`` times its base and decaying back to the base with ``adapt.decay``
+  (:func:`_exit_drift_scale`); the base is 1, or what a first pass over the whole log found
+  (:func:`sinscli.fusion.pipeline.calibrate_drift`).
+
+Every change of a scale and every reacquisition is an event (:data:`EV_NAMES`).
 """
 import numpy as np
 from numba import njit
 
+from ..layout import Layout
 from ..nav import strapdown as sd
 from ..nav.earth import OMEGA_IE, dlon_nb, gravity, radii
 from ..nav.rotation import (dcm_to_euler, dcm_to_quat, euler_to_dcm, m_mul, m_trans, m_tvec, m_vec, orthonormalize_t,
                             quat_mul_t, quat_normalize_t, quat_to_dcm_t, rotvec_to_dcm_t, rotvec_to_quat_t)
-from .linalg import cholesky
-from .model import BA, BG, PHI, R, SA, SG, V, add_process_noise, f_blocks, propagate, write_F
-from .updates import kalman_update, skew_into
+from ..nav.linalg import cholesky
+from .model import BA, BG, PHI, R, SA, SG, V, add_process_noise, f_blocks, propagate, transition_step
+from .updates import innovation_covariance, kalman_apply, nis_of, skew_into
 
 # measurement kinds (also the innovation record's type code)
 MT_GNSS_POS, MT_GNSS_VEL, MT_ZUPT, MT_ZARU, MT_NHC, MT_ODOM, MT_COURSE = 0, 1, 2, 3, 4, 5, 6
 MEAS_NAMES = ("gnss_pos", "gnss_vel", "zupt", "zaru", "nhc", "odom", "course")
-MW = 10
 
-# config vector
-(C_NX, C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT, C_GATE1, C_GATE2, C_GATE3) = range(10)
-C_ARW2 = 10          # 3
-C_VRW2 = 13          # 3
-C_QBG = 16           # 3
-C_QBA = 19           # 3
-C_ITG = 22           # 3
-C_ITA = 25           # 3
-C_SFG = 28           # sigma^2 tau_c of gyro scale factor + misalignment
-C_SFA = 29
-C_LEVER = 30         # 3
-C_REJ_RUN = 33
-C_ADAPT_THR = 34     # 0: off
-C_ADAPT_N = 35
-C_SMOOTH_DT = 36     # > 0: store smoother epochs at least this often
-C_ZUPT_MAXV = 37
-C_NHC_AX0 = 38
-C_NHC_AX1 = 39
-C_HEAD_MINSPEED = 40
-C_QMAX = 41
-C_FWD = 42           # the body's forward axis (0 x, 1 y): roll/pitch sigma
-C_ZARU_Q = 43        # 1: the ZARU sigma derives from the ARW (its variance follows the process-noise scale)
-CV_SIZE = 45
+# a measurement row; the course row (heading from the GNSS course) carries z = (course, v_e, v_n) and
+# s = (course sigma, horizontal speed sigma, 0)
+ROW = Layout("measurement row", [("RW_T", 1), ("RW_KIND", 1), ("RW_Z", 3), ("RW_S", 3), ("RW_AUX", 2)], total=10)
+MW = ROW.total
+RW_T, RW_KIND, RW_Z, RW_S, RW_AUX = ROW.offsets(*(name for name, _ in ROW.fields))
 
-# filter scalars
-F_BG, F_BA, F_SG, F_SA = 0, 3, 6, 9
-F_QSCALE = 12
-F_ACC_T = 13
-F_ACC_DV = 14        # 3
-F_ACC_DTH = 17       # 3
-F_W = 20             # 3: last compensated body rate
-F_HEAD_KNOWN = 23
-F_NREJ = 24
-F_TREJ0 = 25
-F_T_EPOCH = 28
-F_ERR = 29
-F_ERR_T = 30
-F_RESET = 31
-F_TPREV = 32
-F_NSAMP_OUT = 33
-F_HAVE_W = 34
-F_ADAPT = 35         # 3 x 3: per kind (GNSS position, velocity, ZARU) the adaptation window's sums of
-                     # the clipped NIS per dof, of measurements, of the P share of S (see _adapt)
-F_XACC = 44          # nx: correction fed back since the last stored epoch
-FS_SIZE = 72
+# the kinds whose measurement noise is adapted (index into the FS fields F_RS, F_RA)
+NK = 4
+K_OF_KIND = (0, 1, -1, -1, 2, 3, -1)        # gnss_pos, gnss_vel, -, -, nhc, odom, -
+ADAPT_NAMES = ("gnss_pos", "gnss_vel", "nhc", "odom")
+NX_MAX = 25                                 # 21 + lever arm (3) + time offset (1)
+
+# configuration vector (read-only in the kernel)
+CV = Layout("fusion config", [
+    ("C_NX", 1),              # states
+    ("C_NCORE", 1),           # 15 or 21 (scale factors): the states F reaches; then the parameter states
+    ("C_LA", 1),              # first lever-arm state, or -1
+    ("C_TD", 1),              # the GNSS time-offset state, or -1
+    ("C_METHOD", 1), ("C_ORDER", 1), ("C_NSUB", 1), ("C_EVERY", 1), ("C_CONV", 1),
+    ("C_PROP_DT", 1),         # s between covariance propagations (0: every attitude update)
+    ("C_GATE", 3),            # chi-square gate of 1, 2, 3 components
+    ("C_ROBUST", 3),          # IGG-III full-weight bound (NIS of 1, 2, 3 components; 0: off)
+    ("C_ARW2", 3), ("C_VRW2", 3), ("C_QBG", 3), ("C_QBA", 3), ("C_ITG", 3), ("C_ITA", 3),
+    ("C_SFG", 1), ("C_SFA", 1),     # sigma^2 tau_c of the unestimated scale factor + misalignment
+    ("C_SF_TAU", 1),              # tau_c, s
+    ("C_REJ_RUN", 1),
+    ("C_RADAPT_N", 1),        # measurements per R-adaptation window (0: off)
+    ("C_RADAPT_MAX", 1),      # largest R variance scale
+    ("C_RADAPT_BAND", 2),     # the window's estimate out of [lo, hi] x the scale (chi-square quantiles) moves it
+    ("C_RBASE", 3 * NK),      # per kind and axis, the R scale a calibration pass found (the online floor)
+    ("C_QB_MAX", 1),          # the drift process-noise scale stays at most qb_max times its base (1: off)
+    ("C_QB_TAU", 1),          # s: its decay back to the base
+    ("C_QB_THR", 1),          # outage-exit ratio (innovation^2 / predicted variance) that raises it
+    ("C_QB_BASE", 1),         # the base drift scale (1, or calibrated by a first pass over the log)
+    ("C_OUTAGE_DT", 1),       # s: a gap between GNSS fixes longer than this is an outage
+    ("C_SMOOTH_DT", 1),       # > 0: store smoother epochs at least this often
+    ("C_ZUPT_MAXV", 1),
+    ("C_NHC_AX", 2),
+    ("C_FWD", 1),             # the body's forward axis (0 x, 1 y): roll/pitch sigma
+], total=64)
+(C_NX, C_NCORE, C_LA, C_TD, C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT, C_GATE, C_ROBUST,
+ C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA, C_SF_TAU, C_REJ_RUN, C_RADAPT_N,
+ C_RADAPT_MAX, C_RADAPT_BAND, C_RBASE, C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT,
+ C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD) = CV.offsets(*(name for name, _ in CV.fields))
+CV_SIZE = CV.total
+
+# the filter's scalars (read and written by the kernel, carried between blocks)
+FS = Layout("fusion filter scalars", [
+    ("F_BG", 3), ("F_BA", 3), ("F_SG", 3), ("F_SA", 3),   # sensor estimates (SI): the first NBIAS, as output
+    ("F_LEVER", 3),           # antenna lever arm estimate (body, m)
+    ("F_TD", 1),              # GNSS time-offset estimate (s, added to the GNSS stamps)
+    ("F_QS_DRIFT", 1),        # scale of the drift process noise: bias instability, scale factor, misalignment
+    ("F_T_QS", 1),            # time of its last decay step
+    ("F_RS", 3 * NK),         # R variance scale per adapted kind and axis (>= 1)
+    ("F_RP", 4 * NK * 3),     # per kind and axis, the previous measurement: innovation, H P H^T, stated R, time
+    ("F_RA", 4 * NK * 3),     # R-adaptation window per kind and axis: sums of dz^2, H P H^T, stated R; count
+    ("F_ACC_T", 1), ("F_ACC_DV", 3), ("F_ACC_DTH", 3),  # since the last propagation: time, f^n dt, w^b dt
+    ("F_W", 3), ("F_HAVE_W", 1),                      # compensated body rate, low-passed (ANTENNA_TAU)
+    ("F_LPW", 3), ("F_LPF", 3),                       # low-passed body rate and f^n - g^n (scale_factor_tau)
+    ("F_F", 3),               # specific force (ENU, m/s^2), low-passed (ANTENNA_TAU)
+    ("F_HEAD_KNOWN", 1),
+    ("F_NREJ", 1), ("F_TREJ0", 1),
+    ("F_T_FIX", 1),           # time of the last GNSS position fix (-inf: none yet)
+    ("F_T_EPOCH", 1),
+    ("F_ERR", 1), ("F_ERR_T", 1),
+    ("F_RESET", 1),
+    ("F_TPREV", 1),
+    ("F_NSAMP_OUT", 1),
+    ("F_XACC", NX_MAX),       # correction fed back since the last stored epoch
+], total=181)
+(F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD, F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA, F_ACC_T, F_ACC_DV,
+ F_ACC_DTH, F_W, F_HAVE_W, F_LPW, F_LPF, F_F, F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH, F_ERR,
+ F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC) = FS.offsets(*(name for name, _ in FS.fields))
+FS_SIZE = FS.total
 
 ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
-EV_REJECTION_RUN, EV_HEADING_INIT, EV_ADAPT = 1.0, 2.0, 3.0
+# events: (time, code, a, b)
+EV_REJECTION_RUN, EV_HEADING_INIT, EV_RSCALE, EV_REACQUIRE, EV_QSCALE, EV_EXIT = 1.0, 2.0, 3.0, 4.0, 5.0, 6.0
+EV_NAMES = {1: "rejection_run", 2: "heading_init", 3: "r_scale", 4: "reacquire", 5: "drift_q_scale", 6: "outage_exit"}
 
 # workspace: matrices (nx, nx) and rows (nx,)
-W_F, W_W, W_PM, W_A, W_L = range(5)
-NW_MAT = 5
-V_X, V_H, V_HP, V_KT, V_Z, V_R = 0, 1, 4, 7, 10, 11
-NW_VEC = 12
+WM = Layout("fusion workspace matrices", [("W_F", 1), ("W_W", 1), ("W_PM", 1), ("W_A", 1), ("W_L", 1), ("W_PHI", 1)])
+W_F, W_W, W_PM, W_A, W_L, W_PHI = WM.offsets(*(name for name, _ in WM.fields))
+WV = Layout("fusion workspace rows", [("V_X", 1), ("V_H", 3), ("V_HP", 3), ("V_KT", 3), ("V_Z", 1), ("V_R", 1)])
+V_X, V_H, V_HP, V_KT, V_Z, V_R = WV.offsets(*(name for name, _ in WV.fields))
 # per-row variances written with every output row
 NVAR = 9             # pos E N U, vel E N U, roll, pitch, heading (heading < 0: not yet known)
+NREC = 11            # columns of an innovation record (_record)
+ANTENNA_TAU = 0.05   # s: low-pass of the rate and specific force in the GNSS models (lever arm, time offset)
 NBIAS = 12           # b_g, b_a, s_g, s_a (SI)
 
 
 def workspace(nx):
-    """The kernel's scratch: ``(mats (NW_MAT, nx, nx), vecs (NW_VEC, nx), s3 (2, 3, 3))``."""
-    return np.zeros((NW_MAT, nx, nx)), np.zeros((NW_VEC, nx)), np.zeros((2, 3, 3))
+    """The kernel's scratch: ``(mats (WM.total, nx, nx), vecs (WV.total, nx), s3 (2, 3, 3))``."""
+    mats = np.zeros((WM.total, nx, nx))
+    mats[W_PHI] = np.eye(nx)
+    return mats, np.zeros((WV.total, nx)), np.zeros((2, 3, 3))
+
+
+def epoch_width(ncore: int, nx: int) -> int:
+    """Floats of one smoother epoch's transition matrix: its navigation rows over the core states and
+    the diagonal of the rest (:func:`_store_epoch`)."""
+    return 9 * ncore + (nx - 9)
 
 
 @njit(cache=True)
@@ -119,9 +179,9 @@ def _set_attitude(st, c):
 
 
 @njit(cache=True)
-def feedback(st, fs, x, nx, method):
-    """Closed loop: remove the estimated errors ``x`` from the mechanization state and the sensor
-    estimates; the error state is zero afterwards."""
+def feedback(st, fs, cv, x, nx, method):
+    """Closed loop: remove the estimated errors ``x`` from the mechanization state, the sensor and the
+    parameter estimates; the error state is zero afterwards."""
     lat, h = st[sd.S_LAT], st[sd.S_H]
     rm, rn = radii(np.sin(lat))
     st[sd.S_LAT] = lat - x[R + 1] / (rm + h)
@@ -145,10 +205,16 @@ def feedback(st, fs, x, nx, method):
     for i in range(3):
         fs[F_BG + i] += x[BG + i]
         fs[F_BA + i] += x[BA + i]
-    if nx > 15:
+    if int(cv[C_NCORE]) > 15:
         for i in range(3):
             fs[F_SG + i] += x[SG + i]
             fs[F_SA + i] += x[SA + i]
+    la, td = int(cv[C_LA]), int(cv[C_TD])
+    if la >= 0:
+        for i in range(3):
+            fs[F_LEVER + i] -= x[la + i]
+    if td >= 0:
+        fs[F_TD] -= x[td]
     for i in range(nx):
         fs[F_XACC + i] += x[i]
 
@@ -191,33 +257,46 @@ def _health(P, nx, fs, t, L, full):
 
 
 @njit(cache=True)
-def _do_propagate(st, fs, cv, P, F, W, ptr, col, ftv, store, itg, ita, arw2, vrw2, qbg, qba):
-    """Propagate P over the accumulated time with F at the current state and the mean f, w (``F``, ``W``
-    scratch; the model's (3,) arrays 1/tau, ARW^2, VRW^2 and bias densities passed once per block)."""
+def _do_propagate(st, fs, cv, P, mats, store):
+    """Propagate P over the accumulated time with F at the current state and the mean f, w; with
+    ``store`` (smoothing) also the transition matrix since the last smoother epoch."""
     T = fs[F_ACC_T]
     if T <= 0.0:
         return
     nx = int(cv[C_NX])
+    ncore = int(cv[C_NCORE])
     c = sd._cbn(st)
     f_n = (fs[F_ACC_DV] / T, fs[F_ACC_DV + 1] / T, fs[F_ACC_DV + 2] / T)
     w_b = (fs[F_ACC_DTH] / T, fs[F_ACC_DTH + 1] / T, fs[F_ACC_DTH + 2] / T)
+    # the rate and specific force the GNSS models see: low-passed with ANTENNA_TAU, as a receiver's loops
+    # smooth its velocity (an engine's vibration of the gyro would otherwise make the lever-arm velocity
+    # term a noise the GNSS never shows)
+    b = min(T / ANTENNA_TAU, 1.0) if fs[F_HAVE_W] > 0.0 else 1.0
     for i in range(3):
-        fs[F_W + i] = w_b[i]
+        fs[F_W + i] += b * (w_b[i] - fs[F_W + i])
+        fs[F_F + i] += b * (f_n[i] - fs[F_F + i])
     fs[F_HAVE_W] = 1.0
     f_b = m_tvec(c, f_n)
     vel = (st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2])
     lat, h = st[sd.S_LAT], st[sd.S_H]
     fb = f_blocks(c, vel, lat, h, f_n, w_b, f_b)
-    propagate(P, W, fb, T, nx, itg, ita)
+    itg, ita = cv[C_ITG:C_ITG + 3], cv[C_ITA:C_ITA + 3]
+    W = mats[W_W]
+    propagate(P, W, fb, T, nx, ncore, itg, ita)
     g = gravity(np.sin(lat), h)
-    w2 = w_b[0] * w_b[0] + w_b[1] * w_b[1] + w_b[2] * w_b[2]
-    fd2 = f_n[0] * f_n[0] + f_n[1] * f_n[1] + (f_n[2] - g) * (f_n[2] - g)
-    add_process_noise(P, nx, c, T, fs[F_QSCALE], arw2, vrw2, qbg, qba, cv[C_SFG] * w2, cv[C_SFA] * fd2)
+    # the unestimated scale factor and misalignment act on the sustained rate and acceleration: their means
+    # over the correlation time (a step, a wobble or a vibration averages out: its error is bounded, not a
+    # random walk); first-order low-pass of time constant scale_factor_tau
+    a = min(T / max(cv[C_SF_TAU], 1e-9), 1.0)
+    for i in range(3):
+        fs[F_LPW + i] += a * (w_b[i] - fs[F_LPW + i])
+        fs[F_LPF + i] += a * ((f_n[i] - g if i == 2 else f_n[i]) - fs[F_LPF + i])
+    w2 = fs[F_LPW] ** 2 + fs[F_LPW + 1] ** 2 + fs[F_LPW + 2] ** 2
+    fd2 = fs[F_LPF] ** 2 + fs[F_LPF + 1] ** 2 + fs[F_LPF + 2] ** 2
+    add_process_noise(P, c, T, fs[F_QS_DRIFT], cv[C_ARW2:C_ARW2 + 3], cv[C_VRW2:C_VRW2 + 3],
+                      cv[C_QBG:C_QBG + 3], cv[C_QBA:C_QBA + 3], cv[C_SFG] * w2, cv[C_SFA] * fd2)
     if store:
-        write_F(F, nx, fb, itg, ita)
-        for i in range(nx):
-            for p in range(ptr[i], ptr[i + 1]):
-                ftv[p] += F[i, col[p]] * T
+        transition_step(mats[W_PHI], W, fb, T, ncore, itg, ita)
     fs[F_ACC_T] = 0.0
     for i in range(3):
         fs[F_ACC_DV + i] = 0.0
@@ -239,7 +318,11 @@ def _close(st, fs, sums, order, method, t_end, cflu, events, n_ev):
 
 
 @njit(cache=True)
-def _record(inn, n_inn, t, kind, axis, z, var, nis, acc):
+def _record(inn, n_inn, t, kind, axis, z, var, nis, acc, hph, r_stated, exit_fix, comp):
+    """One innovation record (:data:`NREC` columns): time, kind, axis, innovation, its sigma, the NIS of its
+    measurement, accepted, then the filter's part of its variance (H P H^T), the stated noise variance
+    whether it was an outage exit and the component's index (the calibration pass's statistics,
+    :mod:`sinscli.fusion.pipeline`)."""
     if n_inn < inn.shape[0]:
         inn[n_inn, 0] = t
         inn[n_inn, 1] = kind
@@ -248,6 +331,10 @@ def _record(inn, n_inn, t, kind, axis, z, var, nis, acc):
         inn[n_inn, 4] = np.sqrt(var) if var > 0.0 else 0.0
         inn[n_inn, 5] = nis
         inn[n_inn, 6] = 1.0 if acc else 0.0
+        inn[n_inn, 7] = hph
+        inn[n_inn, 8] = r_stated
+        inn[n_inn, 9] = 1.0 if exit_fix else 0.0
+        inn[n_inn, 10] = comp
     return n_inn + 1
 
 
@@ -264,7 +351,7 @@ def _event(evs, n_evs, t, kind, a, b):
 @njit(cache=True)
 def _heading_from_course(row, st, fs, cv, P, nx, evs, n_evs):
     """Set heading and horizontal velocity from the GNSS course (the heading was unknown)."""
-    if fs[F_HEAD_KNOWN] > 0.0 or row[3] * row[3] + row[4] * row[4] < cv[C_HEAD_MINSPEED] ** 2:
+    if fs[F_HEAD_KNOWN] > 0.0:
         return n_evs
     conv = int(cv[C_CONV])
     ca = np.empty((3, 3))
@@ -272,23 +359,75 @@ def _heading_from_course(row, st, fs, cv, P, nx, evs, n_evs):
         for j in range(3):
             ca[i, j] = st[sd.S_CBN + 3 * i + j]
     rpy = dcm_to_euler(ca, conv)
-    c_new = euler_to_dcm(rpy[0], rpy[1], row[2], conv)
+    course, ve, vn, csig, svh = row[RW_Z], row[RW_Z + 1], row[RW_Z + 2], row[RW_S], row[RW_S + 1]
+    c_new = euler_to_dcm(rpy[0], rpy[1], course, conv)
+    # the antenna stays where the fixes put it: the IMU moves by (C_old - C_new) l
+    lever = (fs[F_LEVER], fs[F_LEVER + 1], fs[F_LEVER + 2])
+    d = np.zeros(3)
+    for i in range(3):
+        for j in range(3):
+            d[i] += (ca[i, j] - c_new[i, j]) * lever[j]
+    lat, h = st[sd.S_LAT], st[sd.S_H]
+    rm, rn = radii(np.sin(lat))
+    st[sd.S_LAT] = lat + d[1] / (rm + h)
+    st[sd.S_LON] = st[sd.S_LON] + d[0] / ((rn + h) * np.cos(lat))
+    st[sd.S_H] = h + d[2]
+    for i in range(3):
+        st[sd.S_PLO + i] = 0.0
+    # the tilt error, in navigation axes, turns with the estimate (T = C_new C_old^T, about the vertical):
+    # its covariance with the biases was built under the old heading
+    T = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            for k in range(3):
+                T[i, j] += c_new[i, k] * ca[j, k]
+    for b in (PHI, V):
+        tmp = np.zeros((3, nx))
+        for i in range(3):
+            for j in range(nx):
+                for k in range(3):
+                    tmp[i, j] += T[i, k] * P[b + k, j]
+        for i in range(3):
+            for j in range(nx):
+                P[b + i, j] = tmp[i, j]
+        tmp2 = np.zeros((nx, 3))
+        for i in range(nx):
+            for j in range(3):
+                for k in range(3):
+                    tmp2[i, j] += P[i, b + k] * T[j, k]
+        for i in range(nx):
+            for j in range(3):
+                P[i, b + j] = tmp2[i, j]
     _set_attitude(st, ((c_new[0, 0], c_new[0, 1], c_new[0, 2]), (c_new[1, 0], c_new[1, 1], c_new[1, 2]),
                        (c_new[2, 0], c_new[2, 1], c_new[2, 2])))
-    st[sd.S_VEL] = row[3]
-    st[sd.S_VEL + 1] = row[4]
+    st[sd.S_VEL] = ve
+    st[sd.S_VEL + 1] = vn
     for i in range(3):
         st[sd.S_VLO + i] = 0.0
     for j in (PHI + 2, V, V + 1):
         for i in range(nx):
             P[i, j] = 0.0
             P[j, i] = 0.0
-    P[PHI + 2, PHI + 2] = row[5] * row[5]
-    P[V, V] = row[6] * row[6]
-    P[V + 1, V + 1] = row[6] * row[6]
+    P[PHI + 2, PHI + 2] = csig * csig
+    P[V, V] = svh * svh
+    P[V + 1, V + 1] = svh * svh
     fs[F_HEAD_KNOWN] = 1.0
     fs[F_RESET] = 1.0
-    return _event(evs, n_evs, row[0], EV_HEADING_INIT, (rpy[2] - row[2]), row[5])
+    return _event(evs, n_evs, row[RW_T], EV_HEADING_INIT, (rpy[2] - course), csig)
+
+
+@njit(cache=True)
+def _antenna_velocity(c, vel, lat, h, w, lever):
+    """``(v_ant, Cbn (w x l), Cbn l, w_in)`` of the antenna at ``lever`` (body) with body rate ``w``."""
+    wxl = (w[1] * lever[2] - w[2] * lever[1], w[2] * lever[0] - w[0] * lever[2], w[0] * lever[1] - w[1] * lever[0])
+    cw = m_vec(c, wxl)
+    l_n = m_vec(c, lever)
+    rm, rn = radii(np.sin(lat))
+    w_in = (-vel[1] / (rm + h), OMEGA_IE * np.cos(lat) + vel[0] / (rn + h),
+            OMEGA_IE * np.sin(lat) + vel[0] * np.tan(lat) / (rn + h))
+    wl = (w_in[1] * l_n[2] - w_in[2] * l_n[1], w_in[2] * l_n[0] - w_in[0] * l_n[2], w_in[0] * l_n[1] - w_in[1] * l_n[0])
+    v_ant = (vel[0] + cw[0] - wl[0], vel[1] + cw[1] - wl[1], vel[2] + cw[2] - wl[2])
+    return v_ant, cw, l_n, w_in
 
 
 @njit(cache=True)
@@ -305,34 +444,39 @@ def _model(row, kind, st, fs, cv, nx, H, z, r):
     lat, lon, h = st[sd.S_LAT], st[sd.S_LON], st[sd.S_H]
     vel = (st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2])
     head_known = fs[F_HEAD_KNOWN] > 0.0
-    lever = (cv[C_LEVER], cv[C_LEVER + 1], cv[C_LEVER + 2])
+    lever = (fs[F_LEVER], fs[F_LEVER + 1], fs[F_LEVER + 2])
+    la, td = int(cv[C_LA]), int(cv[C_TD])
+    tau = fs[F_TD]
     m = 3
     axis0 = 0
     ax = (0, 1, 2)
     if kind == MT_GNSS_POS:
         rm, rn = radii(np.sin(lat))
-        l_n = m_vec(c, lever)
-        z[0] = dlon_nb(lon, row[3]) * (rn + h) * np.cos(lat) + l_n[0]      # across the antimeridian too
-        z[1] = (lat - row[2]) * (rm + h) + l_n[1]
-        z[2] = h - row[4] + l_n[2]
+        w = (fs[F_W], fs[F_W + 1], fs[F_W + 2])
+        v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
+        # the fix is of the antenna at the stamp + tau: r_ant(t) + v_ant tau
+        z[0] = dlon_nb(lon, row[RW_Z + 1]) * (rn + h) * np.cos(lat) + l_n[0] + v_ant[0] * tau   # across 180 deg too
+        z[1] = (lat - row[RW_Z]) * (rm + h) + l_n[1] + v_ant[1] * tau
+        z[2] = h - row[RW_Z + 2] + l_n[2] + v_ant[2] * tau
         for i in range(3):
             H[i, R + i] = 1.0
         skew_into(H, 0, PHI, l_n, 1.0)
+        if la >= 0:
+            for i in range(3):
+                for j in range(3):
+                    H[i, la + j] = c[i][j]
+        if td >= 0:
+            for i in range(3):
+                H[i, td] = v_ant[i]
     elif kind == MT_GNSS_VEL:
         if not head_known or fs[F_HAVE_W] == 0.0:
             return 0, 0, 0, 1, 2
         w = (fs[F_W], fs[F_W + 1], fs[F_W + 2])
-        wxl = (w[1] * lever[2] - w[2] * lever[1], w[2] * lever[0] - w[0] * lever[2],
-               w[0] * lever[1] - w[1] * lever[0])
-        cw = m_vec(c, wxl)
-        l_n = m_vec(c, lever)
-        rm, rn = radii(np.sin(lat))
-        w_in = (-vel[1] / (rm + h), OMEGA_IE * np.cos(lat) + vel[0] / (rn + h),
-                OMEGA_IE * np.sin(lat) + vel[0] * np.tan(lat) / (rn + h))
-        wl = (w_in[1] * l_n[2] - w_in[2] * l_n[1], w_in[2] * l_n[0] - w_in[0] * l_n[2],
-              w_in[0] * l_n[1] - w_in[1] * l_n[0])
+        v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
+        g = gravity(np.sin(lat), h)
+        acc = (fs[F_F], fs[F_F + 1], fs[F_F + 2] - g)        # d v / dt, Coriolis neglected (tau small)
         for i in range(3):
-            z[i] = vel[i] + cw[i] - wl[i] - row[2 + i]
+            z[i] = v_ant[i] + acc[i] * tau - row[RW_Z + i]
             H[i, V + i] = 1.0
         skew_into(H, 0, PHI, cw, 1.0)
         lx = ((0.0, -lever[2], lever[1]), (lever[2], 0.0, -lever[0]), (-lever[1], lever[0], 0.0))
@@ -340,6 +484,20 @@ def _model(row, kind, st, fs, cv, nx, H, z, r):
         for i in range(3):
             for j in range(3):
                 H[i, BG + j] = -clx[i][j]
+        if la >= 0:                             # d v_ant / d l = Cbn [w x] - [w_in x] Cbn
+            # for the horizontal lever arm only (through the yaw rate): the vertical one would be observed
+            # through the roll and pitch rates, which on a car are mostly a mount's vibration, not the
+            # antenna's; taken for signal it would drag the estimate to zero; the positions observe it
+            wx = ((0.0, -w[2], w[1]), (w[2], 0.0, -w[0]), (-w[1], w[0], 0.0))
+            wix = ((0.0, -w_in[2], w_in[1]), (w_in[2], 0.0, -w_in[0]), (-w_in[1], w_in[0], 0.0))
+            a1 = m_mul(c, wx)
+            a2 = m_mul(wix, c)
+            for i in range(3):
+                for j in range(2):
+                    H[i, la + j] = a1[i][j] - a2[i][j]
+        if td >= 0:
+            for i in range(3):
+                H[i, td] = acc[i]
     elif kind == MT_ZUPT or kind == MT_ZARU:
         speed2 = vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]
         if speed2 > cv[C_ZUPT_MAXV] ** 2:
@@ -352,11 +510,11 @@ def _model(row, kind, st, fs, cv, nx, H, z, r):
             w_exp = m_tvec(c, (0.0, OMEGA_IE * np.cos(lat), OMEGA_IE * np.sin(lat)))
             axis0 = 3
             for i in range(3):
-                wc = (row[2 + i] - fs[F_BG + i]) / (1.0 + fs[F_SG + i])
+                wc = (row[RW_Z + i] - fs[F_BG + i]) / (1.0 + fs[F_SG + i])
                 z[i] = wc - w_exp[i]
                 H[i, BG + i] = 1.0
-                if nx > 15:
-                    H[i, SG + i] = row[2 + i]
+                if int(cv[C_NCORE]) > 15:
+                    H[i, SG + i] = row[RW_Z + i]
     elif kind == MT_NHC or kind == MT_ODOM:
         if not head_known:
             return 0, 0, 0, 1, 2
@@ -366,29 +524,115 @@ def _model(row, kind, st, fs, cv, nx, H, z, r):
         axis0 = 3
         if kind == MT_NHC:
             m = 2
-            ax = (int(cv[C_NHC_AX0]), int(cv[C_NHC_AX1]), 0)
+            ax = (int(cv[C_NHC_AX]), int(cv[C_NHC_AX + 1]), 0)
         for a in range(m):
             i = ax[a]
-            z[a] = v_b[i] - (row[2 + i] if kind == MT_ODOM else 0.0)
+            z[a] = v_b[i] - (row[RW_Z + i] if kind == MT_ODOM else 0.0)
             for j in range(3):
                 H[a, V + j] = c[j][i]
                 H[a, PHI + j] = -cvx[i][j]
     else:
         return 0, 0, 0, 1, 2
     for a in range(m):
-        s = row[5 + ax[a]] if kind == MT_NHC else row[5 + a]
+        s = row[RW_S + ax[a]] if kind == MT_NHC else row[RW_S + a]
         r[a] = s * s
-        if kind == MT_ZARU and cv[C_ZARU_Q] > 0.0:
-            r[a] *= fs[F_QSCALE]
+    if kind == MT_GNSS_POS and not head_known:
+        # the heading is held out of the filter: the horizontal lever arm points anywhere (l_h^2 / 2 per axis)
+        lh2 = 0.5 * (lever[0] * lever[0] + lever[1] * lever[1])
+        r[0] += lh2
+        r[1] += lh2
     return m, axis0, ax[0], ax[1], ax[2]
+
+
+@njit(cache=True)
+def _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t):
+    """Measurement-noise adaptation per kind and axis (module docstring), from the differences of
+    consecutive innovations: for a consistent filter the innovations are white, so that
+    ``E[(z_k - z_k-1)^2] = S_k + S_k-1``; with R too small by a factor ``s``,
+    ``s = (mean dz^2 - mean(HPH_k + HPH_k-1)) / mean(R_k + R_k-1)`` (stated R).  A filter error that grows
+    slowly (a diverging heading, a wandering bias) cancels in the difference, so it cannot pass for
+    measurement noise and make the filter trust the measurements less and diverge more; a time-correlated
+    measurement error cancels too (a calibration pass over the whole log measures it and sets the floor
+    ``rbase``, :func:`sinscli.fusion.pipeline.calibrated_noise`).  Each ``dz^2`` is
+    clipped at 9 times its variance (an outlier counts as a 3-sigma difference).  Over windows of
+    ``adapt.window`` differences the scale moves half-way (in the logarithm) to the estimate when the
+    estimate leaves the band a consistent filter keeps it in (the chi-square quantiles 1e-4 and 1 - 1e-4
+    of the window); never below the calibrated floor (1 without calibration), at most
+    ``adapt.max_scale``.  Returns the
+    event count."""
+    k = K_OF_KIND[kind]
+    if k < 0 or cv[C_RADAPT_N] <= 0.0:
+        return n_evs
+    for a in range(m):
+        i = 3 * k + a
+        s_r = fs[F_RS + i]
+        rn = r[a] / s_r                         # the stated R
+        hph = S[a, a] - r[a]
+        p = F_RP + 4 * i
+        gap = t - fs[p + 3]
+        if fs[p + 3] != 0.0 and gap > 0.0 and gap <= max(cv[C_OUTAGE_DT], 0.5):
+            dz = z[a] - fs[p]
+            q = F_RA + 4 * i
+            fs[q] += min(dz * dz, 9.0 * (S[a, a] + fs[p + 1] + s_r * fs[p + 2]))
+            fs[q + 1] += hph + fs[p + 1]
+            fs[q + 2] += rn + fs[p + 2]
+            fs[q + 3] += 1.0
+            n = fs[q + 3]
+            if n >= cv[C_RADAPT_N]:
+                est = (fs[q] - fs[q + 1]) / fs[q + 2]
+                for j in range(4):
+                    fs[q + j] = 0.0
+                new = s_r
+                # half-way in the logarithm toward an estimate out of the band a consistent filter keeps it in
+                # (chi-square quantiles of the window: a false move once in ten thousand windows)
+                if est > s_r * cv[C_RADAPT_BAND + 1]:
+                    new = min(np.sqrt(s_r * est), cv[C_RADAPT_MAX])
+                elif est < s_r * cv[C_RADAPT_BAND]:
+                    new = max(np.sqrt(s_r * max(est, 1e-12)), cv[C_RBASE + i])
+                if new != s_r:
+                    fs[F_RS + i] = new
+                    n_evs = _event(evs, n_evs, t, EV_RSCALE, float(3 * kind + a), new)
+        fs[p] = z[a]
+        fs[p + 1] = hph
+        fs[p + 2] = rn
+        fs[p + 3] = t
+    return n_evs
+
+
+@njit(cache=True)
+def _decay_drift_scale(fs, cv, t):
+    """The drift process-noise scale decays back toward its base (in its logarithm) with time constant
+    ``qb_tau``."""
+    base = cv[C_QB_BASE]
+    if fs[F_QS_DRIFT] != base and t > fs[F_T_QS]:
+        fs[F_QS_DRIFT] = base * np.exp(np.log(fs[F_QS_DRIFT] / base) * np.exp(-(t - fs[F_T_QS]) / cv[C_QB_TAU]))
+    fs[F_T_QS] = t
+
+
+@njit(cache=True)
+def _exit_drift_scale(ratio, r_share, fs, cv, evs, n_evs, t):
+    """An outage exit tests the dead-reckoning prediction: the ratio of its horizontal innovation squared to
+    its predicted variance (logged as an event with the measurement's share of S, for the calibration pass
+    of :mod:`sinscli.fusion.pipeline`).  Over ``qb_thr`` the drift process noise (bias instability, scale
+    factor and misalignment: the terms that make dead reckoning drift) was too small by about the ratio:
+    its scale is multiplied by it, at most ``qb_max`` times its base; an event."""
+    n_evs = _event(evs, n_evs, t, EV_EXIT, ratio, r_share)
+    if cv[C_QB_MAX] <= 1.0:
+        return n_evs
+    s_old = fs[F_QS_DRIFT]
+    if ratio > cv[C_QB_THR]:
+        fs[F_QS_DRIFT] = min(s_old * ratio, cv[C_QB_MAX] * cv[C_QB_BASE])
+    if fs[F_QS_DRIFT] != s_old:
+        n_evs = _event(evs, n_evs, t, EV_QSCALE, ratio, fs[F_QS_DRIFT])
+    return n_evs
 
 
 @njit(cache=True)
 def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
     """Apply one measurement row at the current time (the state is at its time).  Returns counters."""
     nx = int(cv[C_NX])
-    kind = int(row[1])
-    t = row[0]
+    kind = int(row[RW_KIND])
+    t = row[RW_T]
     if kind == MT_COURSE:
         return n_inn, _heading_from_course(row, st, fs, cv, P, nx, evs, n_evs)
     H = vecs[V_H:V_H + 3]
@@ -398,92 +642,105 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
     m, axis0, a0, a1, a2 = _model(row, kind, st, fs, cv, nx, H, z, r)
     if m == 0:
         return n_inn, n_evs
+    k = K_OF_KIND[kind]
+    if k >= 0:
+        for a in range(m):
+            r[a] *= fs[F_RS + 3 * k + a]
     head_known = fs[F_HEAD_KNOWN] > 0.0
     if not head_known:
         for i in range(nx):
             P[i, PHI + 2] = 0.0
             P[PHI + 2, i] = 0.0
-    gate = cv[C_GATE1 + m - 1]
+    gate = cv[C_GATE + m - 1]
     HP = vecs[V_HP:V_HP + 3]
     KT = vecs[V_KT:V_KT + 3]
     A = mats[W_A]
-    S = s3[0]
-    nis, acc = kalman_update(P, nx, H, z, r, m, gate, x, False, HP, KT, A, S, s3[1])
+    S, Si = s3[0], s3[1]
+    innovation_covariance(P, nx, H, r, m, HP, S)
+    nis = nis_of(S, z, m, Si)
+    if not np.isfinite(nis):
+        return n_inn, n_evs
+    hph = (S[0, 0] - r[0], S[1, 1] - r[1], S[2, 2] - r[2])
+    rst = (r[0] / fs[F_RS + 3 * k] if k >= 0 else r[0], r[1] / fs[F_RS + 3 * k + 1] if k >= 0 else r[1],
+           r[2] / fs[F_RS + 3 * k + 2] if k >= 0 else r[2])
+    acc = nis < gate
+    nis_report = nis
+    exit_fix = False
     if kind == MT_GNSS_POS:
-        if acc:
+        exit_fix = fs[F_T_FIX] > -np.inf and t - fs[F_T_FIX] > cv[C_OUTAGE_DT]
+        fs[F_T_FIX] = t
+        _decay_drift_scale(fs, cv, t)
+    if k >= 0 and not exit_fix:
+        n_evs = _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t)
+    if exit_fix:
+        # the dead-reckoning prediction tested: its horizontal innovation against its variance
+        ratio = (z[0] * z[0] + z[1] * z[1]) / (S[0, 0] + S[1, 1])
+        n_evs = _exit_drift_scale(ratio, (r[0] + r[1]) / (S[0, 0] + S[1, 1]), fs, cv, evs, n_evs, t)
+        if not acc:
+            # reacquisition: the dead reckoning's covariance was too small by about the ratio (_widen_nav)
+            n_evs = _event(evs, n_evs, t, EV_REACQUIRE, nis, ratio)
+            _widen_nav(P, nx, ratio)
+            innovation_covariance(P, nx, H, r, m, HP, S)
+            nis_of(S, z, m, Si)
+            acc = True                          # a reacquired fix is taken (the widening made room)
+    elif kind == MT_GNSS_POS and not acc:
+        if fs[F_NREJ] == 0.0:
+            fs[F_TREJ0] = t
+        fs[F_NREJ] += 1.0
+        if fs[F_NREJ] >= cv[C_REJ_RUN]:
+            # a run of rejected fixes: the filter diverged (or the GNSS jumped and stays): the navigation
+            # block widened by the fix's horizontal innovation against its variance (_widen_nav), the fix taken
+            n_evs = _event(evs, n_evs, t, EV_REJECTION_RUN, fs[F_TREJ0], fs[F_NREJ])
+            _widen_nav(P, nx, max((z[0] * z[0] + z[1] * z[1]) / (S[0, 0] + S[1, 1]), nis / m))
+            innovation_covariance(P, nx, H, r, m, HP, S)
+            nis_of(S, z, m, Si)
+            acc = True
             fs[F_NREJ] = 0.0
-        else:
-            if fs[F_NREJ] == 0.0:
-                fs[F_TREJ0] = t
-            fs[F_NREJ] += 1.0
-            if fs[F_NREJ] >= cv[C_REJ_RUN]:
-                n_evs = _event(evs, n_evs, t, EV_REJECTION_RUN, fs[F_TREJ0], fs[F_NREJ])
-                for i in range(3):
-                    P[R + i, R + i] += z[i] * z[i]
-                nis, acc = kalman_update(P, nx, H, z, r, m, gate, x, True, HP, KT, A, S, s3[1])
-                fs[F_NREJ] = 0.0
-                fs[F_RESET] = 1.0
+            fs[F_RESET] = 1.0
+    elif acc and k >= 0:
+        # IGG-III robust weight: above the full-weight bound the noise is inflated smoothly up to the gate
+        k0 = cv[C_ROBUST + m - 1]
+        if k0 > 0.0 and nis > k0:
+            u, u0, u1 = np.sqrt(nis), np.sqrt(k0), np.sqrt(gate)
+            infl = (u / u0) * ((u1 - u0) / (u1 - u)) ** 2
+            for a in range(m):
+                r[a] *= infl
+            innovation_covariance(P, nx, H, r, m, HP, S)
+            nis_of(S, z, m, Si)
+    if acc and kind == MT_GNSS_POS:
+        fs[F_NREJ] = 0.0
     axes = (a0, a1, a2)
     for a in range(m):
-        n_inn = _record(inn, n_inn, t, kind, axis0 + axes[a], z[a], S[a, a], nis, acc)
+        n_inn = _record(inn, n_inn, t, kind, axis0 + axes[a], z[a], S[a, a], nis_report, acc, hph[a], rst[a],
+                        exit_fix, a)
     if acc:
+        kalman_apply(P, nx, H, z, r, m, x, HP, KT, A, Si)
         if not head_known:
             x[PHI + 2] = 0.0
-        feedback(st, fs, x, nx, int(cv[C_METHOD]))
-    if kind == MT_GNSS_POS or kind == MT_GNSS_VEL or (kind == MT_ZARU and cv[C_ZARU_Q] > 0.0):
-        rho = 0.0
-        for a in range(m):
-            rho += (S[a, a] - r[a]) / (S[a, a] * m)
-        n_evs = _adapt(t, kind, nis, m, gate, rho, fs, cv, P, nx, evs, n_evs)
+        feedback(st, fs, cv, x, nx, int(cv[C_METHOD]))
     return n_inn, n_evs
 
 
 @njit(cache=True)
-def _adapt(t, kind, nis, m, gate, rho, fs, cv, P, nx, evs, n_evs):
-    """Consistency guard: covariance matching on a scale of Q (docs/fusion.md).
-
-    Per kind (GNSS position, GNSS velocity, and ZARU when its sigma derives from the sensor's ARW, so
-    that Q's scale is its scale too), over consecutive windows of ``adapt.window`` measurements:
-    the mean ``mu`` of the NIS per dof, each clipped at the gate (``min(NIS, gate) / m``: a rejected
-    outlier counts, but no more than a measurement at the gate), and the mean share ``rho`` of the
-    filter's own ``H P H^T`` in the innovation variance ``S = H P H^T + R``.  A consistent filter has
-    ``mu`` = 1 (std ``sqrt(2 / (m N))``); ``mu`` over ``adapt.threshold`` is the test.  Were the
-    filter's part of S too small by ``lam``, ``mu = 1 + rho (lam - 1)``: P and the process-noise scale
-    ``q_scale`` (and with it the ZARU variance derived from the ARW) are multiplied by
-    ``lam = 1 + (mu - 1) / rho``, at most 10x per window and ``adapt.max_scale`` in all.  Never below 1:
-    it only widens; each widening is an event (logged, summarized).
-    """
-    if cv[C_ADAPT_THR] <= 0.0 or not np.isfinite(nis):
-        return n_evs
-    b = F_ADAPT + 3 * min(kind, 2)
-    fs[b] += min(nis, gate) / m
-    fs[b + 1] += 1.0
-    fs[b + 2] += rho
-    if fs[b + 1] < cv[C_ADAPT_N]:
-        return n_evs
-    mu = fs[b] / fs[b + 1]
-    rho_m = max(fs[b + 2] / fs[b + 1], 0.01)
-    fs[b] = 0.0
-    fs[b + 1] = 0.0
-    fs[b + 2] = 0.0
-    if mu > cv[C_ADAPT_THR]:
-        f = min(mu if kind == MT_GNSS_POS else 1.0 + (mu - 1.0) / rho_m, 10.0)
-        if fs[F_QSCALE] * f > cv[C_QMAX]:
-            f = max(cv[C_QMAX] / fs[F_QSCALE], 1.0)
-        if f > 1.0:
-            fs[F_QSCALE] *= f
-            for i in range(nx):
-                for j in range(nx):
-                    P[i, j] *= f
-            n_evs = _event(evs, n_evs, t, EV_ADAPT, f, fs[F_QSCALE])
-            fs[F_RESET] = 1.0
-    return n_evs
+def _widen_nav(P, nx, ratio):
+    """Widen the navigation rows and columns of P (position, velocity, attitude) by ``sqrt(ratio)``: their
+    block by the ratio, their correlations with the sensor states kept (a congruence: P stays positive
+    definite).  Where the innovations show the dead reckoning's covariance too small by that ratio."""
+    f = np.sqrt(max(ratio, 1.0))
+    for i in range(nx):
+        for j in range(nx):
+            if i < 9:
+                P[i, j] *= f
+            if j < 9:
+                P[i, j] *= f
 
 
 @njit(cache=True)
-def _store_epoch(t, P, Pm, nx, fs, ftv, ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset, n_ep):
-    """One smoother epoch: P- and P+ (upper triangles, row by row), the integral of F over its
-    pattern, the correction fed back since the previous epoch, the reset flag."""
+def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep):
+    """One smoother epoch: P- and P+ (upper triangles, row by row), the transition matrix since the
+    previous epoch (its navigation rows over the core states, then the diagonal of the other rows), the
+    correction fed back since the previous epoch, the reset flag; the transition matrix restarts at I."""
+    ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset = ep
     if n_ep < ep_t.shape[0]:
         ep_t[n_ep] = t
         u = 0
@@ -494,36 +751,44 @@ def _store_epoch(t, P, Pm, nx, fs, ftv, ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_rese
                 ep_pm[n_ep, u] = Pm[i, j]
                 ep_pp[n_ep, u] = P[i, j]
                 u += 1
-        for p in range(ftv.shape[0]):
-            ep_ft[n_ep, p] = ftv[p]
-            ftv[p] = 0.0
+        u = 0
+        for i in range(9):
+            for j in range(ncore):
+                ep_ft[n_ep, u] = Phi[i, j]
+                u += 1
+        for i in range(9, nx):
+            ep_ft[n_ep, u] = Phi[i, i]
+            u += 1
         ep_reset[n_ep] = fs[F_RESET]
+    for i in range(nx):
+        for j in range(nx):
+            Phi[i, j] = 1.0 if i == j else 0.0
     fs[F_RESET] = 0.0
     fs[F_T_EPOCH] = t
     return n_ep + 1
 
 
 @njit(cache=True)
-def _measure_group(tm, meas, im, nm, st, fs, cv, P, mats, vecs, s3, ptr, col, ftv, inn, n_inn, evs, n_evs,
-                   ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset, n_ep, tol):
+def _measure_group(tm, meas, im, st, fs, cv, P, ws, rec, ep, n_ep, tol):
     """Propagate P to ``tm`` and apply every row at that time; store the smoother epoch."""
+    mats, vecs, s3 = ws
+    inn, n_inn, evs, n_evs = rec
     store = cv[C_SMOOTH_DT] > 0.0
-    _do_propagate(st, fs, cv, P, mats[W_F], mats[W_W], ptr, col, ftv, store, cv[C_ITG:C_ITG + 3],
-                  cv[C_ITA:C_ITA + 3], cv[C_ARW2:C_ARW2 + 3], cv[C_VRW2:C_VRW2 + 3], cv[C_QBG:C_QBG + 3],
-                  cv[C_QBA:C_QBA + 3])
+    _do_propagate(st, fs, cv, P, mats, store)
     nx = int(cv[C_NX])
     Pm = mats[W_PM]
     if store:
         for i in range(nx):
             for j in range(nx):
                 Pm[i, j] = P[i, j]
-    while im < nm and meas[im, 0] <= tm + tol:
+    nm = meas.shape[0]
+    while im < nm and meas[im, RW_T] <= tm + tol:
         n_inn, n_evs = _apply(meas[im], st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs)
         im += 1
     if not _health(P, nx, fs, tm, mats[W_L], True):
         return im, n_inn, n_evs, n_ep
     if store:
-        n_ep = _store_epoch(tm, P, Pm, nx, fs, ftv, ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset, n_ep)
+        n_ep = _store_epoch(tm, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep)
     return im, n_inn, n_evs, n_ep
 
 
@@ -550,20 +815,24 @@ def row_variances(out, n, c, fwd, pe, pn, pu, ve, vn, vu, aee, ann, auu, aen, he
 
 
 @njit(cache=True)
-def fuse(time, dtheta_b, dvel_b, st, fs, cv, P, meas, ptr, col, ftv, cflu_arr, mats, vecs, s3,
-         out_t, out_pos, out_vel, out_cbn, out_var, out_bias, inn, evs,
-         ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset, n_ep):
-    """Fused navigation of the samples ``time[k]`` with the measurement rows ``meas`` (module docstring).
+def fuse(imu, nav, meas, ws, out, rec, ep, n_ep):
+    """Fused navigation of one block of IMU samples with the measurement rows ``meas`` (module docstring).
 
-    ``st`` is the strapdown state (:func:`sinscli.nav.strapdown.new_state`), ``fs`` the filter scalars,
-    ``cv`` the configuration vector, ``P`` the covariance (nx, nx), ``ftv`` the integral of F since the
-    last smoother epoch over F's pattern ``ptr/col`` (carried between blocks), ``mats/vecs/s3`` the
-    :func:`workspace`.  Writes output rows every ``nsub * every`` samples (position, velocity, Cbn, the
-    variances of :func:`row_variances`, the sensor estimates), innovation records, events and smoother
-    epochs from index ``n_ep``.  Returns ``(rows, measurement rows consumed, innovation records,
-    events, n_ep)``; stops early with ``fs[F_ERR]`` set when the covariance turns non-finite or loses
-    positive definiteness.
+    ``imu = (time, dtheta_b, dvel_b)``; ``nav = (st, fs, cv, P, cflu)``: the strapdown state
+    (:func:`sinscli.nav.strapdown.new_state`), the filter scalars (:data:`FS`), the configuration
+    (:data:`CV`), the covariance (nx, nx) and the FLU rotation of the body convention;
+    ``ws = (mats, vecs, s3)`` the :func:`workspace`; ``out = (t, pos, vel, cbn, var, bias)`` the output
+    rows, written every ``nsub * every`` samples (position, velocity, Cbn, the variances of
+    :func:`row_variances`, the sensor estimates); ``rec = (inn, evs)`` innovation records and events;
+    ``ep`` the smoother's epoch arrays, written from index ``n_ep``.  Returns ``(rows, measurement rows
+    consumed, innovation records, events, n_ep)``; stops early with ``fs[F_ERR]`` set when the
+    covariance turns non-finite or loses positive definiteness.
     """
+    time, dtheta_b, dvel_b = imu
+    st, fs, cv, P, cflu_arr = nav
+    mats, vecs, s3 = ws
+    out_t, out_pos, out_vel, out_cbn, out_var, out_bias = out
+    inn, evs = rec
     nx = int(cv[C_NX])
     method = int(cv[C_METHOD])
     order = int(cv[C_ORDER])
@@ -575,9 +844,6 @@ def fuse(time, dtheta_b, dvel_b, st, fs, cv, P, meas, ptr, col, ftv, cflu_arr, m
     cflu = ((cflu_arr[0, 0], cflu_arr[0, 1], cflu_arr[0, 2]), (cflu_arr[1, 0], cflu_arr[1, 1], cflu_arr[1, 2]),
             (cflu_arr[2, 0], cflu_arr[2, 1], cflu_arr[2, 2]))
     Pm = mats[W_PM]
-    Fw, Ww, Lw = mats[W_F], mats[W_W], mats[W_L]
-    itg, ita, arw2, vrw2 = cv[C_ITG:C_ITG + 3], cv[C_ITA:C_ITA + 3], cv[C_ARW2:C_ARW2 + 3], cv[C_VRW2:C_VRW2 + 3]
-    qbg, qba = cv[C_QBG:C_QBG + 3], cv[C_QBA:C_QBA + 3]
     events = np.empty((1, sd.N_EVENT))
     buf_th = np.empty((1, 3))
     buf_dv = np.empty((1, 3))
@@ -601,8 +867,8 @@ def fuse(time, dtheta_b, dvel_b, st, fs, cv, P, meas, ptr, col, ftv, cflu_arr, m
         dv_full = (buf_dv[0, 0], buf_dv[0, 1], buf_dv[0, 2])
         frac = 0.0
         # measurements strictly inside the interval: split the increments at their time
-        while im < nm and meas[im, 0] < tk - tol:
-            tm = meas[im, 0]
+        while im < nm and meas[im, RW_T] < tk - tol:
+            tm = meas[im, RW_T]
             if tm <= t0s + tol:          # before the navigation start: not used
                 im += 1
                 continue
@@ -615,9 +881,8 @@ def fuse(time, dtheta_b, dvel_b, st, fs, cv, P, meas, ptr, col, ftv, cflu_arr, m
             sums = (z3, z3, z3, z3)
             nsub_now = 0
             frac = a
-            im, n_inn, n_evs, n_ep = _measure_group(tm, meas, im, nm, st, fs, cv, P, mats, vecs, s3, ptr, col, ftv,
-                                                    inn, n_inn, evs, n_evs, ep_t, ep_pm, ep_pp, ep_ft, ep_x,
-                                                    ep_reset, n_ep, tol)
+            im, n_inn, n_evs, n_ep = _measure_group(tm, meas, im, st, fs, cv, P, ws, (inn, n_inn, evs, n_evs), ep,
+                                                    n_ep, tol)
             if fs[F_ERR] != 0.0:
                 sd.save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now)
                 return n_out, im, n_inn, n_evs, n_ep
@@ -628,27 +893,26 @@ def fuse(time, dtheta_b, dvel_b, st, fs, cv, P, meas, ptr, col, ftv, cflu_arr, m
         nsub_now += 1
         fs[F_TPREV] = tk
         fs[F_NSAMP_OUT] += 1.0
-        due = im < nm and meas[im, 0] <= tk + tol
+        due = im < nm and meas[im, RW_T] <= tk + tol
         if nsub_now < nsub and not due:
             continue
         n_ev = _close(st, fs, sums, order, method, tk, cflu, events, n_ev)
         sums = (z3, z3, z3, z3)
         nsub_now = 0
         if due:
-            im, n_inn, n_evs, n_ep = _measure_group(tk, meas, im, nm, st, fs, cv, P, mats, vecs, s3, ptr, col, ftv,
-                                                    inn, n_inn, evs, n_evs, ep_t, ep_pm, ep_pp, ep_ft, ep_x,
-                                                    ep_reset, n_ep, tol)
+            im, n_inn, n_evs, n_ep = _measure_group(tk, meas, im, st, fs, cv, P, ws, (inn, n_inn, evs, n_evs), ep,
+                                                    n_ep, tol)
             if fs[F_ERR] != 0.0:
                 break
         elif fs[F_ACC_T] >= cv[C_PROP_DT] * (1.0 - 1e-9):
-            _do_propagate(st, fs, cv, P, Fw, Ww, ptr, col, ftv, store, itg, ita, arw2, vrw2, qbg, qba)
-            if not _health(P, nx, fs, tk, Lw, False):
+            _do_propagate(st, fs, cv, P, mats, store)
+            if not _health(P, nx, fs, tk, mats[W_L], False):
                 break
             if store and tk - fs[F_T_EPOCH] >= smooth_dt * (1.0 - 1e-9):
                 for i in range(nx):
                     for j in range(nx):
                         Pm[i, j] = P[i, j]
-                n_ep = _store_epoch(tk, P, Pm, nx, fs, ftv, ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset, n_ep)
+                n_ep = _store_epoch(tk, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep)
         if fs[F_NSAMP_OUT] >= per_out and n_out < out_t.shape[0]:
             fs[F_NSAMP_OUT] = 0.0
             out_t[n_out] = tk

@@ -36,8 +36,8 @@ accelerometer bias variance instead.
 
 Propagation: ``P <- (I + F T) P (I + F T)^T + Qd``, ``Qd = G Q G^T T``, formed on F's 3x3 blocks
 (:func:`f_blocks`, tuples on the stack) by :func:`propagate`, which skips F's zero entries and keeps P
-exactly symmetric; :func:`add_process_noise` adds Qd in place.  :func:`sparsity` is F's pattern (the
-smoother stores the integral of F over it).
+exactly symmetric; :func:`add_process_noise` adds Qd in place.  :func:`transition_step` accumulates the
+product of the same ``I + F T`` between two smoother epochs (the smoother's Phi).
 """
 import numpy as np
 from numba import njit
@@ -46,34 +46,6 @@ from ..nav.earth import OMEGA_IE, radii
 
 R, V, PHI, BG, BA, SG, SA = 0, 3, 6, 9, 12, 15, 18
 NX15, NX21 = 15, 21
-
-
-def sparsity(nx: int, decay: bool = False):
-    """Compressed-row pattern ``(ptr, col)`` of F's possibly non-zero entries (module docstring).
-
-    Only the entries :func:`build_F` can make non-zero: F_rr (5), F_vr (columns N, U only: ``B_ie`` and
-    ``B_en`` have no east column), F_vv, the skew blocks without their diagonal, A, B, the Cbn blocks,
-    the scale-factor columns of 21 states, and the bias diagonal only with ``decay`` (gm-decay).
-    """
-    rows = [[0, 1, 2, V], [1, 2, V + 1], [V + 2]]
-    skew_cols = ([PHI + 1, PHI + 2], [PHI, PHI + 2], [PHI, PHI + 1])
-    a_cols = ([V + 1], [V], [V])
-    b_cols = ([2], [1, 2], [1, 2])
-    for i in range(3):                          # dv
-        c = [1, 2, V, V + 1, V + 2] + skew_cols[i] + [BA, BA + 1, BA + 2]
-        rows.append(c + ([SA, SA + 1, SA + 2] if nx == NX21 else []))
-    for i in range(3):                          # phi
-        c = b_cols[i] + a_cols[i] + skew_cols[i] + [BG, BG + 1, BG + 2]
-        rows.append(c + ([SG, SG + 1, SG + 2] if nx == NX21 else []))
-    for i in range(BG, BA + 3):                 # biases: Gauss-Markov decay, or none (random walk)
-        rows.append([i] if decay else [])
-    for i in range(15, nx):                     # scale factors: random constants
-        rows.append([])
-    ptr = np.zeros(nx + 1, dtype=np.int64)
-    for i, c in enumerate(rows):
-        ptr[i + 1] = ptr[i] + len(c)
-    col = np.array([c for r in rows for c in sorted(r)], dtype=np.int64)
-    return ptr, col
 
 
 @njit(cache=True)
@@ -259,14 +231,13 @@ def _put(P, i0, j0, b, sym):
 
 
 @njit(cache=True)
-def _phi_apply(src, X, tr, fb, T, nb, out, sym, first):
+def _phi_apply(src, X, tr, fb, T, sf, out, sym, first):
     """The navigation block rows of block column ``X`` of ``Phi M`` into ``out``, with ``M_ZX`` the
     block (Z, X) of ``src`` or, with ``tr``, the transposed block (X, Z).  Rows ``dr, dv, phi`` are
     written from ``first, first + 1, first + 2`` on (with ``sym`` only the upper blocks, row <= X,
     each with its mirror)."""
     o = 3 * X
     z = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-    sf = nb > 5
     mr = _blk(src, o, 0, True) if tr else _blk(src, 0, o, False)
     mv = _blk(src, o, V, True) if tr else _blk(src, V, o, False)
     mp = _blk(src, o, PHI, True) if tr else _blk(src, PHI, o, False)
@@ -282,9 +253,42 @@ def _phi_apply(src, X, tr, fb, T, nb, out, sym, first):
 
 
 @njit(cache=True)
-def propagate(P, W, fb, T, nx, inv_tau_g, inv_tau_a):
+def _col3(M, i0, j):
+    return (M[i0, j], M[i0 + 1, j], M[i0 + 2, j])
+
+
+@njit(cache=True)
+def _mv(f, x):
+    """``f x`` (3x3 block times a 3-vector)."""
+    return (f[0][0] * x[0] + f[0][1] * x[1] + f[0][2] * x[2], f[1][0] * x[0] + f[1][1] * x[1] + f[1][2] * x[2],
+            f[2][0] * x[0] + f[2][1] * x[1] + f[2][2] * x[2])
+
+
+@njit(cache=True)
+def _phi_col(src, j, fb, T, sf, out):
+    """The navigation rows (dr, dv, phi) of ``Phi m`` for the column ``m = src[:, j]`` into ``out[:9, j]``
+    (the columns of the parameter states, lever arm and time offset, which F does not reach)."""
+    z3 = (0.0, 0.0, 0.0)
+    xr, xv, xp = _col3(src, R, j), _col3(src, V, j), _col3(src, PHI, j)
+    xg, xa = _col3(src, BG, j), _col3(src, BA, j)
+    xsg = _col3(src, SG, j) if sf else z3
+    xsa = _col3(src, SA, j) if sf else z3
+    frr, fvr, fvv, fvp, fpr, fpv, fpp, c, csa, csg = fb
+    a = _mv(frr, xr)
+    b = (_mv(fvr, xr), _mv(fvv, xv), _mv(fvp, xp), _mv(c, xa), _mv(csa, xsa) if sf else z3)
+    cg = _mv(c, xg)
+    e = (_mv(fpr, xr), _mv(fpv, xv), _mv(fpp, xp), _mv(csg, xsg) if sf else z3)
+    for i in range(3):
+        out[R + i, j] = xr[i] + T * (a[i] + xv[i])
+        out[V + i, j] = xv[i] + T * (b[0][i] + b[1][i] + b[2][i] + b[3][i] + b[4][i])
+        out[PHI + i, j] = xp[i] + T * (e[0][i] + e[1][i] + e[2][i] - cg[i] + e[3][i])
+
+
+@njit(cache=True)
+def propagate(P, W, fb, T, nx, ncore, inv_tau_g, inv_tau_a):
     """``P <- Phi P Phi^T`` with ``Phi = I + F T`` over F's 3x3 blocks (:func:`f_blocks`); ``W`` (nx, nx)
-    scratch.
+    scratch; ``ncore`` (15 or 21: with scale factors) the states F's blocks reach, the rest parameter
+    states (lever arm, time offset: constant, F zero on their rows and columns).
 
     The sensor rows of F are zero (random walk, scale factors) or diagonal (gm-decay: ``D = 1 - T/tau``),
     so only the navigation rows (dr, dv, phi) of ``W = Phi P`` are formed, block column by block
@@ -293,17 +297,19 @@ def propagate(P, W, fb, T, nx, inv_tau_g, inv_tau_a):
     is a few 3x3 products on tuples (the zero entries of F_rr, F_vr, A, B and the skew blocks
     skipped): about 1,250 multiply-adds for 15 states, and P exactly symmetric.
     """
-    nb = nx // 3
+    sf = ncore > 15
     decay = False
     for i in range(3):
         if inv_tau_g[i] != 0.0 or inv_tau_a[i] != 0.0:
             decay = True
     # one compiled _phi_apply for the block columns (a loop index, not a literal per call: numba would
     # compile one specialization per literal column, 10 of them, for ~8 s of a first run)
-    for X in range(nb):
-        _phi_apply(P, X, False, fb, T, nb, W, False, -9)
+    for X in range(ncore // 3):
+        _phi_apply(P, X, False, fb, T, sf, W, False, -9)
+    for j in range(ncore, nx):
+        _phi_col(P, j, fb, T, sf, W)
     for X in range(3):
-        _phi_apply(W, X, True, fb, T, nb, P, True, 0)
+        _phi_apply(W, X, True, fb, T, sf, P, True, 0)
     for j in range(9, nx):
         d = 1.0
         if j < BA:
@@ -324,11 +330,34 @@ def propagate(P, W, fb, T, nx, inv_tau_g, inv_tau_a):
 
 
 @njit(cache=True)
-def add_process_noise(P, nx, c, T, q_scale, arw2, vrw2, q_bg, q_ba, q_att_extra, q_vel_extra):
-    """``P += Qd``, ``Qd = G Q G^T T``: ``Cbn diag(arw^2) Cbn^T`` on phi, ``Cbn diag(vrw^2) Cbn^T`` on dv
-    (plus the isotropic scale-factor/misalignment densities ``q_*_extra``), ``q_bg``/``q_ba`` (3,)
-    bias densities; all times ``q_scale`` (``c`` is Cbn as a 3-tuple of rows)."""
-    s = T * q_scale
+def transition_step(M, W, fb, T, ncore, inv_tau_g, inv_tau_a):
+    """``M <- (I + F T) M`` on the core states (``ncore`` x ``ncore``): the product of the filter's own
+    transition matrices between two smoother epochs, so that the smoother's ``Phi`` is exactly the one
+    P was propagated with (``W`` scratch).  Only the navigation rows change (the sensor rows of F are
+    zero, or a diagonal decay)."""
+    sf = ncore > 15
+    for X in range(ncore // 3):
+        _phi_apply(M, X, False, fb, T, sf, W, False, -9)
+    for i in range(9):
+        for j in range(ncore):
+            M[i, j] = W[i, j]
+    for i in range(3):
+        if inv_tau_g[i] != 0.0 or inv_tau_a[i] != 0.0:
+            dg = 1.0 - T * inv_tau_g[i]
+            da = 1.0 - T * inv_tau_a[i]
+            for j in range(ncore):
+                M[BG + i, j] *= dg
+                M[BA + i, j] *= da
+
+
+@njit(cache=True)
+def add_process_noise(P, c, T, s_drift, arw2, vrw2, q_bg, q_ba, q_att_extra, q_vel_extra):
+    """``P += Qd``, ``Qd = G Q G^T T``: ``Cbn diag(arw^2) Cbn^T`` on phi, ``Cbn diag(vrw^2) Cbn^T`` on dv; the
+    drift terms times ``s_drift`` (the bounded, decaying scale that outage-exit innovations move,
+    :mod:`sinscli.fusion.kernel`): ``q_bg``/``q_ba`` (3,) bias densities and the isotropic
+    scale-factor/misalignment densities ``q_*_extra``; ``c`` is Cbn as a 3-tuple of rows."""
+    s = T
+    sd = T * s_drift
     for i in range(3):
         for j in range(3):
             a = 0.0
@@ -338,7 +367,7 @@ def add_process_noise(P, nx, c, T, q_scale, arw2, vrw2, q_bg, q_ba, q_att_extra,
                 b += c[i][k] * vrw2[k] * c[j][k]
             P[PHI + i, PHI + j] += a * s
             P[V + i, V + j] += b * s
-        P[PHI + i, PHI + i] += q_att_extra * s
-        P[V + i, V + i] += q_vel_extra * s
-        P[BG + i, BG + i] += q_bg[i] * s
-        P[BA + i, BA + i] += q_ba[i] * s
+        P[PHI + i, PHI + i] += q_att_extra * sd
+        P[V + i, V + i] += q_vel_extra * sd
+        P[BG + i, BG + i] += q_bg[i] * sd
+        P[BA + i, BA + i] += q_ba[i] * sd

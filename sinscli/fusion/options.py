@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..config import MAX_COUNT, MAX_LEVER_ARM
+from ..conventions import VEHICLES
 from ..errors import SinsError
 
 DEG = math.pi / 180.0
@@ -22,27 +23,39 @@ MAX_VEL = 1.0e4             # m/s: a velocity sigma or a speed (the physical spe
 MAX_TIME = 1.0e6            # s: a window, interval or correlation time
 MAX_RATE_DEG = 1.0e4        # deg/s: an angular-rate sigma (beyond the 100 rad/s rate limit)
 
+ESTIMABLE = ("lever_arm", "time_offset")
+
 FUSION_DEFAULTS = {
+    "vehicle": "none",               # car | robot | pedestrian | aircraft | none: the constraints of the
+                                     # platform (VEHICLE_PRESETS), under the keys set explicitly
     "states": 15,                    # 15 | 21 (+ gyro and accelerometer scale factors)
-    "sensor": None,                  # preset (mems | tactical | navigation) or sensor YAML; null: the
-                                     # conservative default (the mems preset), said in the summary
+    "sensor": None,                  # preset (consumer | mems | tactical | navigation) or sensor YAML; null:
+                                     # the conservative default (the mems preset), said in the summary
+    "noise_from_data": True,         # white noise and bias magnitudes from the log's standstill windows
+                                     # where the description is missing, optimistic or far off (docs/fusion.md)
     "bias_model": "gm-noise",        # gm-noise: F = 0, GM density 2 sigma^2/tau | gm-decay: F = -1/tau too
     "propagation_interval": 0.0,     # s between covariance propagations; 0: every attitude update; <= 0.1
     "gate_probability": 0.9999,      # chi-square innovation gate (of the whole measurement vector)
+    "robust_probability": 0.999,     # IGG-III: full weight below this chi-square quantile, the noise
+                                     # inflated smoothly up to the gate; null: off
     "gnss_pos_sigma": [1.5, 1.5, 3.0],   # m E N U, for fixes without std columns
     "gnss_vel_sigma": [0.1, 0.1, 0.2],   # m/s E N U, for velocities without std columns
     "use_gnss_velocity": True,       # use the log's GNSS velocity when it has one
     "lever_arm": None,               # antenna in body axes, m; null: gnss.lever_arm
+    "estimate": [],                  # parameters estimated as filter states: lever_arm, time_offset
+    "estimate_sigma": {"lever_arm": 0.5, "time_offset": 0.1},    # m, s: their initial 1-sigma
     "init_sigma": {                  # initial 1-sigma when the init file gives none
         "position": [2.0, 2.0, 4.0],     # m E N U
         "velocity": [0.1, 0.1, 0.1],     # m/s
         "roll": 1.0, "pitch": 1.0,       # deg
         "heading": 5.0,                  # deg
     },
-    "zupt": {"enabled": True, "sigma": 0.02, "max_speed": 0.5},    # m/s; no ZUPT above max_speed
-    "zaru": {"enabled": True, "sigma": None},                      # deg/s; null: ARW / sqrt(window)
+    "zupt": {"enabled": False, "sigma": 0.02, "max_speed": 0.5},   # m/s; no ZUPT above max_speed
+    "zaru": {"enabled": False, "sigma": None},                     # deg/s; null: ARW / sqrt(window)
     "standstill": {                  # detector on the IMU: windows of `window` s
         "window": 1.0,               # s
+        "lowpass": 0.0,              # s: statistics of the means over bins of this length (engine vibration
+                                     # averages out); 0: of the raw samples
         "rate_std": 0.5,             # deg/s: std of each gyro axis in the window under this
         "accel_std": 0.3,            # m/s^2: std of each accelerometer axis under this
         "accel_mag": 0.3,            # m/s^2: | |mean f| - g | under this
@@ -51,37 +64,70 @@ FUSION_DEFAULTS = {
     "odometry": {"enabled": True, "sigma": None, "sigma_floor": 0.1},   # m/s; null: the log's, else the floor
     "heading_init": {
         "max_sigma": 20.0,           # deg: a heading less certain than this is held out of the filter
-        "min_speed": 2.0,            # m/s: GNSS speed from which the course gives the heading
+        "max_course_sigma": 10.0,    # deg: the GNSS course sets the heading once its sigma is under this
+        "max_baseline_time": 30.0,   # s: longest span of fixes whose displacement gives the course
+        "min_speed": 0.0,            # m/s: and the GNSS speed is above this (0: the sigma alone decides)
         "sigma_floor": 2.0,          # deg added to the course's sigma (sideslip, mounting)
     },
     "rejection_run": 10,             # consecutive rejected fixes that inflate P and re-accept
     "outage": 3.0,                   # a GNSS gap over this many nominal fix intervals is an outage
-    "adapt": {"enabled": True, "probability": 0.99999, "window": 10, "max_scale": 1.0e4},   # widens P, Q
+    "adapt": {
+        "enabled": True,             # measurement-noise adaptation (covariance matching, per kind)
+        "window": 20,                # measurements per window
+        "max_scale": 1.0e4,          # largest measurement-noise variance scale
+        "max_bias_scale": 100.0,     # largest scale of the bias process noise raised at outage exits
+        "exit_ratio": 4.0,           # outage-exit innovation^2 / predicted variance that raises it
+        "decay": 600.0,              # s: time constant of its decay back to 1
+    },
     "scale_factor_tau": 10.0,        # s: correlation time of unestimated scale-factor/misalignment noise
     "smoother_interval": 1.0,        # s: the smoother stores an epoch at least this often
 }
 
+# --vehicle / fusion.vehicle: the constraints a user of the platform expects, under the keys the user
+# sets explicitly (docs/fusion.md)
+VEHICLE_PRESETS = {
+    "none": {},
+    "aircraft": {"heading_init": {"sigma_floor": 5.0}},      # crab angle: the course is not the heading
+    "car": {"zupt": {"enabled": True}, "zaru": {"enabled": True},
+            "nhc": {"enabled": True, "sigma": [0.1, 0.1]},
+            "standstill": {"lowpass": 0.2}},
+    "robot": {"zupt": {"enabled": True}, "zaru": {"enabled": True},
+              "nhc": {"enabled": True, "sigma": [0.2, 0.1]},       # skid steering slips sideways
+              "standstill": {"lowpass": 0.2},
+              "heading_init": {"sigma_floor": 5.0}},
+    "pedestrian": {"zupt": {"enabled": True, "sigma": 0.05, "max_speed": 0.3}, "zaru": {"enabled": True},
+                   "standstill": {"lowpass": 0.0, "accel_std": 0.2, "rate_std": 2.0},
+                   "heading_init": {"sigma_floor": 5.0}},           # a handheld device points off the path
+}
 
-@dataclass
+
+@dataclass(frozen=True)
 class FusionOptions:
+    vehicle: str = "none"
     states: int = 15
     sensor: object = None
+    noise_from_data: bool = True
     bias_model: str = "gm-noise"
     propagation_interval: float = 0.0
     gate_probability: float = 0.9999
+    robust_probability: float | None = 0.999
     gnss_pos_sigma: np.ndarray = field(default_factory=lambda: np.array([1.5, 1.5, 3.0]))
     gnss_vel_sigma: np.ndarray = field(default_factory=lambda: np.array([0.1, 0.1, 0.2]))
     use_gnss_velocity: bool = True
     lever_arm: np.ndarray | None = None
+    estimate: tuple = ()
+    lever_arm_sigma: float = 0.5
+    time_offset_sigma: float = 0.1
     init_pos_sigma: np.ndarray = field(default_factory=lambda: np.array([2.0, 2.0, 4.0]))
     init_vel_sigma: np.ndarray = field(default_factory=lambda: np.array([0.1, 0.1, 0.1]))
     init_att_sigma: np.ndarray = field(default_factory=lambda: np.radians([1.0, 1.0, 5.0]))
-    zupt: bool = True
+    zupt: bool = False
     zupt_sigma: float = 0.02
     zupt_max_speed: float = 0.5
-    zaru: bool = True
+    zaru: bool = False
     zaru_sigma: float | None = None          # rad/s
     standstill_window: float = 1.0
+    standstill_lowpass: float = 0.0
     standstill_rate_std: float = 0.5 * DEG
     standstill_accel_std: float = 0.3
     standstill_accel_mag: float = 0.3
@@ -92,14 +138,18 @@ class FusionOptions:
     odometry_sigma: float | None = None
     odometry_sigma_floor: float = 0.1
     heading_max_sigma: float = 20.0 * DEG
-    heading_min_speed: float = 2.0
+    heading_max_course_sigma: float = 10.0 * DEG
+    heading_max_baseline_time: float = 30.0
+    heading_min_speed: float = 0.0
     heading_sigma_floor: float = 2.0 * DEG
     rejection_run: int = 10
     outage: float = 3.0
     adapt: bool = True
-    adapt_probability: float = 0.99999
-    adapt_window: int = 10
+    adapt_window: int = 20
     adapt_max_scale: float = 1.0e4
+    adapt_max_bias_scale: float = 100.0
+    adapt_exit_ratio: float = 4.0
+    adapt_decay: float = 600.0
     scale_factor_tau: float = 10.0
     smoother_interval: float = 1.0
     base_dir: object = None                  # for a relative sensor path
@@ -158,66 +208,95 @@ def _merge(defaults: dict, data, src, prefix=""):
     return out
 
 
-def build_fusion_options(section, src: str, base_dir=None) -> FusionOptions:
-    """Validate the raw ``fusion:`` mapping (None: defaults) into :class:`FusionOptions`."""
-    d = _merge(FUSION_DEFAULTS, section, src)
-    o = FusionOptions(base_dir=base_dir)
+def build_fusion_options(section, src: str, base_dir=None, vehicle: str | None = None) -> FusionOptions:
+    """Validate the raw ``fusion:`` mapping (None: defaults) into :class:`FusionOptions`.
+
+    ``vehicle`` (``--vehicle``) overrides ``fusion.vehicle``; the vehicle's preset
+    (:data:`VEHICLE_PRESETS`) fills the keys the section does not set."""
+    if section is not None and not isinstance(section, dict):
+        raise SinsError(f"{src}: fusion: expected a mapping of keys, got {section!r}")
+    veh = vehicle if vehicle is not None else (section or {}).get("vehicle", "none")
+    if veh not in VEHICLES:
+        key = "--vehicle" if vehicle is not None else f"{src}: fusion.vehicle"
+        raise SinsError(f"{key}: expected one of {', '.join(VEHICLES)}, got {veh!r}")
+    d = _merge(_merge(FUSION_DEFAULTS, VEHICLE_PRESETS[veh], "<vehicle preset>"), section, src)
+    kw = {"base_dir": base_dir, "vehicle": veh}
     if d["states"] not in (15, 21) or isinstance(d["states"], bool):
         _fail(src, "states", f"expected 15 or 21, got {d['states']!r}")
-    o.states = int(d["states"])
+    kw["states"] = int(d["states"])
     if d["sensor"] is not None and not isinstance(d["sensor"], (str, dict)):
         _fail(src, "sensor", f"expected a preset name, a sensor YAML path or a mapping, got {d['sensor']!r}")
-    o.sensor = d["sensor"]
+    kw["sensor"] = d["sensor"]
+    kw["noise_from_data"] = _bool(src, "noise_from_data", d["noise_from_data"])
     if d["bias_model"] not in ("gm-noise", "gm-decay"):
         _fail(src, "bias_model", f"expected gm-noise or gm-decay, got {d['bias_model']!r}")
-    o.bias_model = d["bias_model"]
-    o.propagation_interval = _num(src, "propagation_interval", d["propagation_interval"], ge=0.0, le=0.1)
-    o.gate_probability = _num(src, "gate_probability", d["gate_probability"], gt=0.0, lt=1.0)
-    o.gnss_pos_sigma = _vec(src, "gnss_pos_sigma", d["gnss_pos_sigma"], 3, gt=0.0, le=MAX_POS)
-    o.gnss_vel_sigma = _vec(src, "gnss_vel_sigma", d["gnss_vel_sigma"], 3, gt=0.0, le=MAX_VEL)
-    o.use_gnss_velocity = _bool(src, "use_gnss_velocity", d["use_gnss_velocity"])
+    kw["bias_model"] = d["bias_model"]
+    kw["propagation_interval"] = _num(src, "propagation_interval", d["propagation_interval"], ge=0.0, le=0.1)
+    kw["gate_probability"] = _num(src, "gate_probability", d["gate_probability"], gt=0.0, lt=1.0)
+    if d["robust_probability"] is not None:
+        kw["robust_probability"] = _num(src, "robust_probability", d["robust_probability"], gt=0.5,
+                                        lt=kw["gate_probability"])
+    else:
+        kw["robust_probability"] = None
+    kw["gnss_pos_sigma"] = _vec(src, "gnss_pos_sigma", d["gnss_pos_sigma"], 3, gt=0.0, le=MAX_POS)
+    kw["gnss_vel_sigma"] = _vec(src, "gnss_vel_sigma", d["gnss_vel_sigma"], 3, gt=0.0, le=MAX_VEL)
+    kw["use_gnss_velocity"] = _bool(src, "use_gnss_velocity", d["use_gnss_velocity"])
     if d["lever_arm"] is not None:
-        o.lever_arm = _vec(src, "lever_arm", d["lever_arm"], 3, ge=-MAX_LEVER_ARM, le=MAX_LEVER_ARM)
+        kw["lever_arm"] = _vec(src, "lever_arm", d["lever_arm"], 3, ge=-MAX_LEVER_ARM, le=MAX_LEVER_ARM)
+    est = d["estimate"]
+    if not isinstance(est, (list, tuple)) or any(e not in ESTIMABLE for e in est) or len(set(est)) != len(est):
+        _fail(src, "estimate", f"expected a list of distinct names from {', '.join(ESTIMABLE)}, got {est!r}")
+    kw["estimate"] = tuple(e for e in ESTIMABLE if e in est)
+    es = d["estimate_sigma"]
+    kw["lever_arm_sigma"] = _num(src, "estimate_sigma.lever_arm", es["lever_arm"], gt=0.0, le=MAX_LEVER_ARM)
+    kw["time_offset_sigma"] = _num(src, "estimate_sigma.time_offset", es["time_offset"], gt=0.0, le=MAX_TIME)
     s = d["init_sigma"]
-    o.init_pos_sigma = _vec(src, "init_sigma.position", s["position"], 3, gt=0.0, le=MAX_POS)
-    o.init_vel_sigma = _vec(src, "init_sigma.velocity", s["velocity"], 3, gt=0.0, le=MAX_VEL)
-    o.init_att_sigma = np.radians([_num(src, f"init_sigma.{k}", s[k], gt=0.0, le=180.0)
-                                   for k in ("roll", "pitch", "heading")])
-    o.zupt = _bool(src, "zupt.enabled", d["zupt"]["enabled"])
-    o.zupt_sigma = _num(src, "zupt.sigma", d["zupt"]["sigma"], gt=0.0, le=MAX_VEL)
-    o.zupt_max_speed = _num(src, "zupt.max_speed", d["zupt"]["max_speed"], gt=0.0, le=MAX_VEL)
-    o.zaru = _bool(src, "zaru.enabled", d["zaru"]["enabled"])
+    kw["init_pos_sigma"] = _vec(src, "init_sigma.position", s["position"], 3, gt=0.0, le=MAX_POS)
+    kw["init_vel_sigma"] = _vec(src, "init_sigma.velocity", s["velocity"], 3, gt=0.0, le=MAX_VEL)
+    kw["init_att_sigma"] = np.radians([_num(src, f"init_sigma.{k}", s[k], gt=0.0, le=180.0)
+                                       for k in ("roll", "pitch", "heading")])
+    kw["zupt"] = _bool(src, "zupt.enabled", d["zupt"]["enabled"])
+    kw["zupt_sigma"] = _num(src, "zupt.sigma", d["zupt"]["sigma"], gt=0.0, le=MAX_VEL)
+    kw["zupt_max_speed"] = _num(src, "zupt.max_speed", d["zupt"]["max_speed"], gt=0.0, le=MAX_VEL)
+    kw["zaru"] = _bool(src, "zaru.enabled", d["zaru"]["enabled"])
     if d["zaru"]["sigma"] is not None:
-        o.zaru_sigma = _num(src, "zaru.sigma", d["zaru"]["sigma"], gt=0.0, le=MAX_RATE_DEG) * DEG
+        kw["zaru_sigma"] = _num(src, "zaru.sigma", d["zaru"]["sigma"], gt=0.0, le=MAX_RATE_DEG) * DEG
     ss = d["standstill"]
-    o.standstill_window = _num(src, "standstill.window", ss["window"], gt=0.0, le=MAX_TIME)
-    o.standstill_rate_std = _num(src, "standstill.rate_std", ss["rate_std"], gt=0.0, le=MAX_RATE_DEG) * DEG
-    o.standstill_accel_std = _num(src, "standstill.accel_std", ss["accel_std"], gt=0.0)
-    o.standstill_accel_mag = _num(src, "standstill.accel_mag", ss["accel_mag"], gt=0.0)
-    o.nhc = _bool(src, "nhc.enabled", d["nhc"]["enabled"])
-    o.nhc_sigma = _vec(src, "nhc.sigma", d["nhc"]["sigma"], 2, gt=0.0, le=MAX_VEL)
-    o.nhc_interval = _num(src, "nhc.interval", d["nhc"]["interval"], gt=0.0, le=MAX_TIME)
-    o.odometry = _bool(src, "odometry.enabled", d["odometry"]["enabled"])
+    kw["standstill_window"] = _num(src, "standstill.window", ss["window"], gt=0.0, le=MAX_TIME)
+    kw["standstill_lowpass"] = _num(src, "standstill.lowpass", ss["lowpass"], ge=0.0, le=kw["standstill_window"] / 3)
+    kw["standstill_rate_std"] = _num(src, "standstill.rate_std", ss["rate_std"], gt=0.0, le=MAX_RATE_DEG) * DEG
+    kw["standstill_accel_std"] = _num(src, "standstill.accel_std", ss["accel_std"], gt=0.0)
+    kw["standstill_accel_mag"] = _num(src, "standstill.accel_mag", ss["accel_mag"], gt=0.0)
+    kw["nhc"] = _bool(src, "nhc.enabled", d["nhc"]["enabled"])
+    kw["nhc_sigma"] = _vec(src, "nhc.sigma", d["nhc"]["sigma"], 2, gt=0.0, le=MAX_VEL)
+    kw["nhc_interval"] = _num(src, "nhc.interval", d["nhc"]["interval"], gt=0.0, le=MAX_TIME)
+    kw["odometry"] = _bool(src, "odometry.enabled", d["odometry"]["enabled"])
     if d["odometry"]["sigma"] is not None:
-        o.odometry_sigma = _num(src, "odometry.sigma", d["odometry"]["sigma"], gt=0.0, le=MAX_VEL)
-    o.odometry_sigma_floor = _num(src, "odometry.sigma_floor", d["odometry"]["sigma_floor"], ge=0.0, le=MAX_VEL)
+        kw["odometry_sigma"] = _num(src, "odometry.sigma", d["odometry"]["sigma"], gt=0.0, le=MAX_VEL)
+    kw["odometry_sigma_floor"] = _num(src, "odometry.sigma_floor", d["odometry"]["sigma_floor"], ge=0.0, le=MAX_VEL)
     hi = d["heading_init"]
-    o.heading_max_sigma = _num(src, "heading_init.max_sigma", hi["max_sigma"], gt=0.0, le=180.0) * DEG
-    o.heading_min_speed = _num(src, "heading_init.min_speed", hi["min_speed"], gt=0.0, le=MAX_VEL)
-    o.heading_sigma_floor = _num(src, "heading_init.sigma_floor", hi["sigma_floor"], gt=0.0, le=180.0) * DEG
+    kw["heading_max_sigma"] = _num(src, "heading_init.max_sigma", hi["max_sigma"], gt=0.0, le=180.0) * DEG
+    kw["heading_max_course_sigma"] = _num(src, "heading_init.max_course_sigma", hi["max_course_sigma"], gt=0.0,
+                                          le=90.0) * DEG
+    kw["heading_max_baseline_time"] = _num(src, "heading_init.max_baseline_time", hi["max_baseline_time"], gt=0.0,
+                                           le=MAX_TIME)
+    kw["heading_min_speed"] = _num(src, "heading_init.min_speed", hi["min_speed"], ge=0.0, le=MAX_VEL)
+    kw["heading_sigma_floor"] = _num(src, "heading_init.sigma_floor", hi["sigma_floor"], gt=0.0, le=180.0) * DEG
     rr = d["rejection_run"]
     if isinstance(rr, bool) or not isinstance(rr, int) or not 1 <= rr <= MAX_COUNT:
         _fail(src, "rejection_run", f"expected a whole number from 1 to {MAX_COUNT}, got {rr!r}")
-    o.rejection_run = rr
-    o.outage = _num(src, "outage", d["outage"], gt=1.0, le=MAX_TIME)
+    kw["rejection_run"] = rr
+    kw["outage"] = _num(src, "outage", d["outage"], gt=1.0, le=MAX_TIME)
     ad = d["adapt"]
-    o.adapt = _bool(src, "adapt.enabled", ad["enabled"])
-    o.adapt_probability = _num(src, "adapt.probability", ad["probability"], gt=0.5, lt=1.0)
+    kw["adapt"] = _bool(src, "adapt.enabled", ad["enabled"])
     w = ad["window"]
     if isinstance(w, bool) or not isinstance(w, int) or not 2 <= w <= MAX_COUNT:
         _fail(src, "adapt.window", f"expected a whole number from 2 to {MAX_COUNT}, got {w!r}")
-    o.adapt_window = w
-    o.adapt_max_scale = _num(src, "adapt.max_scale", ad["max_scale"], ge=1.0)
-    o.scale_factor_tau = _num(src, "scale_factor_tau", d["scale_factor_tau"], ge=0.0, le=MAX_TIME)
-    o.smoother_interval = _num(src, "smoother_interval", d["smoother_interval"], gt=0.0, le=MAX_TIME)
-    return o
+    kw["adapt_window"] = w
+    kw["adapt_max_scale"] = _num(src, "adapt.max_scale", ad["max_scale"], ge=1.0)
+    kw["adapt_max_bias_scale"] = _num(src, "adapt.max_bias_scale", ad["max_bias_scale"], ge=1.0)
+    kw["adapt_exit_ratio"] = _num(src, "adapt.exit_ratio", ad["exit_ratio"], gt=1.0)
+    kw["adapt_decay"] = _num(src, "adapt.decay", ad["decay"], gt=0.0, le=MAX_TIME)
+    kw["scale_factor_tau"] = _num(src, "scale_factor_tau", d["scale_factor_tau"], ge=0.0, le=MAX_TIME)
+    kw["smoother_interval"] = _num(src, "smoother_interval", d["smoother_interval"], gt=0.0, le=MAX_TIME)
+    return FusionOptions(**kw)

@@ -4,7 +4,8 @@ innovation records and a summary.  No file I/O: readers and writers are the CLI'
 ``Fusion(init, nav_opts, fopts, gnss, ...)`` prepares the measurement rows, the filter model from one
 sensor description (:func:`filter_model`) and the initial covariance; ``feed(block)`` runs the numba
 kernel (:func:`sinscli.fusion.kernel.fuse`) on a block and returns its output rows;
-``finish()`` runs the smoother when asked (:mod:`sinscli.fusion.smoother`) and the summary.
+``finish()`` checks that the log had a sample after the initial time; ``smoothed()`` runs the smoother
+(:mod:`sinscli.fusion.smoother`) when asked, ``summary(traj)`` the summary.
 """
 from __future__ import annotations
 
@@ -14,18 +15,22 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import chi2
 
 from ..errors import SinsError
 from ..nav import strapdown as sd
-from ..nav.earth import dlon, gravity, radii_py
+from ..nav.earth import gravity, local_en
 from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
 from ..nav.rotation import conv_to_flu
 from ..sensors import G0, load_sensor
 from ..types import GnssLog, ImuLog, NavState, Trajectory, time_tolerance
 from . import kernel as kn
-from .model import BA, BG, PHI, SA, SG, V, sparsity
+from .model import BA, BG, PHI, SA, SG, V
+from .noise import apply_data_noise
+from .summary import (FusionSummary, clock, exit_fixes, fix_residuals, ground_vehicle_hint, heading_course_check,
+                      outages, standstill_intervals)
 from .options import FusionOptions
-from .standstill import StandstillDetector
+from .standstill import StandstillDetector, gnss_still
 
 log = logging.getLogger("sins")
 
@@ -44,12 +49,7 @@ BIAS_COLUMNS = ["gyro_bias_x", "gyro_bias_y", "gyro_bias_z", "accel_bias_x", "ac
 SF_COLUMNS = ["gyro_sf_x", "gyro_sf_y", "gyro_sf_z", "accel_sf_x", "accel_sf_y", "accel_sf_z"]
 
 
-def fusion_columns(states: int) -> list[str]:
-    """The extra trajectory columns of a fused trajectory (docs/formats.md aided-trajectory columns)."""
-    return SIGMA_COLUMNS + BIAS_COLUMNS + (SF_COLUMNS if states == 21 else [])
-
-
-@dataclass
+@dataclass(frozen=True)
 class FilterModel:
     """Noise densities and initial sensor variances from one sensor description (SI)."""
     arw2: np.ndarray            # (3,) rad^2/s
@@ -130,97 +130,14 @@ def _fill_unknown_terms(sens: dict, src: str) -> list:
     return notes
 
 
-def chi2_cdf(x: float, k: int) -> float:
-    """Chi-square CDF with ``k`` degrees of freedom: the regularized lower gamma P(k/2, x/2)."""
-    if x <= 0.0:
-        return 0.0
-    a, z = 0.5 * k, 0.5 * x
-    if z < a + 1.0:                          # series
-        term = total = 1.0 / a
-        n = a
-        while abs(term) > 1e-16 * abs(total):
-            n += 1.0
-            term *= z / n
-            total += term
-        return total * math.exp(-z + a * math.log(z) - math.lgamma(a))
-    # continued fraction for Q (Lentz), P = 1 - Q
-    b = z + 1.0 - a
-    c = 1.0 / 1e-300
-    dd = 1.0 / b
-    h = dd
-    for i in range(1, 1000):
-        an = -i * (i - a)
-        b += 2.0
-        dd = an * dd + b
-        dd = 1.0 / (dd if abs(dd) > 1e-300 else 1e-300)
-        c = b + an / c
-        c = c if abs(c) > 1e-300 else 1e-300
-        delta = dd * c
-        h *= delta
-        if abs(delta - 1.0) < 1e-15:
-            break
-    return 1.0 - math.exp(-z + a * math.log(z) - math.lgamma(a)) * h
-
-
-def chi2_ppf(p: float, k: int) -> float:
-    """The ``p`` quantile of the chi-square distribution with ``k`` degrees of freedom (bisection)."""
-    lo, hi = 0.0, max(10.0, 4.0 * k)
-    while chi2_cdf(hi, k) < p:
-        hi *= 2.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if chi2_cdf(mid, k) < p:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
-
-
 def chi2_gate(p: float, m: int) -> float:
-    return chi2_ppf(p, m)
-
-
-@dataclass
-class FusionSummary:
-    fixes_used: int = 0
-    fixes_rejected: int = 0
-    fixes_total: int = 0
-    counts: dict = field(default_factory=dict)          # type -> (accepted, rejected) measurements
-    outages: list = field(default_factory=list)         # (start, length) s
-    standstill: list = field(default_factory=list)      # [start, end] s
-    residual_rms_h: float = float("nan")                # m, fused antenna track against the fixes
-    residual_rms_u: float = float("nan")
-    final_sigma: dict = field(default_factory=dict)
-    events: list = field(default_factory=list)          # strings
-    sensor: str = ""
-    heading_init_time: float | None = None
-    smoothed: bool = False
-
-    def text(self) -> str:
-        s = [f"fusion: {self.fixes_used} of {self.fixes_total} GNSS fixes used, {self.fixes_rejected} rejected"]
-        for k, (a, r) in self.counts.items():
-            if k != "gnss_pos":
-                s.append(f"{k} {a} used/{r} rejected")
-        s.append(f"{len(self.outages)} outage(s)" + (": " + ", ".join(f"{t:.6g} s for {d:.3g} s"
-                                                                     for t, d in self.outages[:5]) if self.outages else ""))
-        s.append(f"{len(self.standstill)} standstill interval(s)" + (": " + ", ".join(
-            f"{a:.6g}-{b:.6g} s" for a, b in self.standstill[:5]) if self.standstill else ""))
-        s.append(f"residual RMS against the fixes {self.residual_rms_h:.3g} m horizontal, "
-                 f"{self.residual_rms_u:.3g} m vertical")
-        fs = self.final_sigma
-        if fs:
-            s.append("final 1-sigma: position {:.3g}/{:.3g}/{:.3g} m, velocity {:.3g}/{:.3g}/{:.3g} m/s, "
-                     "roll/pitch/heading {:.3g}/{:.3g}/{:.3g} deg".format(*[fs[c] for c in SIGMA_COLUMNS]))
-        if self.heading_init_time is not None:
-            s.append(f"heading initialized from the GNSS course at {self.heading_init_time:.6g} s")
-        s.append(f"sensor model {self.sensor}")
-        if self.smoothed:
-            s.append("smoothed (RTS)")
-        return "; ".join(s) + "." + ("".join(f" {e}." for e in self.events))
+    """The chi-square gate of an ``m``-dimensional innovation: the ``p`` quantile of chi2(m) (scipy.stats)."""
+    return float(chi2.ppf(p, m))
 
 
 def gnss_rows(gnss: GnssLog, fopts: FusionOptions, t_min: float) -> np.ndarray:
-    """Measurement rows of a GNSS log: position, velocity (when used) and the course for the heading."""
+    """Measurement rows of a GNSS log: position, velocity (when used) and the course candidates for the
+    heading (:func:`course_rows`)."""
     n = len(gnss)
     sp = gnss.position_sigma(fopts.gnss_pos_sigma)
     if not np.all(np.isfinite(sp)) or np.any(sp <= 0):
@@ -228,31 +145,112 @@ def gnss_rows(gnss: GnssLog, fopts: FusionOptions, t_min: float) -> np.ndarray:
         raise SinsError(f"{gnss.source}: fix {k + 1} (time {gnss.time[k]!r}): position sigma must be finite and > 0")
     rows = [np.column_stack([gnss.time, np.full(n, kn.MT_GNSS_POS), np.radians(gnss.lat), np.radians(gnss.lon),
                              gnss.height, sp, np.zeros((n, 2))])]
-    if gnss.vel_n is not None:
-        sv = gnss.std_vel if gnss.std_vel is not None else np.tile(fopts.gnss_vel_sigma, (n, 1))
-        sv = np.where(np.isfinite(sv) & (sv > 0), sv, fopts.gnss_vel_sigma[None, :])
-        if fopts.use_gnss_velocity:
-            rows.append(np.column_stack([gnss.time, np.full(n, kn.MT_GNSS_VEL), gnss.vel_n, sv, np.zeros((n, 2))]))
-        ve, vn, svh = gnss.vel_n[:, 0], gnss.vel_n[:, 1], np.hypot(sv[:, 0], sv[:, 1]) / math.sqrt(2.0)
-        tc = gnss.time
-    elif n >= 2:
-        rm, rn = radii_py(np.sin(np.radians(gnss.lat)))
-        dt = np.diff(gnss.time)
-        ve = dlon(np.radians(gnss.lon[1:]), np.radians(gnss.lon[:-1])) * (rn[1:] + gnss.height[1:]) * \
-            np.cos(np.radians(gnss.lat[1:])) / dt
-        vn = np.diff(np.radians(gnss.lat)) * (rm[1:] + gnss.height[1:]) / dt
-        svh = np.hypot(sp[1:, 0], sp[1:, 1]) / dt
-        tc = gnss.time[1:]
-    else:
-        ve = vn = svh = tc = np.empty(0)
-    speed = np.hypot(ve, vn)
-    ok = speed > fopts.heading_min_speed
-    course = np.mod(np.arctan2(ve, vn), 2 * math.pi)
-    csig = np.arctan2(svh, np.maximum(speed, 1e-9)) + fopts.heading_sigma_floor
-    rows.append(np.column_stack([tc[ok], np.full(ok.sum(), kn.MT_COURSE), course[ok], ve[ok], vn[ok], csig[ok],
-                                 svh[ok], np.zeros(ok.sum()), np.zeros((ok.sum(), 2))]))
+    if gnss.vel_n is not None and fopts.use_gnss_velocity:
+        rows.append(np.column_stack([gnss.time, np.full(n, kn.MT_GNSS_VEL), gnss.vel_n, velocity_sigma(gnss, fopts),
+                                     np.zeros((n, 2))]))
+    rows.append(course_rows(gnss, fopts, sp, t_min).rows)
     out = np.vstack(rows)
     return out[out[:, 0] > t_min]
+
+
+def velocity_sigma(gnss: GnssLog, fopts: FusionOptions) -> np.ndarray:
+    """``(N, 3)`` velocity 1-sigma (m/s, ENU): the fix's own where positive and finite, else the config's."""
+    n = len(gnss)
+    sv = gnss.std_vel if gnss.std_vel is not None else np.tile(fopts.gnss_vel_sigma, (n, 1))
+    return np.where(np.isfinite(sv) & (sv > 0), sv, fopts.gnss_vel_sigma[None, :])
+
+
+COURSE_FROM_VELOCITY, COURSE_FROM_DISPLACEMENT = 1.0, 2.0     # the course row's aux[0]: its source
+
+
+@dataclass
+class CourseRows:
+    """The course candidates (measurement rows ``MT_COURSE``) and what the log offered (for the warning
+    when none qualifies)."""
+    rows: np.ndarray
+    best_sigma: float = math.inf        # rad: the smallest course sigma found (any baseline)
+    best_time: float = math.nan
+    source: str = ""                    # "velocity" | "displacement" of the first candidate
+
+
+def course_rows(gnss: GnssLog, fopts: FusionOptions, sp: np.ndarray, t_min: float) -> CourseRows:
+    """Heading from motion: candidate rows ``[t, MT_COURSE, course, v_e, v_n, sigma, speed sigma, 0, 0, 0]``.
+
+    Two sources, each giving the course with its sigma; a candidate is kept when the sigma is under
+    ``heading_init.max_course_sigma`` (and the speed over ``heading_init.min_speed``), so that a walker
+    at 1 m/s qualifies as soon as the GNSS says where he goes, whatever his speed:
+
+    * the GNSS velocity: ``sigma = atan(sigma_v / speed)``;
+    * the displacement between two fixes at most ``heading_init.max_baseline_time`` apart: enough travel
+      that the fixes' sigmas are small against it, ``sigma = atan(sqrt(s_a^2 + s_b^2) / d)``, plus the
+      bending of the path between them (the largest distance of the fixes in between from the chord,
+      beyond twice their sigma: an arc of sagitta ``e`` over a chord ``d`` turns by ``4 e / d``).
+
+    The sigma reported adds ``heading_init.sigma_floor`` (sideslip, a handheld device off the path).  The
+    filter takes the first candidate while the heading is unknown (:mod:`sinscli.fusion.kernel`)."""
+    f = fopts
+    empty = np.zeros((0, kn.MW))
+    n = len(gnss)
+    if n < 2:
+        return CourseRows(empty)
+    cands = []
+    best, best_t = math.inf, math.nan
+    if gnss.vel_n is not None:
+        sv = velocity_sigma(gnss, f)
+        ve, vn = gnss.vel_n[:, 0], gnss.vel_n[:, 1]
+        speed = np.hypot(ve, vn)
+        svh = np.hypot(sv[:, 0], sv[:, 1]) / math.sqrt(2.0)
+        csig = np.arctan2(svh, np.maximum(speed, 1e-12))
+        after = gnss.time > t_min
+        if after.any():
+            k = int(np.argmin(np.where(after, csig, np.inf)))
+            best, best_t = float(csig[k]), float(gnss.time[k])
+        ok = after & (csig <= f.heading_max_course_sigma) & (speed >= max(f.heading_min_speed, 1e-9))
+        if ok.any():
+            k = np.nonzero(ok)[0][:8]
+            cands.append(np.column_stack([gnss.time[k], np.full(k.size, kn.MT_COURSE),
+                                          np.mod(np.arctan2(ve[k], vn[k]), 2 * math.pi), ve[k], vn[k],
+                                          csig[k] + f.heading_sigma_floor, svh[k], np.zeros(k.size),
+                                          np.full(k.size, COURSE_FROM_VELOCITY), np.zeros(k.size)]))
+    # displacement baselines: ENU offsets of the fixes from the first (small-angle: a few km at most apart)
+    e, nn = local_en(gnss.lat, gnss.lon, gnss.height)
+    sh = np.hypot(sp[:, 0], sp[:, 1]) / math.sqrt(2.0)
+    t = gnss.time
+    i0 = np.searchsorted(t, t - f.heading_max_baseline_time, side="left")
+    d = np.hypot(e - e[i0], nn - nn[i0])
+    srel = np.hypot(sh, sh[i0])
+    dsig = np.where(d > 0, np.arctan2(srel, d), np.inf)
+    dt = t - t[i0]
+    after = (t > t_min) & (dt > 0)
+    found = 0
+    for j in np.nonzero(after & (dsig <= f.heading_max_course_sigma))[0]:
+        i = int(i0[j])
+        ue, un = (e[j] - e[i]) / d[j], (nn[j] - nn[i]) / d[j]
+        lateral = np.abs((e[i:j + 1] - e[i]) * un - (nn[i:j + 1] - nn[i]) * ue)
+        bend = 4.0 * max(0.0, float(np.max(lateral - 2.0 * sh[i:j + 1]))) / d[j]
+        sig = math.hypot(float(dsig[j]), bend)
+        if sig < best:
+            best, best_t = sig, float(t[j])
+        speed = d[j] / dt[j]
+        if sig > f.heading_max_course_sigma or speed < max(f.heading_min_speed, 1e-9):
+            continue
+        vel_e, vel_n = (e[j] - e[i]) / dt[j], (nn[j] - nn[i]) / dt[j]
+        cands.append(np.array([[t[j], kn.MT_COURSE, math.atan2(vel_e, vel_n) % (2 * math.pi), vel_e, vel_n,
+                                sig + f.heading_sigma_floor, srel[j] * math.sqrt(2.0) / dt[j], 0.0,
+                                COURSE_FROM_DISPLACEMENT, 0.0]]))
+        found += 1
+        if found >= 8:
+            break
+    if not found and np.isfinite(dsig[after]).any():
+        k = np.nonzero(after)[0]
+        j = int(k[np.argmin(dsig[k])])
+        if dsig[j] < best:
+            best, best_t = float(dsig[j]), float(t[j])
+    if not cands:
+        return CourseRows(empty, best, best_t)
+    rows = np.vstack(cands)
+    rows = rows[np.argsort(rows[:, 0], kind="stable")]
+    return CourseRows(rows, best, best_t, "velocity" if rows[0, 8] == COURSE_FROM_VELOCITY else "displacement")
 
 
 def sort_rows(rows: np.ndarray) -> np.ndarray:
@@ -262,24 +260,15 @@ def sort_rows(rows: np.ndarray) -> np.ndarray:
     return rows[np.lexsort((prio, rows[:, 0]))]
 
 
-def outages(time: np.ndarray, factor: float) -> list:
-    """GNSS gaps longer than ``factor`` nominal (median) intervals: ``(start, length)``."""
-    if len(time) < 3:
-        return []
-    d = np.diff(time)
-    nominal = float(np.median(d))
-    k = np.nonzero(d > factor * nominal)[0]
-    return [(float(time[i]), float(d[i])) for i in k]
-
-
 class EpochStore:
     """The smoother's epochs (:func:`sinscli.fusion.kernel._store_epoch`), grown as the filter runs:
-    per epoch the time, P- and P+ (upper triangles), the integral of F over its pattern, the fed-back
-    correction and the reset flag (about 2.6 kB for 15 states)."""
+    per epoch the time, P- and P+ (upper triangles), the transition matrix since the previous epoch
+    (:func:`sinscli.fusion.kernel.epoch_width` floats), the fed-back correction and the reset flag
+    (about 3 kB for 15 states)."""
     EMPTY = (np.empty(0), np.empty((0, 1)), np.empty((0, 1)), np.empty((0, 1)), np.empty((0, 1)), np.empty(0))
 
     def __init__(self, nx: int, nnz: int):
-        self.nx, self.nnz, self.n = nx, nnz, 0
+        self.nx, self.nnz, self.n = nx, nnz, 0      # nnz: floats of the transition matrix per epoch
         self._a = self._alloc(0)
 
     def _alloc(self, cap):
@@ -309,29 +298,50 @@ class Fusion:
 
     def __init__(self, init: NavState, nav: NavOptions, fopts: FusionOptions, gnss: GnssLog,
                  init_sigma: dict | None = None, body_vel=None, smooth: bool = False, src: str = "config",
-                 init_bias: dict | None = None):
+                 init_bias: dict | None = None, data_noise=None, t_log0: float | None = None,
+                 drift_base: float = 1.0, r_base=None):
         nav.check()
         if nav.attitude not in ("quat", "dcm") or nav.frame != "enu":
             raise SinsError(f"--gnss: the fusion filter runs with --attitude quat or dcm in the ENU frame, "
                             f"not {nav.attitude} / {nav.frame}")
         self.nav, self.fopts, self.gnss, self.init = nav, fopts, gnss, init
         self.smooth = smooth
-        self.model = filter_model(fopts.sensor, fopts.base_dir, fopts.states, src, fopts.bias_model)
-        nx = fopts.states
-        self.nx = nx
+        self.model = filter_model(fopts.sensor, fopts.base_dir, 21 if "lever_arm" in fopts.estimate else fopts.states,
+                                  src, fopts.bias_model)
+        self.data_notes = []
+        if data_noise is not None and fopts.noise_from_data:
+            self.model, self.data_notes = apply_data_noise(self.model, data_noise,
+                                                           float(gravity(math.sin(init.lat), init.height)))
+        self.data_noise = data_noise
+        # an unestimated gyro scale factor (0.5 % for a consumer IMU) biases the lever arm by centimetres
+        # through the turns that make it observable: estimating the lever arm estimates the scale factors
+        ncore = 21 if "lever_arm" in fopts.estimate else fopts.states
+        self.sf_for_lever = ncore != fopts.states
+        nx = ncore
+        self.la = self.td = -1
+        if "lever_arm" in fopts.estimate:
+            self.la, nx = nx, nx + 3
+        if "time_offset" in fopts.estimate:
+            self.td, nx = nx, nx + 1
+        self.ncore, self.nx = ncore, nx
         c = np.asarray(init.Cbn, dtype=float)
         self.method = nav.method_code()
         self.st = sd.new_state(init.time, init.lat, init.lon, init.height, np.asarray(init.vel_n, float), c,
                                self.method, nav.conv)
         self.cflu = conv_to_flu(nav.conv)
-        self.ptr, self.col = sparsity(nx, bool(np.any(self.model.inv_tau_g > 0) or np.any(self.model.inv_tau_a > 0)))
-        self.ftv = np.zeros(len(self.col))
         self.mats, self.vecs, self.s3 = kn.workspace(nx)
         lever = fopts.lever_arm if fopts.lever_arm is not None else np.zeros(3)
         self.lever = np.asarray(lever, dtype=float)
+        self.gnss_interval = float(np.median(np.diff(gnss.time))) if len(gnss) > 2 else math.inf
+        self.drift_base = float(drift_base)
+        self.r_base = np.ones(3 * kn.NK) if r_base is None else np.asarray(r_base, dtype=float)
         self.cv = self._config_vector()
         self.fs = np.zeros(kn.FS_SIZE)
-        self.fs[kn.F_QSCALE] = 1.0
+        self.fs[kn.F_QS_DRIFT] = self.drift_base
+        self.fs[kn.F_T_QS] = init.time
+        self.fs[kn.F_RS:kn.F_RS + 3 * kn.NK] = self.r_base
+        self.fs[kn.F_T_FIX] = -np.inf
+        self.fs[kn.F_LEVER:kn.F_LEVER + 3] = self.lever
         self.fs[kn.F_TPREV] = init.time
         self.fs[kn.F_T_EPOCH] = init.time
         if init_bias:
@@ -340,9 +350,13 @@ class Fusion:
         self.P = self._initial_covariance(init_sigma or {})
         self.g = float(gravity(math.sin(init.lat), init.height))
         self.detector = StandstillDetector(fopts.standstill_window, fopts.standstill_rate_std,
-                                           fopts.standstill_accel_std, fopts.standstill_accel_mag, self.g)
+                                           fopts.standstill_accel_std, fopts.standstill_accel_mag, self.g,
+                                           fopts.standstill_lowpass)
         t_end = float(gnss.time[-1]) if len(gnss) else init.time
-        rows = [gnss_rows(gnss, fopts, init.time + time_tolerance(init.time))]
+        t_min = init.time + time_tolerance(init.time)
+        self.course = course_rows(gnss, fopts, gnss.position_sigma(fopts.gnss_pos_sigma), t_min) if len(gnss) \
+            else CourseRows(np.zeros((0, kn.MW)))
+        rows = [gnss_rows(gnss, fopts, t_min)]
         if body_vel is not None and fopts.odometry and len(body_vel.time):
             # the log's sigma (a wheel-odometry controller's covariance is often a placeholder: 1e-3) no
             # smaller than the floor (wheel slip of a skid-steered vehicle, ~10 % at 1 m/s); or the config's
@@ -353,22 +367,28 @@ class Fusion:
             n = len(body_vel.time)
             rows.append(np.column_stack([body_vel.time, np.full(n, kn.MT_ODOM), body_vel.vel_b, sv, np.zeros((n, 2))]))
         self.rows = sort_rows(np.vstack(rows))
-        self.rows = self.rows[self.rows[:, 0] > init.time + time_tolerance(init.time)]
+        self.rows = self.rows[self.rows[:, 0] > t_min]
         self._t_nhc = init.time
         self._t_end_gnss = t_end
         self.inn_parts, self.ev_parts = [], []
-        self.epochs = EpochStore(nx, len(self.col)) if smooth else None
+        self.epochs = EpochStore(nx, kn.epoch_width(ncore, nx)) if smooth else None
+        self.smoother_guard = None
         self.forward_rows = []          # kept for the smoother: (trajectory, variances, sensor estimates)
         self.applied = 0
         self.heading_known = bool(self.fs[kn.F_HEAD_KNOWN] > 0)
         self._source = "<memory>"
         self._block_t0 = init.time
+        self.t_log0 = init.time if t_log0 is None else float(t_log0)
+        self.heading_check = None
 
     # ------------------------------------------------------------------ set-up
     def _config_vector(self):
         f, m, n = self.fopts, self.model, self.nav
         cv = np.zeros(kn.CV_SIZE)
-        cv[kn.C_NX] = f.states
+        cv[kn.C_NX] = self.nx
+        cv[kn.C_NCORE] = self.ncore
+        cv[kn.C_LA] = self.la
+        cv[kn.C_TD] = self.td
         cv[kn.C_METHOD] = self.method
         cv[kn.C_ORDER] = n.coning
         cv[kn.C_NSUB] = n.subsamples
@@ -376,7 +396,8 @@ class Fusion:
         cv[kn.C_CONV] = n.conv
         cv[kn.C_PROP_DT] = f.propagation_interval
         for mm in (1, 2, 3):
-            cv[kn.C_GATE1 + mm - 1] = chi2_gate(f.gate_probability, mm)
+            cv[kn.C_GATE + mm - 1] = chi2_gate(f.gate_probability, mm)
+            cv[kn.C_ROBUST + mm - 1] = chi2_gate(f.robust_probability, mm) if f.robust_probability else 0.0
         cv[kn.C_ARW2:kn.C_ARW2 + 3] = m.arw2
         cv[kn.C_VRW2:kn.C_VRW2 + 3] = m.vrw2
         cv[kn.C_QBG:kn.C_QBG + 3] = m.q_bg
@@ -385,20 +406,26 @@ class Fusion:
         cv[kn.C_ITA:kn.C_ITA + 3] = m.inv_tau_a
         cv[kn.C_SFG] = m.sfmis_g * f.scale_factor_tau
         cv[kn.C_SFA] = m.sfmis_a * f.scale_factor_tau
-        cv[kn.C_LEVER:kn.C_LEVER + 3] = self.lever
+        cv[kn.C_SF_TAU] = f.scale_factor_tau
         cv[kn.C_REJ_RUN] = f.rejection_run
-        # the window's mean NIS per dof (3 dof per measurement) above its chi-square quantile
-        m_n = 3 * f.adapt_window
-        cv[kn.C_ADAPT_THR] = chi2_ppf(f.adapt_probability, m_n) / m_n if f.adapt else 0.0
-        cv[kn.C_ADAPT_N] = f.adapt_window
+        cv[kn.C_RADAPT_N] = f.adapt_window if f.adapt else 0.0
+        cv[kn.C_RADAPT_MAX] = f.adapt_max_scale
+        cv[kn.C_RBASE:kn.C_RBASE + 3 * kn.NK] = self.r_base
+        # consecutive differences share a measurement: the window's estimate has about 2/3 of its count's
+        # degrees of freedom
+        nw = max(int(round(f.adapt_window / 1.5)), 1)
+        cv[kn.C_RADAPT_BAND] = chi2_gate(1e-4, nw) / nw
+        cv[kn.C_RADAPT_BAND + 1] = chi2_gate(1.0 - 1e-4, nw) / nw
+        cv[kn.C_QB_MAX] = f.adapt_max_bias_scale if f.adapt else 1.0
+        cv[kn.C_QB_TAU] = f.adapt_decay
+        cv[kn.C_QB_THR] = f.adapt_exit_ratio
+        cv[kn.C_QB_BASE] = self.drift_base
+        cv[kn.C_OUTAGE_DT] = f.outage * self.gnss_interval
         cv[kn.C_SMOOTH_DT] = f.smoother_interval if self.smooth else 0.0
         cv[kn.C_ZUPT_MAXV] = f.zupt_max_speed
         fwd = 1 if n.conv == 1 else 0           # RFU: y forward; FLU, FRD: x forward
         lat_axes = [i for i in range(3) if i != fwd]
-        cv[kn.C_NHC_AX0], cv[kn.C_NHC_AX1] = lat_axes
-        cv[kn.C_HEAD_MINSPEED] = f.heading_min_speed
-        cv[kn.C_QMAX] = f.adapt_max_scale
-        cv[kn.C_ZARU_Q] = 1.0 if f.zaru_sigma is None else 0.0
+        cv[kn.C_NHC_AX], cv[kn.C_NHC_AX + 1] = lat_axes
         cv[kn.C_FWD] = fwd
         return cv
 
@@ -420,9 +447,13 @@ class Fusion:
             self.heading_prior = head
         P[BG:BG + 3, BG:BG + 3] = np.diag(m.p0_bg)
         P[BA:BA + 3, BA:BA + 3] = np.diag(m.p0_ba)
-        if nx == 21:
+        if self.ncore == 21:
             P[SG:SG + 3, SG:SG + 3] = np.diag(m.p0_sg)
             P[SA:SA + 3, SA:SA + 3] = np.diag(m.p0_sa)
+        if self.la >= 0:
+            P[self.la:self.la + 3, self.la:self.la + 3] = np.eye(3) * f.lever_arm_sigma ** 2
+        if self.td >= 0:
+            P[self.td, self.td] = f.time_offset_sigma ** 2
         return P
 
     # ------------------------------------------------------------------ running
@@ -447,6 +478,9 @@ class Fusion:
         parts = []
         if f.zupt or f.zaru:
             t0, t1, w = self.detector.feed(imu_t, dth, dv, t_start)
+            if len(t1):                     # still by the IMU, and not moving by the GNSS
+                ok = gnss_still(self.gnss, t0, t1) != 0
+                t0, t1, w = t0[ok], t1[ok], w[ok]
             n = len(t1)
             if n:
                 zs = np.full(n, f.zupt_sigma)
@@ -454,8 +488,7 @@ class Fusion:
                     parts.append(np.column_stack([t1, np.full(n, kn.MT_ZUPT), np.zeros((n, 3)), zs, zs, zs,
                                                   np.zeros((n, 2))]))
                 if f.zaru:
-                    sig = f.zaru_sigma if f.zaru_sigma is not None else np.sqrt(
-                        self.model.arw2.max() / (t1 - t0))
+                    sig = f.zaru_sigma if f.zaru_sigma is not None else self._zaru_sigma(t1 - t0)
                     sig = np.broadcast_to(sig, (n,))
                     parts.append(np.column_stack([t1, np.full(n, kn.MT_ZARU), w, sig, sig, sig, np.zeros((n, 2))]))
         if f.nhc:
@@ -464,7 +497,7 @@ class Fusion:
                 self._t_nhc = float(tn[-1])
                 n = len(tn)
                 s = np.zeros((n, 3))
-                ax = self.cv[kn.C_NHC_AX0:kn.C_NHC_AX0 + 2].astype(int)
+                ax = self.cv[kn.C_NHC_AX:kn.C_NHC_AX + 2].astype(int)
                 s[:, ax[0]] = f.nhc_sigma[0]
                 s[:, ax[1]] = f.nhc_sigma[1]
                 s[:, [i for i in range(3) if i not in ax][0]] = 1.0
@@ -475,6 +508,15 @@ class Fusion:
         parts.append(self.rows[:k])
         self.rows = self.rows[k:]
         return sort_rows(np.vstack(parts)) if parts else np.zeros((0, kn.MW))
+
+    def _zaru_sigma(self, span):
+        """The ZARU 1-sigma of windows ``span`` s long: the spread of a window's mean rate at rest, from the
+        log's own standstill (white noise and vibration, :func:`apply_data_noise`) when known, else the
+        ARW's ``ARW / sqrt(span)``."""
+        dn = self.data_noise
+        if dn is not None and self.fopts.noise_from_data:
+            return np.sqrt(np.max(dn.rate_mean_var(span), axis=-1))
+        return np.sqrt(self.model.arw2.max() / span)
 
     def feed(self, imu: ImuLog) -> Trajectory | None:
         self._source = imu.source
@@ -497,37 +539,32 @@ class Fusion:
         per = self.nav.subsamples * self.nav.every
         cap = time.shape[0] // per + 2
         nm = len(meas)
-        out_t = np.empty(cap)
-        out_pos = np.empty((cap, 3))
-        out_vel = np.empty((cap, 3))
-        out_cbn = np.empty((cap, 3, 3))
-        out_var = np.empty((cap, kn.NVAR))
-        out_bias = np.empty((cap, kn.NBIAS))
-        inn = np.empty((3 * nm + 3, 7))
-        evs = np.empty((nm + 8, 4))
+        out = (np.empty(cap), np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3, 3)), np.empty((cap, kn.NVAR)),
+               np.empty((cap, kn.NBIAS)))
+        inn = np.empty((3 * nm + 3, kn.NREC))
+        evs = np.empty((2 * nm + 8, 4))
         if self.smooth:
             ep = self.epochs
             ep.reserve(nm + int((time[-1] - self.fs[kn.F_TPREV]) / self.fopts.smoother_interval) + 4)
             arrays, n0 = ep.arrays(), ep.n
         else:
             arrays, n0 = EpochStore.EMPTY, 0
-        n, used, n_inn, n_evs, n_ep = kn.fuse(time, dth, dv, self.st, self.fs, self.cv, self.P, meas, self.ptr,
-                                              self.col, self.ftv, self.cflu, self.mats, self.vecs, self.s3,
-                                              out_t, out_pos, out_vel, out_cbn, out_var, out_bias, inn, evs,
-                                              *arrays, n0)
+        n, used, n_inn, n_evs, n_ep = kn.fuse((time, dth, dv), (self.st, self.fs, self.cv, self.P, self.cflu), meas,
+                                              (self.mats, self.vecs, self.s3), out, (inn, evs), arrays, n0)
         if self.smooth:
             self.epochs.n = n_ep
         if used < nm:                       # rows at the block's very end go with the next block
             self.rows = sort_rows(np.vstack([meas[used:], self.rows]))
         self.inn_parts.append(inn[:n_inn].copy())
-        self.ev_parts.append(evs[:n_evs].copy())
-        for e in evs[:n_evs]:
+        self.ev_parts.append(evs[:min(n_evs, len(evs))].copy())
+        for e in evs[:min(n_evs, len(evs))]:
             self._log_event(e)
         if self.fs[kn.F_ERR] != 0:
             reason = ("turned non-finite" if self.fs[kn.F_ERR] == kn.ERR_NONFINITE
                       else "lost positive definiteness")
             raise SinsError(f"{self._source}: the filter covariance {reason} at t = {self.fs[kn.F_ERR_T]!r} s; "
                             f"stopped there (check the fusion config's sigmas and the sensor description)")
+        out_t, out_pos, out_vel, out_cbn, out_var, out_bias = out
         traj = Trajectory(out_t[:n], out_pos[:n, 0], out_pos[:n, 1], out_pos[:n, 2], out_vel[:n], out_cbn[:n])
         var, bias = out_var[:n], out_bias[:n]
         if self.smooth:
@@ -538,16 +575,23 @@ class Fusion:
 
     def _log_event(self, e):
         t, kind = float(e[0]), e[1]
+        c = clock(t, self.t_log0)
         if kind == kn.EV_REJECTION_RUN:
-            log.warning("fusion: %d consecutive GNSS fixes rejected from %.6f to %.6f s (the filter diverged or "
-                        "the GNSS jumped): position covariance widened by the innovation, fix accepted",
-                        int(e[3]), e[2], t)
+            log.info("fusion: %d consecutive GNSS fixes rejected from %s to %s (the filter diverged or the GNSS "
+                     "jumped): navigation covariance widened, fix accepted", int(e[3]),
+                     clock(float(e[2]), self.t_log0), c)
         elif kind == kn.EV_HEADING_INIT:
-            log.info("fusion: heading initialized from the GNSS course at %.6f s (changed by %.3f deg)", t,
+            log.info("fusion: heading initialized from the GNSS course at %s (changed by %.3f deg)", c,
                      math.degrees(e[2]))
-        elif kind == kn.EV_ADAPT:
-            log.info("fusion: innovations larger than the covariance claims at %.6f s: P and Q widened x%.3g "
-                     "(process noise scale now %.3g)", t, e[2], e[3])
+        elif kind == kn.EV_RSCALE:
+            log.info("fusion: %s innovations at %s: measurement noise variance scale now %.3g",
+                     self._axis_name(int(e[2])), c, e[3])
+        elif kind == kn.EV_QSCALE:
+            log.info("fusion: outage exit at %s: innovation %.3g x its predicted variance: drift process noise "
+                     "scale now %.3g", c, e[2], e[3])
+        elif kind == kn.EV_REACQUIRE:
+            log.info("fusion: outage exit at %s beyond the gate (NIS %.3g): position covariance widened, fix "
+                     "accepted", c, e[2])
 
     def _columns(self, var, bias) -> dict:
         """docs/formats.md aided-trajectory columns from the row variances and the sensor estimates (SI)."""
@@ -562,14 +606,14 @@ class Fusion:
             out[k] = bias[:, i] * d * 3600.0
         for i, k in enumerate(BIAS_COLUMNS[3:]):
             out[k] = bias[:, 3 + i] / 9.80665e-6
-        if self.nx == 21:
+        if self.ncore == 21:
             for i, k in enumerate(SF_COLUMNS):
                 out[k] = bias[:, 6 + i] * 1e6
         return out
 
     # ------------------------------------------------------------------ end
     def innovations(self) -> np.ndarray:
-        inn = np.vstack(self.inn_parts) if self.inn_parts else np.zeros((0, 7))
+        inn = np.vstack(self.inn_parts) if self.inn_parts else np.zeros((0, kn.NREC))
         rec = np.empty(len(inn), dtype=INNOVATION_DTYPE)
         rec["time"] = inn[:, 0]
         rec["type"] = np.array(kn.MEAS_NAMES)[inn[:, 1].astype(int)] if len(inn) else []
@@ -590,14 +634,16 @@ class Fusion:
         var = np.concatenate([r[1] for r in self.forward_rows])
         bias = np.concatenate([r[2] for r in self.forward_rows])
         self.forward_rows = []
-        smooth_rows(traj.time, traj.lat, traj.lon, traj.height, traj.vel_n, traj.Cbn, var, bias,
-                    self.epochs.trimmed(), self.ptr, self.col, self.nx, int(self.cv[kn.C_FWD]))
+        self.smoother_guard = smooth_rows(traj.time, traj.lat, traj.lon, traj.height, traj.vel_n, traj.Cbn, var,
+                                          bias, self.epochs.trimmed(), self.ncore, self.nx, int(self.cv[kn.C_FWD]))
         traj.extra = self._columns(var, bias)
         return traj
 
     def summary(self, traj: Trajectory) -> FusionSummary:
         rec = self.innovations()
-        s = FusionSummary(sensor=self.model.source, smoothed=self.smooth)
+        f = self.fopts
+        t0 = self.t_log0
+        s = FusionSummary(t0=t0, vehicle=f.vehicle, sensor=self.model.source)
         t1 = float(traj.time[-1]) if len(traj) else self.init.time
         inside = (self.gnss.time > self.init.time) & (self.gnss.time <= t1 + time_tolerance(t1))
         s.fixes_total = int(inside.sum())
@@ -608,68 +654,242 @@ class Fusion:
                 s.counts[name] = (int(r["accepted"].sum()) // dof, int((~r["accepted"]).sum()) // dof)
         a, r = s.counts.get("gnss_pos", (0, 0))
         s.fixes_used, s.fixes_rejected = a, r
-        s.outages = outages(self.gnss.time[inside], self.fopts.outage)
-        s.standstill = standstill_intervals(rec, self.fopts.standstill_window)
-        s.residual_rms_h, s.residual_rms_u = residuals(traj, self.gnss, self.lever, inside)
+        ex = exit_fixes(self.gnss.time, f.outage)
+        rej_t = np.unique(rec["time"][(rec["type"] == "gnss_pos") & ~rec["accepted"]])
+        s.rejected_outside = int(np.count_nonzero(~np.isin(rej_t, self.gnss.time[ex])))
+        s.outages = outages(self.gnss.time[inside], f.outage)
+        s.standstill = standstill_intervals(rec, f.standstill_window)
+        s.residuals = fix_residuals(traj, self.gnss, self.fs[kn.F_LEVER:kn.F_LEVER + 3], inside, f.outage)
         if len(traj):
             s.final_sigma = {k: float(traj.extra[k][-1]) for k in SIGMA_COLUMNS}
+        # the sensor model and where its terms came from
+        if self.model.default:
+            s.sensor_notes.append(f"no sensor description given (fusion.sensor / --sensor): the conservative "
+                                  f"'{DEFAULT_SENSOR}' preset where the log does not tell")
+        elif self.model.assumed:
+            s.sensor_notes.append(f"description without {', '.join(self.model.assumed)}: the '{DEFAULT_SENSOR}' "
+                                  f"preset's value assumed")
+        s.sensor_notes.extend(self.data_notes)
         ev = self.events()
         for e in ev:
-            if e[1] == kn.EV_HEADING_INIT and s.heading_init_time is None:
+            if e[1] == kn.EV_HEADING_INIT and s.heading_init is None:
                 s.heading_init_time = float(e[0])
+                s.heading_init = (f"heading from the GNSS course ({self.course.source}) at {clock(float(e[0]), t0)}: "
+                                  f"changed by {math.degrees(e[2]):.1f} deg, 1-sigma {math.degrees(e[3]):.2g} deg")
             elif e[1] == kn.EV_REJECTION_RUN:
-                s.events.append(f"warning: {int(e[3])} consecutive fixes rejected {e[2]:.6g}-{e[0]:.6g} s "
-                                f"(position covariance widened, fix re-accepted)")
-        ad = ev[ev[:, 1] == kn.EV_ADAPT] if len(ev) else ev
-        if len(ad):
-            s.events.append(f"innovations inconsistent with the covariance (sensor description too optimistic?): "
-                            f"P and Q widened {len(ad)} time(s) from {ad[0, 0]:.6g} s, process-noise scale now "
-                            f"x{ad[-1, 3]:.3g}")
-        if self.model.default:
-            s.events.append(f"no sensor description given (fusion.sensor / --sensor): the conservative "
-                            f"default '{DEFAULT_SENSOR}' preset is assumed")
-        elif self.model.assumed:
-            s.events.append(f"sensor description without {', '.join(self.model.assumed)}: the default "
-                            f"'{DEFAULT_SENSOR}' preset's value assumed")
+                s.rejection_runs.append((float(e[2]), float(e[0]), int(e[3])))
+        self._adaptation_lines(ev, s)
+        if self.fs[kn.F_HEAD_KNOWN] == 0.0:
+            s.heading_never = self._why_no_heading()
+            s.warnings.append(s.heading_never)
+        if self.sf_for_lever:
+            s.estimates.append("scale factors (21 states), since the lever arm is estimated: an unestimated scale "
+                               "factor would bias it")
+        self._unobserved(s)
+        if self.la >= 0:
+            sig = np.sqrt(np.diag(self.P)[self.la:self.la + 3])
+            s.estimates.append("lever arm [{:.3f}, {:.3f}, {:.3f}] m +- [{:.2g}, {:.2g}, {:.2g}] m (body axes)".format(
+                *self.fs[kn.F_LEVER:kn.F_LEVER + 3], *sig))
+        if self.td >= 0:
+            s.estimates.append(f"GNSS time offset {self.fs[kn.F_TD]:+.4f} s +- {math.sqrt(self.P[self.td, self.td]):.2g} s "
+                               f"(to add to the GNSS stamps: gnss.time_offset)")
+        if self.smooth:
+            g = self.smoother_guard
+            s.smoothed = "smoothed (RTS, factored Joseph form)" + (
+                f"; guard: {int(g[0])} pivot(s) clipped (worst {g[1]:.2g} of its diagonal), {int(g[2])} gain(s) "
+                f"with a ridge, over {int(g[3])} epochs" if g is not None and (g[0] or g[2]) else "")
+        if len(traj) and self.fs[kn.F_HEAD_KNOWN] > 0.0 and f.vehicle != "aircraft":
+            hc = heading_course_check(traj, self.gnss, int(self.cv[kn.C_FWD]), traj.extra.get("heading_std"))
+            self.heading_check = s.heading_check = hc
+            if hc.mismatch:
+                s.warnings.append(
+                    f"the heading is {hc.median_offset:+.1f} deg off the GNSS course on {hc.segments} straight "
+                    f"segments (beyond 3 sigma on {100 * hc.beyond_3sigma:.0f} %, sigma {hc.median_sigma:.2g} deg): "
+                    f"the IMU's mounting yaw is likely off by that much (imu.mounting, or imu.mounting: auto)")
+        if f.vehicle == "none":
+            hint = ground_vehicle_hint(self.gnss)
+            if hint:
+                s.hints.append(hint)
         return s
 
+    def _adaptation_lines(self, ev, s: FusionSummary) -> None:
+        """Every adaptation of the run with its cause (:mod:`sinscli.fusion.kernel`)."""
+        t0 = self.t_log0
+        if not len(ev):
+            return
+        for code in np.unique(ev[ev[:, 1] == kn.EV_RSCALE, 2]).astype(int):
+            e = ev[(ev[:, 1] == kn.EV_RSCALE) & (ev[:, 2] == code)]
+            s.adaptations.append(
+                f"{self._axis_name(code)} noise variance x{e[-1, 3]:.3g} at the end (max x{e[:, 3].max():.3g}, "
+                f"{len(e)} change(s) from {clock(float(e[0, 0]), t0)}): its innovations said it was noisier "
+                f"than its stated sigma")
+        for i in np.nonzero(self.r_base != 1.0)[0]:
+            s.adaptations.append(
+                f"{self._axis_name(3 * kn.K_OF_KIND.index(i // 3) + i % 3)} noise variance x{self.r_base[i]:.3g} from "
+                f"the start: calibrated by a first pass on the log's innovations (their variance and their "
+                f"correlation from one measurement to the next)")
+        if self.drift_base != 1.0:
+            s.adaptations.append(
+                f"drift process noise (bias instability, scale factor, misalignment) x{self.drift_base:.3g} from "
+                f"the start: calibrated by a first pass over the log on its outage exits (the worst at the 99 % "
+                f"level of its predicted variance)")
+        q = ev[ev[:, 1] == kn.EV_QSCALE]
+        if len(q):
+            s.adaptations.append(
+                f"drift process noise (bias instability, scale factor, misalignment) x{q[:, 3].min():.3g} to "
+                f"x{q[:, 3].max():.3g} ({len(q)} change(s) from {clock(float(q[0, 0]), t0)}: outage exits whose "
+                f"innovation was {q[:, 2].min():.3g}-{q[:, 2].max():.3g}x its predicted variance), decaying to 1 "
+                f"with {self.fopts.adapt_decay:g} s")
+        rq = ev[ev[:, 1] == kn.EV_REACQUIRE]
+        s.reacquired = len(rq)
+
+    def on_gnss_clock(self, traj: Trajectory) -> Trajectory:
+        """With the time offset estimated, the output moved onto the GNSS clock: ``t - tau`` (the IMU clock is
+        the GNSS's plus ``tau``, the final estimate)."""
+        if self.td >= 0 and len(traj):
+            traj.time = traj.time - self.fs[kn.F_TD]
+        return traj
+
+    def _unobserved(self, s: FusionSummary) -> None:
+        """An estimated parameter whose sigma the motion left above UNOBSERVED of its prior: a warning; its estimate
+        stays at the configured value (the filter's gain for it was near zero) and that value is the one to
+        keep."""
+        f = self.fopts
+        if self.la >= 0:
+            sig = np.sqrt(np.diag(self.P)[self.la:self.la + 3])
+            bad = [a for a, x in zip("xyz", sig) if x > UNOBSERVED * f.lever_arm_sigma]
+            if bad:
+                s.warnings.append(f"the motion did not observe the lever arm's {', '.join(bad)} (1-sigma still over "
+                                  f"{UNOBSERVED:g} of its prior {f.lever_arm_sigma:g} m): keep the configured value "
+                                  f"{[round(float(v), 3) for v in self.lever]} m for {', '.join(bad)}")
+        if self.td >= 0 and math.sqrt(self.P[self.td, self.td]) > UNOBSERVED * f.time_offset_sigma:
+            s.warnings.append(f"the motion did not observe the GNSS time offset (1-sigma still over {UNOBSERVED:g} of "
+                              f"its prior {f.time_offset_sigma:g} s): keep the configured gnss.time_offset")
+
+    def _axis_name(self, code: int) -> str:
+        """``gnss_pos u`` of an R-scale event's code ``3 kind + component``."""
+        kind, a = divmod(code, 3)
+        if kind == kn.MT_NHC:
+            axis = "xyz"[int(self.cv[kn.C_NHC_AX + a])]
+        elif kind == kn.MT_ODOM:
+            axis = "xyz"[a]
+        else:
+            axis = "enu"[a]
+        return f"{kn.MEAS_NAMES[kind]} {axis}"
+
+    def _why_no_heading(self) -> str:
+        f, c = self.fopts, self.course
+        if len(self.gnss) < 2:
+            why = "the GNSS log has fewer than two fixes"
+        elif not np.isfinite(c.best_sigma):
+            why = "the GNSS never showed motion"
+        else:
+            why = (f"the best GNSS course had a 1-sigma of {math.degrees(c.best_sigma):.3g} deg "
+                   f"(at {clock(c.best_time, self.t_log0)}), over heading_init.max_course_sigma "
+                   f"{math.degrees(f.heading_max_course_sigma):.3g} deg: too little travel against the fixes' sigma "
+                   f"(or speed under heading_init.min_speed {f.heading_min_speed:g} m/s)")
+        return (f"the heading was never initialized: {why}; GNSS velocity, NHC and odometry were not used "
+                f"(give --init with a heading, or --align)")
+
     def finish(self) -> None:
+        """Refuse a log with no IMU sample after the initial time (the smoother and the summary are
+        :meth:`smoothed` and :meth:`summary`)."""
         if self.applied == 0:
             raise SinsError(f"{self._source}: no IMU sample after the initial time {self.init.time!r}: "
                             f"the init time is outside the log")
 
 
-def standstill_intervals(rec, window: float) -> list:
-    """Intervals where the filter applied ZUPT/ZARU (detected at rest and slow enough): ``(start, end)``."""
-    t = np.unique(rec["time"][(rec["type"] == "zupt") | (rec["type"] == "zaru")])
-    out = []
-    for x in t:
-        if out and x - out[-1][1] <= 1.5 * window:
-            out[-1][1] = float(x)
-        else:
-            out.append([float(x) - window, float(x)])
-    return [tuple(iv) for iv in out]
+UNOBSERVED = 0.3            # an estimated parameter whose sigma stays over this share of its prior: not observed
+EXIT_QUANTILE = 4.605170185988091 / 2.0     # the 99 % quantile of chi-square(2) / 2: an exit's ratio
 
 
-def residuals(traj: Trajectory, gnss: GnssLog, lever, inside) -> tuple[float, float]:
-    """RMS (horizontal, vertical) of the fused antenna track minus the fixes, at the fix times (m)."""
-    if len(traj) < 2 or not inside.any():
-        return float("nan"), float("nan")
-    t = gnss.time[inside]
-    t = t[(t >= traj.time[0]) & (t <= traj.time[-1])]
-    if len(t) == 0:
-        return float("nan"), float("nan")
-    sel = np.isin(gnss.time, t)
-    lat = np.interp(t, traj.time, traj.lat)
-    lon = np.interp(t, traj.time, traj.lon)
-    h = np.interp(t, traj.time, traj.height)
-    k = np.clip(np.searchsorted(traj.time, t), 0, len(traj) - 1)
-    l_n = traj.Cbn[k] @ np.asarray(lever, dtype=float)
-    rm, rn = radii_py(np.sin(lat))
-    de = dlon(lon, np.radians(gnss.lon[sel])) * (rn + h) * np.cos(lat) + l_n[:, 0]
-    dn = (lat - np.radians(gnss.lat[sel])) * (rm + h) + l_n[:, 1]
-    du = h - gnss.height[sel] + l_n[:, 2]
-    return float(np.sqrt(np.mean(de ** 2 + dn ** 2))), float(np.sqrt(np.mean(du ** 2)))
+def drift_base_from(fusion: Fusion, min_exits: int = 3) -> float:
+    """The drift process-noise base scale a pass over the log (``fusion``, run to its end, itself with a
+    base ``b``) implies: its outage exits' ratios (horizontal innovation squared over predicted variance,
+    those where the prediction dominates the innovation variance) scaled so that the largest sits at the
+    99 % quantile of a consistent exit's (chi-square(2)/2): ``b * r_max / 2.3``, within
+    ``[1/max, max]`` (``adapt.max_bias_scale``).  With fewer than ``min_exits`` such exits, or within a
+    factor 2 of ``b``, ``b`` itself.  Aiming the worst exit at the 99 % quantile keeps every outage
+    inside its 3 sigma when the description is optimistic, and lowers a pessimistic one (whose exits all
+    fall far inside) without letting any exit out."""
+    b0 = fusion.drift_base
+    ev = fusion.events()
+    ex = ev[ev[:, 1] == kn.EV_EXIT] if len(ev) else ev
+    r = ex[ex[:, 3] < 0.25, 2] if len(ex) else np.zeros(0)
+    r = r[r > 0]
+    if len(r) < min_exits:
+        return b0
+    base = b0 * float(r.max()) / EXIT_QUANTILE
+    if 0.5 * b0 < base < 2.0 * b0:
+        return b0
+    m = fusion.fopts.adapt_max_bias_scale
+    return float(min(max(base, 1.0 / m), m))
+
+
+MAX_CORRELATION_FACTOR = 10.0
+
+
+def r_base_from(fusion: Fusion, min_n: int = 30) -> np.ndarray:
+    """The measurement-noise scales (per adapted kind and component, :data:`kernel.K_OF_KIND`) a pass over
+    the log implies, by covariance matching over the whole log: ``s = sum(min(z^2, 9 S) - H P H^T) /
+    sum(R)`` (outage exits left out), times the variance inflation ``(1 + rho) / (1 - rho)`` of the
+    measurement errors' correlation between consecutive measurements (``rho`` the lag-1 correlation of the
+    normalized innovations, when over 0.1 and significant at 3 sigma): a receiver's time-correlated error
+    carries less information than as many independent fixes (at most 10x).  Within ``[1,
+    adapt.max_scale]``; 1 with fewer than ``min_n`` measurements, within 25 % of 1 or within the
+    estimate's 3-sigma band of 1, or when the pass had a rejection run (its innovations then
+    hold the filter's own excursion, not the measurements' noise).  (Within one pass the online adaptation only sees the white part,
+    :func:`sinscli.fusion.kernel._adapt_r`: a slowly diverging filter cannot pass for noisy
+    measurements there; across passes it is one measured step, not a loop.)"""
+    out = fusion.r_base.copy()
+    inn = np.vstack(fusion.inn_parts) if fusion.inn_parts else np.zeros((0, kn.NREC))
+    ev = fusion.events()
+    if not len(inn) or (len(ev) and np.any(ev[:, 1] == kn.EV_REJECTION_RUN)):
+        return out              # a pass that lost the fixes (a GNSS jump, a divergence) tells nothing of R
+    for kind, k in enumerate(kn.K_OF_KIND):
+        if k < 0:
+            continue
+        for a in range(3):
+            x = inn[(inn[:, 1] == kind) & (inn[:, 10] == a) & (inn[:, 9] == 0)]
+            if len(x) < min_n:
+                continue
+            z, S, hph, r = x[:, 3], x[:, 4] ** 2, x[:, 7], x[:, 8]
+            s = float(np.sum(np.minimum(z * z, 9.0 * S) - hph) / np.sum(r))
+            u = z / np.sqrt(S)
+            dt = np.diff(x[:, 0])
+            ok = dt <= 1.5 * np.median(dt)
+            n = int(ok.sum())
+            rho = float(np.corrcoef(u[:-1][ok], u[1:][ok])[0, 1]) if n > 10 else 0.0
+            if np.isfinite(rho) and rho > max(0.1, 3.0 / math.sqrt(max(n, 1))):    # significant at 3 sigma
+                s *= min((1.0 + rho) / (1.0 - rho), MAX_CORRELATION_FACTOR)
+            s = min(max(s, 1.0), fusion.fopts.adapt_max_scale)
+            if s > max(1.25, 1.0 + 3.0 * math.sqrt(2.0 / len(x))):                   # beyond its 3-sigma band
+                out[3 * k + a] = s
+    return out
+
+
+def calibrated_run(make, run, passes: int = 3):
+    """Run the log through ``make(drift_base=b, r_base=rb)`` (a :class:`Fusion`; ``run(f)`` feeds it the
+    log and returns its chunks), then again with the drift process noise (:func:`drift_base_from`) and the
+    measurement noise (:func:`r_base_from`) its innovations imply, until a pass confirms its own (at most
+    ``passes``; a consistent log costs one).  Returns ``(fusion, chunks)`` of the last pass."""
+    base, rb = 1.0, None
+    for i in range(passes):
+        f = make(drift_base=base, r_base=rb)
+        chunks = run(f)
+        if not f.fopts.adapt or i == passes - 1:
+            break
+        new_base = drift_base_from(f) if has_outages(f.gnss, f.fopts) else base
+        new_rb = r_base_from(f) if i == 0 else f.r_base
+        if new_base == base and np.array_equal(new_rb, f.r_base):
+            break
+        base, rb = new_base, new_rb
+    return f, chunks
+
+
+def has_outages(gnss: GnssLog, fopts: FusionOptions) -> bool:
+    """Whether the GNSS log has an outage (a gap over ``fusion.outage`` nominal intervals)."""
+    return len(outages(gnss.time, fopts.outage)) > 0
 
 
 def fuse_blocks(blocks, fusion: Fusion, progress=None):
@@ -679,12 +899,18 @@ def fuse_blocks(blocks, fusion: Fusion, progress=None):
 
 def run_fusion(imu: ImuLog, init: NavState, gnss: GnssLog, fopts: FusionOptions | None = None,
                nav: NavOptions | None = None, smooth: bool = False, init_sigma=None, body_vel=None,
-               init_bias=None):
-    """Fuse a whole in-memory log; returns ``(trajectory, innovations, summary, fusion)``."""
+               init_bias=None, data_noise=None):
+    """Fuse a whole in-memory log; returns ``(trajectory, innovations, summary, fusion)``.  With adaptation
+    on, the passes of :func:`calibrated_run` (one for a consistent log)."""
     fopts = fopts or FusionOptions()
-    f = Fusion(init, nav or NavOptions(), fopts, gnss, init_sigma=init_sigma, body_vel=body_vel, smooth=smooth,
-               init_bias=init_bias)
-    traj = concat(list(fuse_blocks([imu], f)))
+
+    def make(**kw):
+        return Fusion(init, nav or NavOptions(), fopts, gnss, init_sigma=init_sigma, body_vel=body_vel,
+                      init_bias=init_bias, data_noise=data_noise, t_log0=imu.t0, **kw)
+
+    f, chunks = calibrated_run(lambda **kw: make(smooth=smooth, **kw), lambda f: list(fuse_blocks([imu], f)))
+    traj = concat(chunks)
     if smooth:
         traj = f.smoothed()
+    traj = f.on_gnss_clock(traj)
     return traj, f.innovations(), f.summary(traj), f

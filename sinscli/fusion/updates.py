@@ -11,24 +11,19 @@ Innovations are "computed minus measured", so that ``z = H x + noise`` with ``x`
 * body velocity (odometry, NHC on the lateral and vertical axes): ``v^b = Cbn^T v``,
   ``z = v^b_c - v^b_meas``, ``H = [0, Cbn^T, -Cbn^T [v x], 0 ...]`` (rows of the constrained axes).
 
-:func:`kalman_update` gates on the normalized innovation squared of the whole vector, then updates in
-Joseph form ``P = (I - K H) P (I - K H)^T + K R K^T`` (kept symmetric).
+:func:`innovation_covariance` and :func:`nis_of` give the innovation covariance and the normalized
+innovation squared of the whole vector (the kernel gates, weights and adapts on them,
+:mod:`sinscli.fusion.kernel`); :func:`kalman_apply` updates in Joseph form
+``P = (I - K H) P (I - K H)^T + K R K^T`` (kept symmetric).
 """
-import numpy as np
 from numba import njit
 
-from .linalg import inv_small, rows_times
+from ..nav.linalg import inv_small, rows_times
 
 
 @njit(cache=True)
-def kalman_update(P, nx, H, z, r, m, gate, x, force, HP, KT, A, S, Si):
-    """One measurement of ``m`` (<= 3) components with diagonal noise ``r`` (variances).
-
-    ``H`` (3, nx), ``z``/``r`` (3,); scratch ``HP``, ``KT`` (3, nx), ``A`` (nx, nx), ``S``/``Si``
-    (3, 3): no allocation.  Returns ``(nis, accepted)``: the normalized innovation squared
-    ``z^T S^-1 z``; when it is under ``gate`` (or ``force``) the error estimate ``x = K z`` is written
-    and P updated in Joseph form.  ``S`` keeps the innovation covariance ``H P H^T + R``.
-    """
+def innovation_covariance(P, nx, H, r, m, HP, S):
+    """``S = H P H^T + diag(r)`` of ``m`` (<= 3) components; ``HP`` (3, nx) keeps ``H P``."""
     rows_times(H, m, P, nx, HP)                 # HP = H P  (= (P H^T)^T, P symmetric)
     for a in range(m):
         for b in range(m):
@@ -37,13 +32,24 @@ def kalman_update(P, nx, H, z, r, m, gate, x, force, HP, KT, A, S, Si):
                 s += HP[a, j] * H[b, j]
             S[a, b] = s
         S[a, a] += r[a]
+
+
+@njit(cache=True)
+def nis_of(S, z, m, Si):
+    """The normalized innovation squared ``z^T S^-1 z`` (``Si`` receives ``S^-1``)."""
     inv_small(S, m, Si)
     nis = 0.0
     for a in range(m):
         for b in range(m):
             nis += z[a] * Si[a, b] * z[b]
-    if not (nis < gate or force) or not np.isfinite(nis):
-        return nis, False
+    return nis
+
+
+@njit(cache=True)
+def kalman_apply(P, nx, H, z, r, m, x, HP, KT, A, Si):
+    """The update with ``HP = H P`` and ``Si = S^-1`` of :func:`innovation_covariance`/:func:`nis_of`:
+    ``x = K z`` and P in Joseph form ``(I - K H) P (I - K H)^T + K R K^T`` (kept symmetric).  ``KT``
+    (3, nx), ``A`` (nx, nx) scratch; ``HP`` is overwritten."""
     for a in range(m):                          # K^T = S^-1 H P
         for j in range(nx):
             s = 0.0
@@ -78,7 +84,6 @@ def kalman_update(P, nx, H, z, r, m, gate, x, force, HP, KT, A, S, Si):
             v = 0.5 * (s + s2)
             P[i, j] = v
             P[j, i] = v
-    return nis, True
 
 
 @njit(cache=True)

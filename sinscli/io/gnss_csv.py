@@ -12,7 +12,7 @@ from ..types import GnssLog
 from .atomic import atomic_path, output_lon_lat
 from . import limits as limits_mod
 from .csvcore import read_mapped_columns, write_table_csv
-from .frames import NED_NAMES, convention, file_name, to_enu
+from ..frames import NED_NAMES, convention, file_name, to_enu
 from .imu_csv import check_time
 from .timebase import diagnose
 
@@ -28,7 +28,7 @@ GROUPS = {"vel_n": ["vel_e", "vel_n", "vel_u"], "std_pos": ["std_e", "std_n", "s
 def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
     """Read ``gnss.csv``: required time, lat, lon (deg), height (m); optional velocity and sigmas.
 
-    ``cfg`` (the config's ``gnss`` section) may say the file is NED or in radians (:mod:`sinscli.io.frames`).
+    ``cfg`` (the config's ``gnss`` section) may say the file is NED or in radians (:mod:`sinscli.frames`).
 
     Values beyond the physical ``limits`` (the config's section; default: the defaults) and sigmas that
     are not positive are refused naming the line and column.
@@ -42,6 +42,8 @@ def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
         for name in NED_NAMES:
             cols.setdefault(name, file_name(name, frame))
         section["columns"] = cols
+    from .spp_csv import SPP_COLUMNS    # the extra columns of `sins gnss spp` output: known, not read
+    section["ignore_columns"] = list(section.get("ignore_columns") or []) + list(SPP_COLUMNS)
     data, mapping = read_mapped_columns(
         path, section, GNSS_NAMES, REQUIRED, list(GROUPS.values()),
         f"expected {', '.join(GNSS_NAMES)} (map other names with the config's gnss.columns)",
@@ -49,7 +51,7 @@ def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
     names = {c: mapping.get(c, c) for c in data}
     data = to_enu(data, frame, to_deg)
     limits_mod.check_time(path, data["time"], lim, names["time"], 2)
-    check_time(path, data["time"], allow_gaps=True, what=names["time"])
+    check_time(path, data["time"], allow_gaps=True, what=names["time"], warn_gaps=False)   # outages: the summary
     limits_mod.check_position(path, data["lat"], data["lon"], data["height"], lim,
                               (names["lat"], names["lon"], names["height"]), 2)
     limits_mod.check_near_pole(path, data["lat"], names["lat"], 2, use=POLE_USE)

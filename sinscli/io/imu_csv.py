@@ -70,13 +70,18 @@ class TimeChecker:
     """Strictly increasing time; gaps over 5 nominal intervals refused unless allowed.
 
     Works block by block (the nominal interval is the median spacing of the
-    first block); messages give file line numbers (header = line 1).
+    first block); messages give file line numbers (header = line 1).  A bridged gap is warned about,
+    the first ``MAX_GAP_WARNINGS`` of a file one by one, the rest in one line; ``warn_gaps`` False for
+    logs whose gaps are expected and reported elsewhere (a GNSS log's outages: the fused run's summary).
     """
+    MAX_GAP_WARNINGS = 3
 
-    def __init__(self, path, allow_gaps=False, what="time", row_label="line"):
+    def __init__(self, path, allow_gaps=False, what="time", row_label="line", warn_gaps=True):
         self.path, self.allow_gaps, self.what, self.row = path, allow_gaps, what, row_label
+        self.warn_gaps = warn_gaps
         self.prev = None
         self.nominal = None
+        self.n_gaps = 0
 
     def check(self, time, first_line):
         path = self.path
@@ -103,14 +108,18 @@ class TimeChecker:
                                     f"{float(full[k + 1])!r} ({dt[k] / self.nominal:.1f} nominal intervals of "
                                     f"{self.nominal:.6g} s; at most {GAP_FACTOR:g} allowed); use --allow-gaps "
                                     f"to bridge it")
-                log.warning("%s: bridging a gap of %.6g s from time %r to %r (%.1f nominal intervals)",
-                            path, dt[k], float(full[k]), float(full[k + 1]), dt[k] / self.nominal)
+                self.n_gaps += 1
+                if self.warn_gaps and self.n_gaps <= self.MAX_GAP_WARNINGS:
+                    log.warning("%s: bridging a gap of %.6g s from time %r to %r (%.1f nominal intervals)%s",
+                                path, dt[k], float(full[k]), float(full[k + 1]), dt[k] / self.nominal,
+                                "; further gaps are bridged without a warning each" if
+                                self.n_gaps == self.MAX_GAP_WARNINGS else "")
         self.prev = float(time[-1])
 
 
-def check_time(path, time, allow_gaps=False, what="time"):
+def check_time(path, time, allow_gaps=False, what="time", warn_gaps=True):
     """Check a whole time column (see :class:`TimeChecker`)."""
-    TimeChecker(path, allow_gaps, f"column '{what}'").check(np.asarray(time, dtype=float), 2)
+    TimeChecker(path, allow_gaps, f"column '{what}'", warn_gaps=warn_gaps).check(np.asarray(time, dtype=float), 2)
 
 
 def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=STREAM_BLOCK, limits=None):
@@ -243,6 +252,17 @@ def check_static_start(imu: ImuLog, g_local: float, conv: int = 0, seconds: floa
            f"far from local gravity {g_local:.4f} m/s^2 although the start is said to be static: {hint}")
     log.warning(msg)
     return msg
+
+
+def write_imu_rates_csv(path, time, gyro, accel) -> None:
+    """Write rates (FORMATS.md rate form: ``time``, ``gyro_*`` rad/s, ``accel_*`` m/s^2), atomically, exact floats."""
+    data = {"time": time}
+    for i, ax in enumerate("xyz"):
+        data[f"gyro_{ax}"] = gyro[:, i]
+    for i, ax in enumerate("xyz"):
+        data[f"accel_{ax}"] = accel[:, i]
+    with atomic_path(path) as tmp:
+        write_table_csv(tmp, data, ["time"] + RATE_COLS)
 
 
 def write_imu_csv(path, imu: ImuLog) -> None:

@@ -17,8 +17,18 @@ def _is_log(path) -> bool:
 
 
 def iter_imu(path, cfg: dict, allow_gaps: bool = False):
-    """IMU blocks from a CSV file or a ROS/MCAP log (``cfg`` is the whole validated config)."""
-    path = Path(path)
+    """IMU blocks from a CSV file or a ROS/MCAP log (``cfg`` is the whole validated config);
+    ``imu.time_offset`` (s) is added to their times (the output is then on the GNSS clock)."""
+    offset = float(cfg["imu"].get("time_offset", 0.0))
+    for block in _iter_imu(Path(path), cfg, allow_gaps):
+        if offset:
+            block.time = block.time + offset
+            if block.t0 is not None:
+                block.t0 = block.t0 + offset
+        yield block
+
+
+def _iter_imu(path: Path, cfg: dict, allow_gaps: bool):
     if not path.exists():
         raise SinsError(f"{path}: file not found")
     if _is_log(path):

@@ -154,6 +154,25 @@ def lla_to_local_enu(lat, lon, h, lat0: float, lon0: float, h0: float) -> np.nda
     return d @ enu_rotation(lat0, lon0).T
 
 
+def enu_offset(lat, lon, h, lat0, lon0, h0) -> np.ndarray:
+    """Small-angle offset (m, E N U; (..., 3)) of the point ``(lat, lon, h)`` from ``(lat0, lon0, h0)`` (rad, m):
+    ``E = dlon (RN + h) cos lat``, ``N = dlat (RM + h)``, ``U = h - h0``, with the WGS-84 radii at the point
+    and the longitude difference taken by :func:`dlon`.  Exact to first order in the offset (the error is
+    ~offset^2 / R: 1.6e-7 m at 1 m, 1.6 mm at 100 m); :func:`lla_to_local_enu` is the exact form."""
+    lat = np.asarray(lat, dtype=float)
+    rm, rn = radii_py(np.sin(lat))
+    east = dlon(np.asarray(lon, dtype=float), lon0)       # across the antimeridian
+    return np.stack(np.broadcast_arrays(east * (rn + h) * np.cos(lat), (lat - lat0) * (rm + h), np.asarray(h) - h0),
+                    axis=-1)
+
+
+def local_en(lat_deg, lon_deg, h):
+    """East and north offsets (m) of points (deg, deg, m) from the first one (:func:`enu_offset`)."""
+    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
+    off = enu_offset(lat, lon, h, lat[0], lon[0], h[0])
+    return off[..., 0], off[..., 1]
+
+
 def local_enu_to_lla(enu, lat0: float, lon0: float, h0: float):
     """Inverse of :func:`lla_to_local_enu`: ``(lat, lon, h)`` in radians and metres."""
     xyz = lla_to_ecef(lat0, lon0, h0) + np.asarray(enu) @ enu_rotation(lat0, lon0)

@@ -23,17 +23,41 @@ from numba import njit
 from . import pinned as pm
 
 
-@njit(cache=True)
 def gauss_markov(phi, sigma_w, b0, w):
-    """First-order Gauss-Markov sequence (N, 3): ``b[k] = phi b[k-1] + sigma_w w[k]``, ``b[-1] = b0``."""
+    """First-order Gauss-Markov sequence (N, 3): ``b[k] = phi b[k-1] + sigma_w w[k]``, ``b[-1] = b0``
+    (``phi``, ``sigma_w`` per axis (3,), or per step and axis (N, 3))."""
+    n = w.shape[0]
+    return gauss_markov_steps(np.ascontiguousarray(np.broadcast_to(phi, (n, 3)), dtype=np.float64),
+                              np.ascontiguousarray(np.broadcast_to(sigma_w, (n, 3)), dtype=np.float64),
+                              np.asarray(b0, dtype=np.float64).copy(), w)
+
+
+@njit(cache=True)
+def gauss_markov_steps(phi, sigma_w, b0, w):
+    """``b[k] = phi[k] b[k-1] + sigma_w[k] w[k]`` (N, 3), ``b[-1] = b0``: the recursion of :func:`gauss_markov`."""
     n = w.shape[0]
     out = np.empty_like(w)
     prev = b0.copy()
     for k in range(n):
         for i in range(3):
-            prev[i] = phi[i] * prev[i] + sigma_w[i] * w[k, i]
+            prev[i] = phi[k, i] * prev[i] + sigma_w[k, i] * w[k, i]
             out[k, i] = prev[i]
     return out
+
+
+def gauss_markov_times(tau: np.ndarray, sigma: np.ndarray, tc: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Steady-state first-order Gauss-Markov values (N, 3) at irregular times ``tau`` (s): sigma (3,),
+    correlation times ``tc`` (3,) s (0: white), unit normal draws ``w`` (N, 3).
+
+    ``e[0] = sigma w[0]``, ``e[k] = phi_k e[k-1] + sigma sqrt(1 - phi_k^2) w[k]``,
+    ``phi_k = exp(-(tau_k - tau_{k-1}) / tc)``: the exact discretization, also across gaps."""
+    n = w.shape[0]
+    dt = np.diff(np.asarray(tau, dtype=float), prepend=-np.inf)[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        phi = np.where(tc[None, :] > 0, np.exp(-dt / np.where(tc > 0, tc, 1.0)[None, :]), 0.0)
+    phi = np.broadcast_to(phi, (n, 3))
+    return gauss_markov_steps(np.ascontiguousarray(phi), np.ascontiguousarray(sigma[None, :] * np.sqrt(1.0 - phi * phi)),
+                              np.zeros(3), w)
 
 
 @njit(cache=True)
@@ -61,7 +85,8 @@ def corrupt(inc: np.ndarray, dt: np.ndarray, spec: dict, seedseq: np.random.Seed
             noise_key: str) -> tuple[np.ndarray, dict]:
     """Apply one triad's errors to exact increments ``inc`` (N, 3) over intervals ``dt`` (N,).
 
-    Returns the measured increments and the realized constants (SI) for the record.
+    Returns the measured increments and the realized errors (SI) for the record: the constants and
+    ``bias_gm`` (N, 3), the bias instability of each interval (None without one).
     """
     rng_bias, rng_sf, rng_mis, rng_gm, rng_noise = (np.random.default_rng(s) for s in seedseq.spawn(5))
     n = inc.shape[0]
@@ -76,6 +101,7 @@ def corrupt(inc: np.ndarray, dt: np.ndarray, spec: dict, seedseq: np.random.Seed
         mis += spec["misalignment_sigma"] * rng_mis.standard_normal(6)
     M = np.eye(3) + np.diag(sf) + _misalignment_matrix(mis)
     out = pm.matmul(inc, M.T) + bias[None, :] * dt[:, None]
+    gm = None
     if "bias_instability" in spec and np.any(spec["bias_instability"] > 0):
         sig, tau = spec["bias_instability"], spec["bias_tau"]
         dtm = float(np.mean(dt))
@@ -87,7 +113,7 @@ def corrupt(inc: np.ndarray, dt: np.ndarray, spec: dict, seedseq: np.random.Seed
         out += spec[noise_key][None, :] * np.sqrt(dt)[:, None] * rng_noise.standard_normal((n, 3))
     if "quantization" in spec and np.any(spec["quantization"] > 0):
         out = quantize(out, spec["quantization"])
-    return out, {"bias": bias, "scale_factor": sf, "misalignment": mis}
+    return out, {"bias": bias, "scale_factor": sf, "misalignment": mis, "bias_gm": gm}
 
 
 def apply_imu_errors(dtheta: np.ndarray, dvel: np.ndarray, dt: np.ndarray, sensor: dict, seed: int):

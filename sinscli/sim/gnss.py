@@ -8,7 +8,12 @@ velocity are the truth *at the antenna*, exactly:
 
 with the velocity turned into the antenna's own ENU frame.  Noise is white,
 Gaussian, per axis E/N/U (metres turned into latitude/longitude with the
-local radii).  Outages drop the fixes in ``[start, end)`` (s since the start).
+local radii), or first-order Gauss-Markov with correlation times ``pos_tau``,
+``vel_tau`` (the same unit draws, steady state from the first fix, exact
+across outages).  Outages drop the fixes in ``[start, end)`` (s since the
+start).  The ``std_*`` columns carry ``reported_*_sigma`` when given (a
+receiver whose claim differs from its noise), else the true sigma; the
+stamps are the true times plus ``time_offset``.
 """
 from __future__ import annotations
 
@@ -17,6 +22,7 @@ import numpy as np
 from ..nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef, radii_py
 from ..types import GnssLog
 from . import pinned as pm
+from .errors import gauss_markov_times
 from .imu_synth import transport_rate_many
 
 
@@ -53,16 +59,27 @@ def make_gnss(tau, t0, lat, lon, h, vel_n, cfg: dict, rng: np.random.Generator |
     vel_sig = np.asarray(cfg["vel_noise"], dtype=float)
     lat, lon, h, vel = lat.copy(), lon.copy(), h.copy(), vel_n.copy()
     if rng is not None:
-        e_pos = rng.standard_normal((n, 3)) * pos_sig
-        e_vel = rng.standard_normal((n, 3)) * vel_sig
+        e_pos = _noise(rng.standard_normal((n, 3)), tau, pos_sig, cfg.get("pos_tau"))
+        e_vel = _noise(rng.standard_normal((n, 3)), tau, vel_sig, cfg.get("vel_tau"))
         rm, rn = radii_py(pm.sin(lat))
         lat += e_pos[:, 1] / (rm + h)
         lon += e_pos[:, 0] / ((rn + h) * pm.cos(lat))
         h += e_pos[:, 2]
         vel += e_vel
-    return GnssLog(time=t0 + tau, lat=np.degrees(lat), lon=np.degrees(lon), height=h,
-                   vel_n=vel if cfg["velocity"] else None,
-                   std_pos=np.tile(pos_sig, (n, 1)) if rng is not None and np.any(pos_sig > 0) else None,
-                   std_vel=np.tile(vel_sig, (n, 1)) if (rng is not None and cfg["velocity"]
-                                                       and np.any(vel_sig > 0)) else None,
-                   source=source)
+    rep_pos, rep_vel = cfg.get("reported_pos_sigma"), cfg.get("reported_vel_sigma")
+    std_pos = std_vel = None
+    if rng is not None:
+        if rep_pos is not None or np.any(pos_sig > 0):
+            std_pos = np.tile(pos_sig if rep_pos is None else rep_pos, (n, 1))
+        if cfg["velocity"] and (rep_vel is not None or np.any(vel_sig > 0)):
+            std_vel = np.tile(vel_sig if rep_vel is None else rep_vel, (n, 1))
+    offset = cfg.get("time_offset", 0.0) if rng is not None else 0.0
+    return GnssLog(time=(t0 + tau) + offset, lat=np.degrees(lat), lon=np.degrees(lon), height=h,
+                   vel_n=vel if cfg["velocity"] else None, std_pos=std_pos, std_vel=std_vel, source=source)
+
+
+def _noise(w, tau, sigma, tc):
+    """White ``sigma w`` or, with correlation times ``tc`` > 0, Gauss-Markov noise from the same draws."""
+    if tc is None or not np.any(np.asarray(tc) > 0):
+        return w * sigma
+    return gauss_markov_times(tau, np.asarray(sigma, float), np.asarray(tc, float), w)

@@ -9,14 +9,16 @@ import numpy as np
 from ..errors import SinsError
 from ..nav.rotation import conv_to_flu
 from ..sensors import load_sensor
-from ..types import GnssLog, ImuLog, NavState, Trajectory
+from ..types import BodyVelLog, GnssLog, ImuLog, NavState, Trajectory
 from . import pinned as pm
 from . import truth as truth_mod
 from .errors import apply_imu_errors, gnss_seedseq
 from .gnss import antenna_truth, gnss_times, make_gnss
 from .imu_synth import GRAVITY_MODELS
+from .logs import ImuRates, imu_rates, imu_stamps, odometry_log, sim_record
 from .scenario import Scenario, load_scenario
 from .segments import expand
+from .vibration import Vibration, draw_vibration
 
 DEFAULT_SEED = 0
 
@@ -35,6 +37,11 @@ class SimResult:
     launch: dict = field(default_factory=dict)      # start point: lat, lon (deg), height (m), azimuth (deg), time
     sensor: dict = field(default_factory=dict)      # realized sensor constants (SI), empty when perfect
     scenario: Scenario | None = None
+    # issue 19 (None unless the scenario asks; docs/simulate.md)
+    imu_rates: ImuRates | None = None   # imu.output: rates: the rate samples at every IMU instant (sensor axes)
+    imu_stamps: np.ndarray | None = None    # (N+1,) the written IMU stamps of instants 0..N (jitter, offset)
+    odometry: BodyVelLog | None = None  # odometry: body velocity as written
+    record: dict = field(default_factory=dict)      # what sim_truth.yaml holds
 
 
 @dataclass
@@ -46,6 +53,7 @@ class Prepared:
     n_imu: int
     tau_gnss: np.ndarray
     perfect: bool
+    vibration: Vibration | None = None
 
 
 def prepare(scenario, perfect: bool = False, duration: float | None = None) -> Prepared:
@@ -60,10 +68,14 @@ def prepare(scenario, perfect: bool = False, duration: float | None = None) -> P
                             f"scenario's {sc.duration:g} s; got {duration:g}")
         sc = replace(sc, duration=float(duration))
     prims = expand(sc.segments, sc.x_start, sc.source)
+    if sc.gait is not None:
+        for prim in prims:
+            prim.gait = sc.gait
     sensor = {} if perfect else load_sensor(sc.sensor, sc.sensor_overrides, sc.source, sc.base_dir)
     n_imu = int(np.floor(sc.duration * sc.imu_rate + 1e-9))
     tau_g = gnss_times(n_imu / sc.imu_rate, sc.gnss["rate"], sc.gnss["outages"], sc.t0)
-    return Prepared(sc, prims, sensor, n_imu, tau_g, perfect)
+    vib = draw_vibration(sc.vibration) if sc.vibration is not None else None
+    return Prepared(sc, prims, sensor, n_imu, tau_g, perfect, vib)
 
 
 def simulate(scenario, seed: int | None = None, perfect: bool = False, *, duration: float | None = None,
@@ -81,13 +93,16 @@ def simulate(scenario, seed: int | None = None, perfect: bool = False, *, durati
     perfect = perfect or p.perfect
     seed = seed if seed is not None else (sc.seed if sc.seed is not None else DEFAULT_SEED)
     td = truth_mod.generate(p.prims, sc.lat0, sc.lon0, sc.h0, sc.imu_rate, p.n_imu, extra_times=p.tau_gnss,
-                            nodes=nodes, gravity=GRAVITY_MODELS[sc.gravity], progress=progress, t0=sc.t0)
-    return assemble(sc, td, p.tau_gnss, {} if perfect else p.sensor, seed, perfect)
+                            nodes=nodes, gravity=GRAVITY_MODELS[sc.gravity], progress=progress, t0=sc.t0,
+                            vibration=p.vibration, rates=sc.imu_output == "rates")
+    return assemble(sc, td, p.tau_gnss, {} if perfect else p.sensor, seed, perfect, p.vibration)
 
 
 def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: dict, seed: int,
-             perfect: bool) -> SimResult:
-    """Containers from the truth engine's output: body convention, sensor errors, GNSS."""
+             perfect: bool, vibration: Vibration | None = None) -> SimResult:
+    """Containers from the truth engine's output: body convention, mounting, sensor errors, GNSS, and the
+    issue-19 extras (rates, stamps, odometry, the record).  ``vibration`` only goes into the record: the
+    truth engine put it into ``td``."""
     conv = sc.conv
     c_flu_conv = conv_to_flu(conv).T.copy()          # C_FLU^conv
     idx = td.imu_idx
@@ -95,13 +110,15 @@ def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: d
     cbn = pm.matmul(td.cbn[idx], conv_to_flu(conv))  # Cbn_conv = Cbn_FLU C_conv^FLU
     truth = Trajectory(time=sc.t0 + tau, lat=td.lat[idx], lon=td.lon[idx], height=td.h[idx],
                        vel_n=td.vel_n[idx], Cbn=cbn, source=f"simulate:{sc.name}")
-    dtheta = pm.matmul(td.dtheta_b, c_flu_conv.T)
-    dvel = pm.matmul(td.dvel_b, c_flu_conv.T)
+    c_out = c_flu_conv.T if sc.mounting is None else pm.matmul(c_flu_conv.T, sc.mounting)  # rows: FLU body -> sensor
+    dtheta = pm.matmul(td.dtheta_b, c_out)
+    dvel = pm.matmul(td.dvel_b, c_out)
     realized = {}
     if sensor and (sensor.get("gyro") or sensor.get("accel")):
         dtheta, dvel, realized = apply_imu_errors(dtheta, dvel, np.diff(tau), sensor, seed)
     imu = ImuLog(time=sc.t0 + tau[1:], dtheta_b=dtheta, dvel_b=dvel, t0=sc.t0,
                  source=f"simulate:{sc.name}", kind="increments")
+    rates = imu_rates(sc, td, c_out, sensor, seed) if sc.imu_output == "rates" else None
     gi = np.searchsorted(td.tau, tau_g)
     lever_flu = pm.matmul(conv_to_flu(conv), sc.gnss["lever_arm"])
     lat_a, lon_a, h_a, v_a = antenna_truth(td.lat[gi], td.lon[gi], td.h[gi], td.vel_n[gi], td.cbn[gi],
@@ -112,31 +129,39 @@ def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: d
                     height=float(truth.height[0]), vel_n=truth.vel_n[0].copy(), Cbn=cbn[0].copy())
     launch = {"time": sc.t0, "lat": sc.start_deg["lat"], "lon": sc.start_deg["lon"], "height": sc.h0,
               "azimuth": sc.start_deg["heading"] % 360.0}
-    return SimResult(imu=imu, truth=truth, gnss=gnss, init=init, conv=conv, seed=seed, name=sc.name,
-                     perfect=perfect, launch=launch, sensor=realized, scenario=sc)
+    res = SimResult(imu=imu, truth=truth, gnss=gnss, init=init, conv=conv, seed=seed, name=sc.name,
+                    perfect=perfect, launch=launch, sensor=realized, scenario=sc, imu_rates=rates,
+                    imu_stamps=imu_stamps(sc, tau, seed, perfect),
+                    odometry=odometry_log(sc, td, conv, seed, perfect) if sc.odometry is not None else None)
+    res.record = sim_record(res, vibration)
+    return res
 
 
-SIM_FILES = ("imu.csv", "gnss.csv", "truth.csv", "init.yaml")
+SIM_FILES = ("imu.csv", "gnss.csv", "truth.csv", "init.yaml", "sim_truth.yaml")
 
 
 def write_sim(result: SimResult, outdir) -> list[Path]:
-    """Write ``imu.csv``, ``gnss.csv``, ``truth.csv``, ``init.yaml`` into ``outdir`` (docs/formats.md).
+    """Write ``imu.csv``, ``gnss.csv``, ``truth.csv``, ``init.yaml``, ``sim_truth.yaml`` (and ``odom.csv``
+    with odometry) into ``outdir`` (docs/formats.md, docs/simulate.md).
 
-    The four files are one set (:func:`sinscli.io.atomic.staged_dir`): all of them replace an earlier
+    The files are one set (:func:`sinscli.io.atomic.staged_dir`): all of them replace an earlier
     set, or none does (a full disk never pairs new IMU data with an old truth).  Returns the paths.
     """
     from ..io.atomic import staged_dir
     from ..io.gnss_csv import write_gnss_csv
-    from ..io.imu_csv import write_imu_csv
     from ..io.init_state import write_init_yaml
     from ..io.trajectory import write_trajectory
+    from .logs import write_imu_log, write_odometry, write_record
 
     out = Path(outdir)
-    with staged_dir(out, owned=SIM_FILES) as tmp:
-        write_imu_csv(tmp / SIM_FILES[0], result.imu)
+    with staged_dir(out, owned=SIM_FILES + ("odom.csv",)) as tmp:
+        write_imu_log(tmp / SIM_FILES[0], result)
         write_gnss_csv(tmp / SIM_FILES[1], result.gnss)
         write_trajectory(tmp / SIM_FILES[2], result.truth, conv=result.conv)
         extra = {"scenario": result.name, "seed": result.seed, "perfect": result.perfect,
                  "body": ("flu", "rfu", "frd")[result.conv], "launch": result.launch}
         write_init_yaml(tmp / SIM_FILES[3], result.init, result.conv, extra)
-    return [out / name for name in SIM_FILES]
+        write_record(tmp / SIM_FILES[4], result.record)
+        if result.odometry is not None:
+            write_odometry(tmp / "odom.csv", result.odometry)
+    return [out / name for name in SIM_FILES] + ([out / "odom.csv"] if result.odometry is not None else [])

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError
-from ..io.inputs import load_yaml
+from ..inputs import load_yaml
 from ..nav.rotation import BODY_CONVENTIONS
 from .imu_synth import GRAVITY_MODELS
 from .segments import AXES
@@ -42,10 +42,17 @@ NON_NUMERIC = {"bank", "axis", "accel_axis", "label", "type"}
 POSITIVE = {"freq", "half_angle"}
 NONNEGATIVE = {"speed", "ramp", "transition"}
 
-TOP_KEYS = {"name", "description", "seed", "duration", "start", "imu", "gnss", "gravity", "body", "segments"}
+TOP_KEYS = {"name", "description", "seed", "duration", "start", "imu", "gnss", "gravity", "body", "segments",
+            "vibration", "gait", "odometry"}
 START_KEYS = {"time", "lat", "lon", "height", "heading", "pitch", "roll", "speed"}
-IMU_KEYS = {"rate", "sensor", "gyro", "accel"}
-GNSS_KEYS = {"rate", "pos_noise", "vel_noise", "lever_arm", "outages", "velocity"}
+IMU_KEYS = {"rate", "sensor", "gyro", "accel", "output", "stamp_jitter", "time_offset", "mounting"}
+GNSS_KEYS = {"rate", "pos_noise", "vel_noise", "lever_arm", "outages", "velocity", "pos_tau", "vel_tau",
+             "reported_pos_sigma", "reported_vel_sigma", "time_offset"}
+VIBRATION_KEYS = {"gyro_rms", "accel_rms", "band", "lines", "seed", "ramp"}
+GAIT_KEYS = {"speed", "step_freq", "bob", "surge", "sway", "wobble"}
+ODOMETRY_KEYS = {"rate", "scale_factor", "noise", "reported_sigma"}
+IMU_OUTPUTS = ("increments", "rates")
+MAX_OFFSET = 1.0e4               # s: largest clock offset of a simulated log
 
 
 @dataclass
@@ -71,6 +78,15 @@ class Scenario:
     segments: list[dict]
     description: str = ""
     raw: dict = field(default_factory=dict)
+    # issue 19 (all off by default; see docs/simulate.md)
+    imu_output: str = "increments"                 # increments | rates
+    stamp_jitter: float = 0.0                      # s, written IMU stamps uniform in [-j, j] of the true instant
+    imu_time_offset: float = 0.0                   # s, written IMU stamps = true time + offset
+    mounting: np.ndarray | None = None             # C_sensor^body (imu.mounting of the navigation config)
+    mounting_raw: object = None                    # imu.mounting as written
+    vibration: dict | None = None                  # validated vibration section (SI)
+    gait: object = None                            # sim.gait.Gait or None
+    odometry: dict | None = None                   # validated odometry section
 
 
 def load_scenario(scenario) -> Scenario:
@@ -151,8 +167,25 @@ def validate(data: dict, src: str, base_dir: Path) -> Scenario:
     if rate < 1.0:
         _fail(src, "imu.rate", f"must be at least 1 Hz; got {rate:g}")
     overrides = {k: _mapping(src, f"imu.{k}", imu.get(k), _sensor_keys(k)) for k in ("gyro", "accel")}
+    output = imu.get("output", "increments")
+    if output not in IMU_OUTPUTS:
+        _fail(src, "imu.output", f"expected one of {', '.join(IMU_OUTPUTS)}; got {output!r}")
+    jitter = _number(src, "imu.stamp_jitter", imu.get("stamp_jitter", 0.0), ge=0.0)
+    if not jitter < 0.5 / rate:
+        _fail(src, "imu.stamp_jitter", f"must be below half the IMU interval ({0.5 / rate:g} s) so that the "
+                                       f"stamps stay strictly increasing; got {jitter:g}")
+    imu_offset = _offset(src, "imu.time_offset", imu.get("time_offset", 0.0))
+    mounting = None
+    if imu.get("mounting") is not None:
+        from ..config import mounting_matrix
+        mounting = mounting_matrix(imu["mounting"], src)
 
     gnss = _gnss(src, _mapping(src, "gnss", data.get("gnss", {}), GNSS_KEYS), rate)
+    vibration = _vibration(src, _mapping(src, "vibration", data.get("vibration"), VIBRATION_KEYS), rate) \
+        if data.get("vibration") is not None else None
+    gait = _gait(src, _mapping(src, "gait", data.get("gait"), GAIT_KEYS)) if data.get("gait") is not None else None
+    odometry = _odometry(src, _mapping(src, "odometry", data.get("odometry"), ODOMETRY_KEYS), rate) \
+        if data.get("odometry") is not None else None
 
     gravity = data.get("gravity", "normal")
     if gravity not in GRAVITY_MODELS:
@@ -184,7 +217,79 @@ def validate(data: dict, src: str, base_dir: Path) -> Scenario:
                     imu_rate=rate,
                     sensor=imu.get("sensor"), sensor_overrides=overrides, gnss=gnss, gravity=gravity,
                     conv=BODY_CONVENTIONS[body.lower()], segments=segments,
-                    description=str(data.get("description", "")), raw=data)
+                    description=str(data.get("description", "")), raw=data,
+                    imu_output=output, stamp_jitter=jitter, imu_time_offset=imu_offset, mounting=mounting,
+                    mounting_raw=imu.get("mounting"), vibration=vibration, gait=gait, odometry=odometry)
+
+
+def _offset(src, key, value):
+    v = _number(src, key, value)
+    if abs(v) > MAX_OFFSET:
+        _fail(src, key, f"expected a clock offset within +-{MAX_OFFSET:g} s; got {v:g}")
+    return v
+
+
+def _positive_vector(src, key, value, n=3):
+    v = _vector(src, key, value, n, ge=0.0)
+    if not np.all(v > 0):
+        _fail(src, key, "must be > 0 (a file never carries a sigma of 0)")
+    return v
+
+
+def _vibration(src, v, imu_rate):
+    """Engine vibration of the mount: rate / specific-force RMS per axis, band (Hz), lines per axis, seed."""
+    deg = np.pi / 180.0
+    band = v.get("band", [20.0, 40.0])
+    if not isinstance(band, (list, tuple)) or len(band) != 2:
+        _fail(src, "vibration.band", f"expected [low, high] in Hz; got {band!r}")
+    lo = _number(src, "vibration.band[0]", band[0], gt=0.0)
+    hi = _number(src, "vibration.band[1]", band[1], gt=0.0)
+    if not hi >= lo:
+        _fail(src, "vibration.band", f"high {hi:g} Hz must be at least low {lo:g} Hz")
+    if hi > 0.5 * imu_rate:
+        _fail(src, "vibration.band", f"{hi:g} Hz is above the IMU's Nyquist frequency {0.5 * imu_rate:g} Hz")
+    lines = v.get("lines", 4)
+    if isinstance(lines, bool) or not isinstance(lines, int) or not 1 <= lines <= 64:
+        _fail(src, "vibration.lines", f"expected an integer 1..64 (sinusoids per axis); got {lines!r}")
+    seed = v.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        _fail(src, "vibration.seed", f"expected a non-negative integer; got {seed!r}")
+    return {"gyro_rms": _vector(src, "vibration.gyro_rms", v.get("gyro_rms", 0.0), ge=0.0) * deg,
+            "accel_rms": _vector(src, "vibration.accel_rms", v.get("accel_rms", 0.0), ge=0.0),
+            "band": (lo, hi), "lines": lines, "seed": seed,
+            "ramp": _number(src, "vibration.ramp", v.get("ramp", 1.0), ge=0.0)}
+
+
+def _gait(src, g):
+    """Walker step dynamics (docs/simulate.md): amplitudes at the reference speed."""
+    from .gait import Gait
+    speed = _number(src, "gait.speed", g.get("speed", 1.3), gt=0.0)
+    surge = _number(src, "gait.surge", g.get("surge", 0.15), ge=0.0)
+    if not surge < speed:
+        _fail(src, "gait.surge", f"must be below gait.speed ({speed:g} m/s) so that the walker never walks "
+                                 f"backwards; got {surge:g}")
+    return Gait(speed=speed, step_freq=_number(src, "gait.step_freq", g.get("step_freq", 1.9), gt=0.0),
+                bob=_number(src, "gait.bob", g.get("bob", 0.03), ge=0.0), surge=surge,
+                sway=_number(src, "gait.sway", g.get("sway", 0.02), ge=0.0),
+                wobble=_vector(src, "gait.wobble", g.get("wobble", [2.0, 3.0, 2.0]), ge=0.0) * np.pi / 180.0)
+
+
+def _odometry(src, o, imu_rate):
+    """Wheel odometry: body velocity at ``rate`` (a divisor of the IMU rate) with scale error and noise."""
+    rate = _number(src, "odometry.rate", o.get("rate", 10.0), gt=0.0)
+    step = imu_rate / rate
+    if rate > imu_rate or abs(step - round(step)) > 1e-9 * step:
+        _fail(src, "odometry.rate", f"must divide the IMU rate {imu_rate:g} Hz (odometry at every k-th IMU "
+                                    f"instant); got {rate:g}")
+    out = {"rate": rate, "step": int(round(step)),
+           "scale_factor": _number(src, "odometry.scale_factor", o.get("scale_factor", 0.0), gt=-0.5),
+           "noise": _vector(src, "odometry.noise", o.get("noise", 0.0), ge=0.0), "reported_sigma": None}
+    if out["scale_factor"] > 0.5:
+        _fail(src, "odometry.scale_factor", f"expected a fraction within +-0.5 (0.02: reads 2 % fast); "
+                                            f"got {out['scale_factor']:g}")
+    if o.get("reported_sigma") is not None:
+        out["reported_sigma"] = _positive_vector(src, "odometry.reported_sigma", o["reported_sigma"])
+    return out
 
 
 def _sensor_keys(which):
@@ -211,11 +316,19 @@ def _gnss(src, g, imu_rate):
     velocity = g.get("velocity", True)
     if not isinstance(velocity, bool):
         _fail(src, "gnss.velocity", f"expected true or false; got {velocity!r}")
-    return {"rate": rate,
-            "pos_noise": _vector(src, "gnss.pos_noise", g.get("pos_noise", 0.0), ge=0.0),
-            "vel_noise": _vector(src, "gnss.vel_noise", g.get("vel_noise", 0.0), ge=0.0),
-            "lever_arm": _vector(src, "gnss.lever_arm", g.get("lever_arm", 0.0)),
-            "outages": outs, "velocity": velocity}
+    out = {"rate": rate,
+           "pos_noise": _vector(src, "gnss.pos_noise", g.get("pos_noise", 0.0), ge=0.0),
+           "vel_noise": _vector(src, "gnss.vel_noise", g.get("vel_noise", 0.0), ge=0.0),
+           "lever_arm": _vector(src, "gnss.lever_arm", g.get("lever_arm", 0.0)),
+           "outages": outs, "velocity": velocity,
+           "pos_tau": _vector(src, "gnss.pos_tau", g.get("pos_tau", 0.0), ge=0.0),
+           "vel_tau": _vector(src, "gnss.vel_tau", g.get("vel_tau", 0.0), ge=0.0),
+           "time_offset": _offset(src, "gnss.time_offset", g.get("time_offset", 0.0))}
+    for k in ("reported_pos_sigma", "reported_vel_sigma"):
+        out[k] = _positive_vector(src, f"gnss.{k}", g[k]) if g.get(k) is not None else None
+    if out["reported_vel_sigma"] is not None and not velocity:
+        _fail(src, "gnss.reported_vel_sigma", "given with gnss.velocity: false (no velocity columns)")
+    return out
 
 
 def _segment(src, i, s):

@@ -37,10 +37,11 @@ import numpy as np
 
 from ..errors import SinsError
 from ..nav.rotation import FLU, RFU, conv_to_flu, euler_to_dcm
+from ..units import G0
 from .jets import Jet, axis_rotation, polynomial, stack
 
 HEADING, PITCH, ROLL, SPEED = 0, 1, 2, 3
-G_BANK = 9.80665          # m/s^2, only shapes the coordinated-bank profile
+G_BANK = G0               # m/s^2, only shapes the coordinated-bank profile
 
 # Septic smooth step S and its integral S1 = int_0^u S, as polynomials in s = 2u - 1 in [-1, 1]
 # (coefficients in increasing powers of s).  The symmetric form keeps the terms small (no
@@ -89,6 +90,7 @@ class Primitive:
     pert: Perturbation | None = None
     index: int = 0              # user segment index
     kind: str = ""              # user segment type
+    gait: object = None         # a :class:`~sinscli.sim.gait.Gait` (walker step dynamics) or None
 
     @property
     def t_end(self) -> float:
@@ -117,6 +119,8 @@ class Primitive:
                 10.0 / self.duration)
         if self.pert is not None:
             w = max(w, abs(self.pert.omega))
+        if self.gait is not None:
+            w = max(w, self.gait.omega)
         return w
 
     def kinematics(self, t_local: np.ndarray):
@@ -140,6 +144,11 @@ class Primitive:
         cbn = (c_path @ axis_rotation(1, rol)) @ C_FLU_TO_RFU
         ch, sh, cp, sp = np.cos(hdg), np.sin(hdg), np.cos(pit), np.sin(pit)
         vel = spd.truncate(1)[..., None] * stack([sh * cp, ch * cp, sp], axis=-1)
+        if self.gait is not None:
+            from .gait import gait_terms
+            rot, dv = gait_terms(self.gait, T * u, self.t_start, spd, hdg, pit)
+            cbn = cbn @ rot
+            vel = vel + dv
         disp = np.zeros(vel.shape)
         if self.pert is not None:
             rot, lin = _perturbation(self.pert, u, T)

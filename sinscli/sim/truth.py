@@ -25,9 +25,11 @@ from . import pinned as pm
 from .imu_synth import body_rate_nb, normal_gravity_n, sensor_outputs
 from .quadrature import gauss_legendre
 from .segments import Primitive
+from .vibration import Vibration, vibrate
 
 CHUNK = 16384          # sub-intervals per chunk
 PICARD_MAX = 60
+VIB_STEP = 2.6         # rad: largest w h of a vibration line over a sub-interval (8 nodes: ~1e-15 relative)
 
 
 @dataclass
@@ -43,6 +45,8 @@ class TruthData:
     imu_idx: np.ndarray    # (N+1,) boundary index of each IMU time (0 = start)
     dtheta_b: np.ndarray   # (N, 3) rad
     dvel_b: np.ndarray     # (N, 3) m/s
+    w_imu: np.ndarray | None = None    # (N+1, 3) rad/s: sensor rate at each IMU instant (``rates=True``)
+    f_imu: np.ndarray | None = None    # (N+1, 3) m/s^2: specific force at each IMU instant
 
 
 def boundaries(tau_imu: np.ndarray, extra: np.ndarray, subdiv: int):
@@ -140,19 +144,24 @@ def sample_times(t0: float, rate: float, n: int) -> np.ndarray:
 
 def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: float, n_imu: int,
              extra_times=(), nodes: int = 8, gravity=normal_gravity_n, progress=None,
-             t0: float = 0.0) -> TruthData:
+             t0: float = 0.0, vibration: Vibration | None = None, rates: bool = False) -> TruthData:
     """Exact truth and increments for ``n_imu`` IMU intervals at ``rate`` Hz from epoch ``t0``.
 
     ``extra_times`` (s since start, e.g. GNSS epochs) become boundaries too;
     ``gravity(lat, h)`` gives ``g^n`` (n, 3); ``progress(k)`` is called with
-    the number of IMU intervals completed by each chunk.
+    the number of IMU intervals completed by each chunk.  ``vibration``: the
+    mount's vibration (:mod:`.vibration`), in the increments and rates but not
+    in the truth; ``rates``: also the sensor outputs at every IMU instant.
     """
     tau_imu = sample_times(t0, rate, n_imu)
     starts = np.array([p.t_start for p in prims])
     joints = starts[1:]
     wmax = max(p.max_frequency() for p in prims)
     subdiv = max(1, int(np.ceil(wmax / rate)))          # omega * sub-interval <= 1 rad
-    b, imu_idx = boundaries(tau_imu, np.concatenate([np.asarray(extra_times, float), joints]), subdiv)
+    if vibration is not None:
+        subdiv = max(subdiv, int(np.ceil(vibration.max_frequency() / (VIB_STEP * rate))))
+    vib_end = [vibration.ramp] if vibration is not None and vibration.ramp > 0 else []   # its envelope's joint
+    b, imu_idx = boundaries(tau_imu, np.concatenate([np.asarray(extra_times, float), joints, vib_end]), subdiv)
     x, w, A = gauss_legendre(nodes)
     M = b.size - 1
     owner = np.searchsorted(tau_imu, b[1:], side="left") - 1      # IMU interval of each sub-interval
@@ -186,6 +195,7 @@ def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: 
         lat[j0 + 1:j1 + 1], lon[j0 + 1:j1 + 1], hgt[j0 + 1:j1 + 1] = lat_e, lon_e, h_e
         lat_f, h_f = lat_n.ravel(), h_n.ravel()
         w_ib, f_b = sensor_outputs(lat_f, h_f, vel, acc, cbn, body_rate_nb(cbn, dcbn), gravity(lat_f, h_f))
+        w_ib, f_b = vibrate(vibration, base + off, w_ib, f_b)
         sub_dth[j0:j1] = half[:, None] * np.einsum("jnk,n->jk", w_ib.reshape(J, nodes, 3), w)
         sub_dv[j0:j1] = half[:, None] * np.einsum("jnk,n->jk", f_b.reshape(J, nodes, 3), w)
         at_boundaries(j0 + 1, j1 + 1)
@@ -195,4 +205,13 @@ def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: 
             done = now
     dtheta = np.stack([np.bincount(owner, sub_dth[:, k], minlength=n_imu) for k in range(3)], axis=-1)
     dvel = np.stack([np.bincount(owner, sub_dv[:, k], minlength=n_imu) for k in range(3)], axis=-1)
-    return TruthData(b, lat, lon, hgt, vel_b, cbn_b, w_b, imu_idx, dtheta, dvel)
+    w_imu = f_imu = None
+    if rates:
+        w_imu, f_imu = np.empty((n_imu + 1, 3)), np.empty((n_imu + 1, 3))
+        for k0 in range(0, n_imu + 1, CHUNK):
+            k1 = min(k0 + CHUNK, n_imu + 1)
+            cbn, dcbn, vel, acc = evaluate(prims, starts, tau_imu[k0:k1])
+            la, hh = lat[imu_idx[k0:k1]], hgt[imu_idx[k0:k1]]
+            w_ib, f_b = sensor_outputs(la, hh, vel, acc, cbn, body_rate_nb(cbn, dcbn), gravity(la, hh))
+            w_imu[k0:k1], f_imu[k0:k1] = vibrate(vibration, tau_imu[k0:k1], w_ib, f_b)
+    return TruthData(b, lat, lon, hgt, vel_b, cbn_b, w_b, imu_idx, dtheta, dvel, w_imu, f_imu)

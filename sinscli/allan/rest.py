@@ -1,0 +1,116 @@
+"""Noise terms from the standstill windows of any log (a drive's stops, an engine idling), for the fused
+filter's noise-from-data (:mod:`sinscli.fusion.noise`).
+
+The windows at rest are those of the fused filter's own standstill detector (with the vehicle's
+settings: a low-pass that lets engine vibration through as rest).  In each window the overlapping Allan
+variance of every axis is computed (:mod:`.adev`); the windows are pooled cluster size by cluster size
+(weighted by their number of terms), and the model
+
+    AVAR(tau) = 3 Q^2 / tau^2 + N^2 / tau (1 - 3 / (4 m) for trapezoid rates) + B^2
+
+is fitted by nonnegative weighted least squares (:func:`sinscli.allan.fit._nnls_small`).  ``N`` is the
+white noise (ARW/VRW) the filter's process noise takes; the ``1/tau^2`` term holds quantization and the
+vibration of the mount (a narrowband process averages out as ``1/tau^2`` over a few of its periods), the
+constant a flicker floor, so that neither inflates ``N``.  Cluster times from ``TAU_MIN`` (or one sample) to a
+quarter of the longest window (``TAU_MIN`` = 0.25 s: below it an engine's vibration is not yet
+``1/tau^2`` and would pass for white noise).  No I/O.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..fusion.noise import RestNoise
+from ..fusion.standstill import StandstillDetector, gnss_still
+from ..types import GnssLog, ImuLog
+from .adev import overlapping_avar
+from .fit import _nnls_small
+
+MIN_REST = 10.0            # s at rest in all, at least
+MIN_WINDOW = 3.0           # s: shorter intervals at rest are not used
+TAU_MIN = 0.25             # s: the shortest cluster time fitted (five periods of a 20 Hz vibration: its Allan
+                           # variance is in its 1/tau^2 regime from there)
+G_NOMINAL = 9.80665        # the detector's gravity (its 0.3 m/s^2 tolerance covers every latitude)
+
+
+def rest_intervals(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> list[tuple[float, float]]:
+    """The merged intervals at rest ``(start, end)`` of the whole log: the fused filter's detector, each
+    window kept unless the GNSS, when given, shows motion around it (:func:`sinscli.fusion.standstill.gnss_still`)."""
+    det = StandstillDetector(fopts.standstill_window, fopts.standstill_rate_std, fopts.standstill_accel_std,
+                             fopts.standstill_accel_mag, G_NOMINAL, fopts.standstill_lowpass)
+    t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
+    a, b, _ = det.feed(imu.time, imu.dtheta_b, imu.dvel_b, t_start=t0)
+    if gnss is not None and len(a):
+        ok = gnss_still(gnss, a, b) != 0
+        a, b = a[ok], b[ok]
+    out = []
+    for x, y in zip(a, b):
+        if out and abs(out[-1][1] - x) <= 1e-9 * max(1.0, abs(x)):
+            out[-1][1] = float(y)
+        else:
+            out.append([float(x), float(y)])
+    return [(x, y) for x, y in out]
+
+
+def _fit(tau, m, avar, rel, trapezoid):
+    """``(Q, N, B)`` of one axis (see the module docstring)."""
+    white = (1.0 - 0.75 / m) / tau if trapezoid else 1.0 / tau
+    A = np.column_stack([3.0 / tau ** 2, white, np.ones_like(tau)])
+    scale = np.maximum(avar, 1e-300) * 2.0 * rel
+    for _ in range(2):                                  # reweight with the model instead of the noisy curve
+        coef, _ = _nnls_small(A / scale[:, None], avar / scale)
+        model = A @ coef
+        scale = np.where(model > 0, model, avar) * 2.0 * rel
+    return np.sqrt(coef)
+
+
+def noise_from_rest(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> RestNoise | None:
+    """The :class:`~sinscli.fusion.noise.RestNoise` of the log's standstill windows (where the GNSS, when
+    given, does not move), or None when they hold under ``MIN_REST`` s in all."""
+    if len(imu) < 10:
+        return None
+    # each interval less a detector window at both ends (where a start or a stop ramps in unseen)
+    w = fopts.standstill_window
+    windows = [(a + w, b - w) for a, b in rest_intervals(imu, fopts, gnss) if b - a - 2 * w >= MIN_WINDOW]
+    t = imu.time
+    spans = []
+    for a, b in windows:
+        i, j = int(np.searchsorted(t, a, side="right")), int(np.searchsorted(t, b, side="right"))
+        if j - i >= 20:
+            spans.append((i, j))
+    if not spans or sum(t[j - 1] - t[i] for i, j in spans) < MIN_REST:
+        return None
+    tau0 = float(np.median(np.diff(t)))
+    n_max = max(j - i for i, j in spans)
+    m_lo = max(1, int(round(TAU_MIN / tau0)))
+    ms = np.unique(np.round(np.geomspace(m_lo, max(m_lo, n_max // 4), 16)).astype(np.int64))
+    acc = np.zeros((ms.size, 6))
+    wsum = np.zeros(ms.size)
+    ksum = np.zeros(ms.size)
+    sum_th = np.zeros(3)
+    sum_dv = np.zeros(3)
+    sum_dt = 0.0
+    for i, j in spans:
+        n = j - i
+        inc = np.hstack([imu.dtheta_b[i:j], imu.dvel_b[i:j]])
+        sum_th += imu.dtheta_b[i:j].sum(axis=0)
+        sum_dv += imu.dvel_b[i:j].sum(axis=0)
+        sum_dt += float(t[j - 1] - (t[i - 1] if i > 0 else t[i] - tau0))
+        ok = ms <= n // 4
+        if not ok.any():
+            continue
+        av = overlapping_avar(inc, tau0, ms[ok])
+        w = (n + 1 - 2 * ms[ok]).astype(float)
+        acc[ok] += av * w[:, None]
+        wsum[ok] += w
+        ksum[ok] += n / ms[ok]
+    use = wsum > 0
+    if use.sum() < 3:
+        return None
+    tau = ms[use] * tau0
+    avar = acc[use] / wsum[use][:, None]
+    rel = 1.0 / np.sqrt(2.0 * np.maximum(ksum[use] - 1.0, 1.0))
+    trap = imu.kind == "rates"
+    fits = np.array([_fit(tau, ms[use].astype(float), avar[:, c], rel, trap) for c in range(6)])
+    rest_s = float(sum(t[j - 1] - t[i] for i, j in spans))
+    return RestNoise(rest_seconds=rest_s, windows=len(spans), gyro_white=fits[:3, 1], accel_white=fits[3:, 1],
+                     gyro_q=fits[:3, 0], accel_q=fits[3:, 0], gyro_mean=sum_th / sum_dt, accel_mean=sum_dv / sum_dt)
