@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import stat
 from pathlib import Path
+from urllib.parse import quote as url_quote
 
 import yaml
 
@@ -102,7 +103,7 @@ def native_path(path, mode: str = "rb"):
         text.encode("utf-8")
         return text
     except UnicodeEncodeError:
-        import pyarrow as pa
+        import pyarrow as pa   # only for a name that is not UTF-8: pyarrow is not for --help
         return pa.OSFile(os.fsencode(text), mode)
 
 
@@ -115,7 +116,6 @@ def closing_native(source) -> None:
 def sqlite_uri(path, mode: str = "ro") -> str:
     """A SQLite ``file:`` URI of any path: its bytes percent-encoded (a '?', '#' or '%' in a name, or a
     byte that is not UTF-8, would otherwise end or garble the URI)."""
-    from urllib.parse import quote as url_quote
     return f"file:{url_quote(os.fsencode(os.path.abspath(path)))}?mode={mode}"
 
 

@@ -26,7 +26,7 @@ from test_contract import refused, sins
 from test_fuzz_contract import _Failing
 
 from sinscli.io import atomic, ros
-from sinscli.report.batch_job import describe
+from sinscli.batch.compare_job import describe
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data"
@@ -107,7 +107,7 @@ def test_fused_navigate_with_innovations_on_a_full_disk(data, full_disk):
 
 def test_simulate_on_a_full_disk_keeps_the_previous_complete_set(tmp_path, full_disk):
     """Before: imu.csv and gnss.csv written, truth.csv and init.yaml missing; over an earlier set that paired
-    new IMU data with an old truth.  Now the four files are one set."""
+    new IMU data with an old truth.  Now the files are one set."""
     scen = tmp_path / "drive.yaml"
     sc = yaml.safe_load((ROOT / "configs/scenarios/vehicle_drive.yaml").read_text())
     scen.write_text(yaml.safe_dump(sc))
@@ -115,7 +115,7 @@ def test_simulate_on_a_full_disk_keeps_the_previous_complete_set(tmp_path, full_
     rc, lines = sins(["simulate", scen, "-o", disk / "sim", "--duration", "5", "-q"])
     assert rc == 0, lines
     before = _digest(disk / "sim")
-    assert sorted(before) == ["gnss.csv", "imu.csv", "init.yaml", "truth.csv"]
+    assert sorted(before) == ["gnss.csv", "imu.csv", "init.yaml", "sim_truth.yaml", "truth.csv"]
     full_disk(200 * 1024)
     line = refused(["simulate", scen, "-o", disk / "sim", "--duration", "60", "--seed", "3"],
                    "cannot write the output (No space left on device)")

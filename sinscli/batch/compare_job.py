@@ -22,6 +22,7 @@ import numpy as np
 from ..config import load_config
 from ..errors import SinsError
 from ..evaluate.errors import compare_trajectories
+from ..io.atomic import is_fault, os_errno, target_of
 from ..io.imu_csv import read_imu_csv
 from ..io.init_state import read_init
 from ..io.trajectory import read_trajectory, write_trajectory
@@ -58,7 +59,6 @@ def describe(exc: BaseException) -> str:
     """One line for a job's failure: the SinsError text, else the exception and where it was raised."""
     if isinstance(exc, SinsError):
         return str(exc)
-    from ..io.atomic import is_fault, os_errno, target_of
     if is_fault(exc):            # the file system (a full disk): the file and the reason, not a source line
         name = f"{target_of(Path(exc.filename))}: " if getattr(exc, "filename", None) else ""
         return f"{name}{os.strerror(os_errno(exc))}"

@@ -220,7 +220,7 @@ class InlineBackend(Backend):
     description = "this process (--jobs 1)"
 
     def run(self, tasks):
-        from ..io.atomic import immediate_outputs
+        from ..io.atomic import immediate_outputs   # numpy: not for the back ends' workers and --help
         for key, fn, args in tasks:
             try:
                 with immediate_outputs():        # a job's files are in place when it ends, as in a worker

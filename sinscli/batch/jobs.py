@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError
-from ..io.atomic import atomic_path
+from ..io.atomic import atomic_path, immediate_outputs
 from .exec import Interrupted, hold_signals, interrupt_signals, open_backend
 
 FINGERPRINT = "fingerprint.json"
@@ -303,7 +303,6 @@ def run_study(outdir, store: JobStore, keys: list[tuple], make_tasks: Callable[[
                     on_resumed(counts.resumed)
                 run_tasks(runner, store, make_tasks(runner), describe, on_job, counts)
             stage = Path(tempfile.mkdtemp(prefix=".report.", suffix=".part", dir=outdir))
-            from ..io.atomic import immediate_outputs
             with immediate_outputs():         # the report's files complete in the stage before publish moves them
                 result = finish(stage, counts)
             publish(stage, outdir)

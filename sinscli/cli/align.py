@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from ..errors import SinsError
-from ..io.atomic import atomic_path, prepare_output
+from ..io.atomic import atomic_path, commit_outputs, prepare_output
 from ..io.init_state import write_init_yaml
 from ..nav.rotation import BODY_CONVENTIONS, dcm_to_euler_many
 from .base import log, main, progress, quiet_option
@@ -122,6 +122,7 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
     lat = opts.position[0] if opts.position is not None else (
         float(np.radians(gnss.lat[0])) if gnss is not None and len(gnss) else None)
     if lat is not None:                       # gyros in deg/s read as rad/s (nav/sanity.py)
+        # the readers (pyarrow, rosbags) and the checks: only when the gyro-unit check runs
         from ..io.readers import _is_log
         from ..nav.earth import gravity
         from ..nav.sanity import gyro_unit_check
@@ -147,7 +148,6 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
         plot_series(plot, res.series.time - res.t0, eul,
                     title=f"Alignment of {Path(imu).name} (--method {res.method}), heading from {res.heading_source}",
                     sigma_deg=np.degrees(res.sigma), final_deg=final, heading_supplied=res.heading_source == "user")
-    from ..io.atomic import commit_outputs
     commit_outputs()                          # every output in place before the line that names them
     r, p, h = np.degrees(dcm_to_euler_many(res.state.Cbn[None], conv)[0])
     s = np.degrees(res.sigma)
@@ -182,7 +182,6 @@ def _monte_carlo(scenario, runs, seed, outdir, quiet, jobs, scheduler, resume, f
                              figures=figures, on_progress=bar.update, on_error=on_error, on_info=info_echo(quiet),
                              verbose=log.getEffectiveLevel() <= logging.INFO)
     mc = study.mc
-    from ..io.atomic import commit_outputs
     commit_outputs()
     if not quiet:
         resumed = f" ({study.resumed} resumed from {outdir}/jobs, {study.ran} run)" if study.resumed else ""

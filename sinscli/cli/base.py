@@ -1,6 +1,8 @@
 """The ``sins`` command group: error handling, logging and progress shared by all commands."""
 from __future__ import annotations
 
+import atexit
+import codecs
 import contextlib
 import importlib
 import logging
@@ -56,7 +58,6 @@ def _exit_now(code) -> None:
     (logging, Dask clients, temporary folders), then ``os._exit``.  The interpreter's own teardown (freeing
     every object and module: numba, llvmlite, pyarrow, matplotlib) is skipped: it held the process 2-9 s
     after its last line on a loaded machine (issue 22), and there is nothing left in it to keep."""
-    import atexit
     status = code if isinstance(code, int) else (0 if code is None else 1)
     if code is not None and not isinstance(code, int):
         with contextlib.suppress(Exception):
@@ -92,7 +93,6 @@ def _bytes_as_escapes(exc):
 def _printable_stderr() -> None:
     """stdout and stderr write a name's non-UTF-8 bytes as ``\\xNN`` (not Python's ``\\udcNN``, and never a
     UnicodeEncodeError: `sins info` prints file names on stdout)."""
-    import codecs
     try:
         codecs.lookup_error("sins-bytes")
     except LookupError:
@@ -231,7 +231,7 @@ class _Group(click.Group):
         except Exception as exc:  # an internal bug: still one line, traceback with --debug
             if ctx.obj and ctx.obj.get("debug"):
                 raise
-            from ..io.atomic import is_fault, os_errno, target_of
+            from ..io.atomic import is_fault, os_errno, target_of   # numpy: only on an internal failure
             if is_fault(exc):     # the file system (a device error reading an input, a folder removed): not a bug
                 name = getattr(exc, "filename", None)
                 where = f"{target_of(Path(name))}: " if name else ""
@@ -285,7 +285,7 @@ def finish_progress(bar) -> None:
 def summary_line(imu, rows: int, t0: float, t1: float, output) -> None:
     """The last line of a successful ``sins navigate``: what was read, the rows written, their span, where
     (after the outputs are in place)."""
-    from ..io.atomic import commit_outputs
+    from ..io.atomic import commit_outputs  # numpy: the atomic writers load when outputs are written, not for --help (tests/test_cli_startup.py)
     commit_outputs()
     click.echo(f"sins: navigated {os.fspath(imu)}: wrote {rows:,} rows, t = {t0:.3f} .. {t1:.3f} s "
                f"({t1 - t0:.3f} s), to {os.fspath(output)}", err=True)

@@ -228,7 +228,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
                              truth_name=printable(truth_path), gnss=gnss)
         bar.update(1)
     at = "" if table.epoch is None else f" at t = {float(table.epoch)!r} s"
-    from ..io.atomic import commit_outputs
+    from ..io.atomic import commit_outputs  # numpy: the atomic writers load when outputs are written, not for --help (tests/test_cli_startup.py)
     commit_outputs()                          # the report in place before the line that points to it
     click.echo(f"sins: compare: {len(navs)} method(s){at} -> {outdir}/index.html", err=True)
     if results:
@@ -299,7 +299,7 @@ def _batch(batch_path, outdir, jobs, scheduler, resume, figures, quiet, ctx):
                            scheduler=scheduler, resume=resume, figures=figures, on_info=info_echo(quiet),
                            verbose=verbose(ctx))
     n_fail = len(result.failed) + len(result.report_errors)
-    from ..io.atomic import commit_outputs
+    from ..io.atomic import commit_outputs  # numpy: the atomic writers load when outputs are written, not for --help (tests/test_cli_startup.py)
     commit_outputs()
     resumed = f" ({result.resumed} resumed from {outdir}/jobs, {result.ran} run)" if result.resumed else ""
     click.echo(f"sins: compare: {len(result.jobs)} jobs{resumed}, {len(result.failed)} failed; "

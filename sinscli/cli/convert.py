@@ -7,7 +7,7 @@ import click
 import numpy as np
 
 from ..errors import SinsError
-from ..io.atomic import prepare_output, staged_dir
+from ..io.atomic import commit_outputs, prepare_output, staged_dir
 from ..io.body_vel_csv import write_body_velocity_csv
 from ..io.gnss_csv import write_gnss_csv
 from ..io.imu_csv import write_imu_csv
@@ -91,7 +91,6 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
             if odom is not None:
                 write_body_velocity_csv(tmp / "odom.csv", odom)
                 bar.update(1)
-    from ..io.atomic import commit_outputs
     commit_outputs()
     if quiet:
         return

@@ -177,6 +177,7 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
                             cfg["imu"])
     if note:
         log.warning(note)
+    # the readers (pyarrow, rosbags) and the checks load when the command runs: --help stays light
     from ..io.readers import _is_log
     from ..nav.sanity import gyro_unit_check
     gyro_unit_check(first, max(t_start, init.time), gravity(math.sin(init.lat), init.height), init.lat, cfg["imu"],
@@ -214,7 +215,7 @@ def _sensor_description(cfg: dict, config_path) -> dict | None:
     spec = (cfg.get("fusion") or {}).get("sensor")
     if spec is None:
         return None
-    from ..sensors import load_sensor
+    from ..sensors import load_sensor   # PyYAML: only with a sensor description
     base = Path(config_path).parent if config_path else Path.cwd()
     return load_sensor(spec, None, str(config_path or "config"), base, key="fusion.sensor")
 

@@ -32,7 +32,6 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet, raw_gnss):
     # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..sim.run import prepare, write_sim           # here, not at import: `sins simulate --help` is fast
     from ..sim.run import simulate as run_simulation
-
     from ..io.atomic import commit_outputs, prepare_output
     from ..sim.run import SIM_FILES
     for name in SIM_FILES:                             # before any work: a folder, permissions, an input

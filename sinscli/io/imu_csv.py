@@ -255,7 +255,7 @@ def check_static_start(imu: ImuLog, g_local: float, conv: int = 0, seconds: floa
 
 
 def write_imu_rates_csv(path, time, gyro, accel) -> None:
-    """Write rates (FORMATS.md rate form: ``time``, ``gyro_*`` rad/s, ``accel_*`` m/s^2), atomically, exact floats."""
+    """Write rates (docs/formats.md rate form: ``time``, ``gyro_*`` rad/s, ``accel_*`` m/s^2), atomically, exact floats."""
     data = {"time": time}
     for i, ax in enumerate("xyz"):
         data[f"gyro_{ax}"] = gyro[:, i]

@@ -90,7 +90,7 @@ def read_innovations(path) -> np.ndarray:
     """Read an innovations CSV back into a structured array of :data:`DTYPE` (checks as the writer)."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
-    from .inputs import native_path
+    from ..inputs import native_path
     from .csvcore import _finite_columns, _locate_bad_cell, read_header
     from .limits import check_sigma
     path = Path(path)

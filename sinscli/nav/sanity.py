@@ -16,7 +16,9 @@ import numpy as np
 
 from ..config import mounting_angles, mounting_matrix
 from ..conventions import FRD
+from ..errors import SinsError
 from ..types import time_tolerance
+from .earth import OMEGA_IE
 from .imu_stats import block_means
 from .rotation import rotvec_to_dcm
 
@@ -187,7 +189,7 @@ def rest_mean_rate(time, dtheta_b, dvel_b, t0: float, g: float):
 def gyro_bias_bound(sensor: dict | None) -> float:
     """rad/s: the largest norm of a gyro bias (:data:`BIAS_SIGMAS` sigmas per axis) of the 'mems' preset, or
     of the sensor description when that allows more."""
-    from ..sensors import load_sensor
+    from ..sensors import load_sensor   # PyYAML: only when a gyro-unit check needs the presets
 
     def bound(s):
         gyro = (s or {}).get("gyro") or {}
@@ -211,7 +213,6 @@ def gyro_unit_refusal(time, dtheta_b, dvel_b, t0: float, g: float, lat: float | 
     w_b, f_b, seconds, start, turned = found
     if seconds < MIN_REST:
         return None
-    from .earth import OMEGA_IE
     up = f_b / np.linalg.norm(f_b)
     w_h = float(np.linalg.norm(w_b - float(w_b @ up) * up))   # the declared rate that would tilt the body
     if turned > STILL * w_h * seconds:                     # the accelerometers see (part of) that rotation
@@ -244,7 +245,6 @@ def gyro_unit_check(imu, t0: float, g: float, lat: float | None, imu_cfg: dict, 
                     force: bool = False, ros: bool = False) -> None:
     """Refuse (:func:`gyro_unit_refusal`) an IMU block read with the config's ``imu`` section, unless ``force``.
     ``ros``: the log is a ROS/MCAP log (sensor_msgs/Imu is rad/s; no unit key applies)."""
-    from ..errors import SinsError
     if force or len(imu) < 2:
         return
     units = (imu_cfg or {}).get("units") or {}

@@ -22,6 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .earth import dlon, radii_py
+from .imu_stats import block_means
+
 MIN_SPEED = 2.0          # m/s: the GNSS course rate is used above this speed
 MAX_LAG = 120.0          # s: the lags searched (at most half of the overlap)
 MIN_OFFSET = 1.0         # s: smaller offsets (latency) are the filter's business, not reported
@@ -46,7 +49,6 @@ class OffsetEstimate:
 
 def _enu_velocity(t, lat_deg, lon_deg, h):
     """ENU velocity (n, 3) m/s of a GNSS track from its positions (central differences)."""
-    from .earth import dlon, radii_py
     lat = np.radians(lat_deg)
     rm, rn = radii_py(np.sin(lat))
     d_lon = np.radians(dlon(lon_deg[1:], lon_deg[:-1], 180.0))            # across the antimeridian too
@@ -67,7 +69,6 @@ def _gnss_signals(t, vel):
 
 def _imu_signals(time, dtheta_b, dvel_b, t0, step):
     """(grid times, turn rate, horizontal specific force) of the IMU in blocks of ``step`` s."""
-    from ..align.coarse import block_means
     w, f = block_means(time, dtheta_b, dvel_b, t0, step)
     tb = t0 + step * (np.arange(w.shape[0]) + 0.5)
     u = f.mean(axis=0)

@@ -12,6 +12,7 @@ envelope per pixel column, so every peak stays visible.
 from __future__ import annotations
 
 import textwrap
+import warnings
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -109,7 +110,6 @@ def _angle_unit(lines: dict[str, dict]) -> tuple[str, float]:
 def _tight(fig: Figure) -> None:
     """``tight_layout``, quietly: with a very long method name the margins cannot fit and matplotlib would
     print a warning on stderr; the figure is then drawn as laid out."""
-    import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         fig.tight_layout()

@@ -386,7 +386,7 @@ class _RosbagsLog(_Log):
 
 
 def _sqlite_connect(path: Path) -> sqlite3.Connection:
-    from ..inputs import sqlite_uri
+    from ...inputs import sqlite_uri
     con = sqlite3.connect(sqlite_uri(path), uri=True)
     con.text_factory = bytes
     return con
