@@ -157,7 +157,7 @@ def test_the_rule_itself(src, ok):
 
 # Packages whose function-local imports still wait for their reason (their modules are being reworked by
 # other issues; remove a name once its package is done).
-REASONS_PENDING = {"cli.fusion_run": "issue 19 (the lead)", "io": "issue 22 (readers, writers)"}
+REASONS_PENDING: dict[str, str] = {}           # none left (issue 23)
 
 
 def _local_imports():

@@ -5,19 +5,31 @@ Kept apart from :mod:`sinscli.cli.navigate` so that plain navigation does not im
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import click
 import numpy as np
 
+from ..allan.rest import noise_from_rest
 from ..errors import SinsError
-from ..io.gnss_csv import check_gnss_against_imu
+from ..fusion.mounting import estimate_mounting, refine
+from ..fusion.options import build_fusion_options
+from ..fusion.pipeline import Fusion, calibrated_run, fuse_blocks
+from ..fusion.standstill import StandstillDetector, gnss_still
 from ..io.atomic import atomic_path, prepare_output
+from ..io.gnss_csv import check_gnss_against_imu
+from ..io.imu_csv import apply_mounting
 from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
-from ..io.readers import read_body_velocity, read_gnss, read_imu
+from ..io.readers import _is_log, read_body_velocity, read_gnss, read_imu
 from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
-from ..nav.earth import radii_py
+from ..nav.earth import gravity, radii_py
+from ..nav.pipeline import concat
+from ..nav.sanity import gyro_unit_check, mounting_warning
+from ..nav.timesync import estimate_offset, offset_refusal
+from ..nav.window import Window, check_in_log, check_init, clip_imu, from_start, trim
+from ..sensors import load_sensor
 from ..types import ImuLog
 from ..units import G0
 from .base import log, progress, summary_line
@@ -29,13 +41,6 @@ def _span(t) -> str:
 
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
               opts, output, quiet, window=None, odom_path=None, vehicle=None, force=False):
-    from dataclasses import replace
-
-    from ..allan.rest import noise_from_rest
-    from ..fusion.options import build_fusion_options
-    from ..fusion.pipeline import Fusion, calibrated_run, fuse_blocks
-    from ..nav.pipeline import concat
-
     src = str(config_path) if config_path else "config"
     base = Path(config_path).parent if config_path else Path.cwd()
     fopts = build_fusion_options(cfg.fusion, src, base_dir=base, vehicle=vehicle)
@@ -51,7 +56,6 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         raise SinsError(f"{imu_path}: no IMU samples")
     gnss = read_gnss(gnss_path, cfg)
     t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
-    from ..nav.window import Window, check_in_log, check_init, clip_imu, from_start, trim
     window = (window or Window()).resolve(t0)
     check_in_log(window, t0, float(imu.time[-1]), str(imu_path))
     imu = clip_imu(imu, window.end)
@@ -67,16 +71,11 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         raise SinsError(f"{exc} (after the GNSS time offset of {offset:g} s, --time-offset or gnss.time_offset)") \
             from None
     if not force:                              # a constant offset the spans cannot show (nav/timesync.py)
-        from ..nav.timesync import estimate_offset, offset_refusal
         est = estimate_offset(imu.time, imu.dtheta_b, imu.dvel_b, t0, gnss.time, gnss.lat, gnss.lon, gnss.height,
                               gnss.vel_n)
         text = offset_refusal(est, str(gnss.source), cfg.gnss.time_offset)
         if text:
             raise SinsError(text)
-    from ..io.readers import _is_log
-    from ..nav.earth import gravity
-    from ..nav.sanity import gyro_unit_check
-    from ..sensors import load_sensor
     lat_g = float(np.radians(gnss.lat[0]))     # before anything runs on the increments (the mounting too)
     gyro_unit_check(imu, t0, gravity(np.sin(lat_g), float(gnss.height[0])), lat_g, cfg.imu,
                     load_sensor(fopts.sensor or "mems", None, src, fopts.base_dir or base), force,
@@ -90,7 +89,6 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         if len(body_vel.time) == 0 or body_vel.time[-1] < t0 or body_vel.time[0] > imu.time[-1]:
             raise SinsError(f"{body_vel.source}: the body velocity ({_span(body_vel.time)}) does not overlap the "
                             f"IMU log ({t0!r} to {float(imu.time[-1])!r} s)")
-    from ..nav.sanity import mounting_warning
     init_bias = None
     if align_method is not None:             # the attitude comes from the log: check its up axis
         note = mounting_warning(imu, t0, gravity(np.sin(np.radians(gnss.lat[0])), float(gnss.height[0])), opts.conv,
@@ -162,8 +160,6 @@ def mounting_snippet_path(output) -> Path:
 def _auto_mounting(imu, gnss, conv, fopts, output):
     """``imu.mounting: auto``: the mounting estimated from the log (:mod:`sinscli.fusion.mounting`), applied
     to the increments read in sensor axes, reported and written as a config snippet beside the output."""
-    from ..fusion.mounting import estimate_mounting
-    from ..io.imu_csv import apply_mounting
     est = estimate_mounting(imu, gnss, conv, fopts)
     r, p, y = est.rpy
     sr, sp, sy = est.sigma
@@ -179,12 +175,6 @@ def _refine_mounting(imu, est, init, opts, fopts, gnss, init_sigma, init_bias, d
     """Stage 3 of ``imu.mounting: auto`` (:func:`sinscli.fusion.mounting.refine`): a forward pass with the
     stages 1-2 mounting, GNSS only (no NHC, no adaptation passes), gives the vehicle's axes in that body
     frame; the increments and the initial attitude are turned by the residual rotation."""
-    from dataclasses import replace
-
-    from ..fusion.mounting import refine
-    from ..fusion.pipeline import Fusion, fuse_blocks
-    from ..io.imu_csv import apply_mounting
-    from ..nav.pipeline import concat
     f = Fusion(init, opts, replace(fopts, nhc=False, adapt=False), gnss, init_sigma=init_sigma, src=src,
                init_bias=init_bias, data_noise=data_noise, t_log0=t0)
     traj = concat(list(fuse_blocks([imu], f)))
@@ -205,7 +195,6 @@ NEEDS_REST = ("static", "inertial")
 def first_rest(imu, fopts, gnss) -> float:
     """Seconds the log stays at rest from its start (the fused filter's detector, still by the GNSS too);
     0 when it starts moving."""
-    from ..fusion.standstill import StandstillDetector, gnss_still
     t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
     k = int(np.searchsorted(imu.time, t0 + 600.0))
     det = StandstillDetector(fopts.standstill_window, fopts.standstill_rate_std, fopts.standstill_accel_std,
@@ -225,8 +214,8 @@ def _align(imu, gnss, method, cfg, config_path, conv, fopts):
     from its start); an unobservable heading is left to the heading from motion.  ``kf`` gives the
     attitude at its window's end only: inside the fused run its coarse stage gives the start and the
     fusion filter is the fine alignment."""
-    from ..align.options import build_options, merge_section
-    from ..align.pipeline import align
+    from ..align.options import build_options, merge_section  # the alignment only with --align
+    from ..align.pipeline import align  # the alignment only with --align
     src = str(config_path) if config_path else "config"
     al = merge_section(cfg.align, src)
     if method == "kf":

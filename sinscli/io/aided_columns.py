@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SinsError, num
+from .limits import check_sigma
 
 POS_STD = ("pos_e_std", "pos_n_std", "pos_u_std")            # m, ENU
 VEL_STD = ("vel_e_std", "vel_n_std", "vel_u_std")            # m/s, ENU
@@ -55,7 +56,6 @@ def check_columns(where: str, data: dict, first_row: int = 2, row_label: str = "
     ``first_row`` is the number (``row_label`` ``line`` or ``row``) of element 0,
     e.g. 2 for the first data line of a CSV file after its header.
     """
-    from .limits import check_sigma
     for name, arr in data.items():
         a = np.asarray(arr)
         if a.dtype.kind != "f":

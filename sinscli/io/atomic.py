@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import hashlib
 import os
 import re
 import shutil
@@ -96,7 +97,7 @@ def output_lon_lat(path, lat_deg, lon_deg, time=None, first_row: int = 1):
     wrapped into [-180, 180) (RFC 7946, KML, docs/formats.md; across the antimeridian a navigator's longitude
     runs on past 180), after refusing a latitude outside [-90, 90] (a navigation that went over a pole,
     where the ENU mechanization does not hold) naming the output, row, epoch and column."""
-    from ..nav.earth import wrap_lon
+    from ..nav.earth import wrap_lon  # nav.earth (numba) only when a longitude is written
     lat = np.asarray(lat_deg, dtype=np.float64)
     bad = np.abs(lat) > 90.0
     if bad.any():
@@ -138,7 +139,6 @@ def temp_sibling(path: Path, suffix: str = "") -> Path:
     name the file system allows can be written."""
     name = f".{path.name}.{os.getpid()}.part"
     if len(os.fsencode(name + suffix)) > NAME_MAX:
-        import hashlib
         digest = hashlib.sha1(os.fsencode(path.name)).hexdigest()[:12]
         head = os.fsdecode(os.fsencode(path.name)[:120])
         name = f".{head}~{digest}.{os.getpid()}.part"

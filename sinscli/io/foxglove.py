@@ -183,8 +183,8 @@ def _covariances(traj: Trajectory, c_flu: np.ndarray, heading: np.ndarray):
 def write_trajectory_mcap(path, traj: Trajectory, conv: int = 0) -> None:
     """Write the trajectory as MCAP (see module docstring), atomically.  Called through
     :func:`sinscli.io.trajectory.write_trajectory`, whose guard has refused non-finite values and sigmas."""
-    from mcap.writer import Writer
-    from rosbags.typesys import Stores, get_typestore
+    from mcap.writer import Writer  # the ROS back ends (rosbags, mcap) only for a bag or MCAP log
+    from rosbags.typesys import Stores, get_typestore  # the ROS back ends (rosbags, mcap) only for a bag or MCAP log
 
     origin, enu, q = trajectory_enu_quat(traj, conv)
     t_ns = _stamps(traj)
@@ -248,8 +248,8 @@ def read_trajectory_mcap(path, conv: int = 0) -> Trajectory:
     Sigma columns come back from the covariances (position exactly; velocity and attitude through
     the rotations, to rounding), bias columns from ``/sins/imu_bias``.
     """
-    from mcap.reader import make_reader
-    from mcap_ros2.decoder import DecoderFactory
+    from mcap.reader import make_reader  # the ROS back ends (rosbags, mcap) only for a bag or MCAP log
+    from mcap_ros2.decoder import DecoderFactory  # the ROS back ends (rosbags, mcap) only for a bag or MCAP log
     path = Path(path)
     fixes, poses, odoms, biases, meta = [], [], [], [], {}
     try:

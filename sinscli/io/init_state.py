@@ -10,13 +10,14 @@ import yaml
 
 from ..config import InitSection, Limits, TruthSection
 from ..errors import SinsError, num, quote
-from ..nav.rotation import dcm_to_euler, euler_to_dcm
-from ..types import NavState, time_tolerance
-from ..units import UG
-from .atomic import atomic_path, check_finite, output_lon_lat
-from . import limits as limits_mod
 from ..frames import convention, file_name, to_enu
 from ..inputs import input_file, load_yaml
+from ..nav.rotation import body_flu_in_enu, cbn_from_flu, dcm_to_euler, euler_to_dcm
+from ..types import NavState, time_tolerance
+from ..units import UG
+from . import limits as limits_mod
+from .atomic import atomic_path, check_finite, output_lon_lat
+from .trajectory import read_trajectory
 
 INIT_KEYS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading"]
 
@@ -37,7 +38,6 @@ def read_init(path, t_start: float | None = None, conv: int = 0, limits: Limits 
     frame, to_deg = convention(section)
     if path.suffix.lower() in (".yaml", ".yml"):
         return _read_init_yaml(path, conv, lim, frame, to_deg)
-    from .trajectory import read_trajectory
     traj = read_trajectory(path, lim, frame, to_deg)
     if t_start is None:
         k = 0
@@ -50,7 +50,6 @@ def read_init(path, t_start: float | None = None, conv: int = 0, limits: Limits 
     _check_lat(path, math.degrees(traj.lat[k]), f"row {k + 1}, column 'lat'")
     cbn = traj.Cbn[k].copy()
     if traj.body is not None and traj.body != conv:      # the file's body axes -> those of the run
-        from ..nav.rotation import body_flu_in_enu, cbn_from_flu
         cbn = cbn_from_flu(body_flu_in_enu(cbn[None], traj.body), conv)[0]
     return NavState(float(traj.time[k]), float(traj.lat[k]), float(traj.lon[k]), float(traj.height[k]),
                     traj.vel_n[k].copy(), cbn)

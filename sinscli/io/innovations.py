@@ -26,7 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError, num
+from ..inputs import native_path
 from .atomic import atomic_path, check_finite
+from .csvcore import _finite_columns, _locate_bad_cell, read_header
+from .limits import check_sigma
 
 DTYPE = np.dtype([("time", "f8"), ("type", "U16"), ("axis", "U8"), ("innovation", "f8"), ("sigma", "f8"),
                   ("nis", "f8"), ("accepted", "?")])
@@ -59,8 +62,8 @@ def write_innovations(path, records: np.ndarray) -> None:
     that lack a field, or hold an unknown type/axis, a non-finite value, a
     sigma <= 0 or a NIS < 0.
     """
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
+    import pyarrow as pa  # pyarrow (0.3 s to import) only for a Parquet or innovations file
+    import pyarrow.csv as pacsv  # pyarrow (0.3 s to import) only for a Parquet or innovations file
     rec = np.asarray(records)
     names = rec.dtype.names or ()
     missing = [c for c in COLUMNS if c not in names]
@@ -88,11 +91,8 @@ def write_innovations(path, records: np.ndarray) -> None:
 
 def read_innovations(path) -> np.ndarray:
     """Read an innovations CSV back into a structured array of :data:`DTYPE` (checks as the writer)."""
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-    from ..inputs import native_path
-    from .csvcore import _finite_columns, _locate_bad_cell, read_header
-    from .limits import check_sigma
+    import pyarrow as pa  # pyarrow (0.3 s to import) only for a Parquet or innovations file
+    import pyarrow.csv as pacsv  # pyarrow (0.3 s to import) only for a Parquet or innovations file
     path = Path(path)
     header = read_header(path)
     if header != COLUMNS:

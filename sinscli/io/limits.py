@@ -11,6 +11,7 @@ import numpy as np
 
 from ..config import Limits
 from ..errors import SinsError, num, quote
+from .timebase import SCALES
 
 LON_RANGE = 360.0            # deg: longitudes in [-360, 360] (both -180..180 and 0..360 conventions)
 ANGLE_RANGE = 360.0          # deg: roll and heading in [-360, 360]
@@ -146,7 +147,6 @@ def check_time(where, time, lim: Limits, column=None, first=0, row: str = "line"
     if ok.all():
         return
     k = int(np.argmax(~ok))
-    from .timebase import SCALES
     unit = next((u for scale, u in SCALES if abs(t[k]) / scale <= lim.time), None)
     hint = f"; it looks like {unit}, but time stamps are seconds" if unit else ""
     _refuse(where, row, _row(first, k), column, "time stamp", t[k], lim.time, " s", "time", hint)

@@ -8,12 +8,13 @@ import numpy as np
 from ..errors import SinsError
 from ..gnss.signals import SYS_CHARS, SYS_NAMES
 from ..gnss.timesys import epoch_text
+from .atomic import staged_dir
 
 
 def raw_kind(path) -> str | None:
     """``'ubx'``, ``'obs'``, ``'nav'`` or None."""
-    from .rinex import is_rinex
-    from .ubx import is_ubx
+    from .rinex import is_rinex  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
+    from .ubx import is_ubx  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
     p = Path(path)
     if not p.is_file():
         return None
@@ -24,11 +25,11 @@ def raw_kind(path) -> str | None:
 
 def raw_summary(path) -> dict:
     """What a raw GNSS file holds: epochs, span, interval, satellites and signals per system, ephemerides."""
-    from .rinex import read_nav, read_obs
+    from .rinex import read_nav, read_obs  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
     kind = raw_kind(path)
     nav = None
     if kind == "ubx":
-        from .ubx import read_ubx
+        from .ubx import read_ubx  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
         obs, nav = read_ubx(path)
         fmt = "u-blox UBX log (RXM-RAWX, RXM-SFRBX)"
     elif kind == "obs":
@@ -82,9 +83,9 @@ def format_raw_summary(s: dict) -> str:
 
 def convert_ubx(log_path, outdir) -> list[Path]:
     """A UBX log -> DIR/obs.rnx and DIR/nav.rnx (RINEX 3.04), each read back and compared before it is kept."""
-    from .atomic import staged_dir
+    # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
     from .rinex import read_nav, read_obs, write_nav, write_obs
-    from .ubx import read_ubx
+    from .ubx import read_ubx  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
     obs, nav = read_ubx(log_path)
     with staged_dir(outdir) as tmp:
         write_obs(tmp / "obs.rnx", obs)

@@ -5,13 +5,16 @@ from pathlib import Path
 
 from ..config import Config, mounting_matrix
 from ..errors import SinsError
+from ..nav.rotation import BODY_CONVENTIONS
 from ..types import BodyVelLog, GnssLog, ImuLog
+from .body_vel_csv import read_body_velocity_csv
+from .gnss_csv import read_gnss_csv
 from .imu_csv import apply_mounting, concat_imu, iter_imu_csv
 
 
 def _is_log(path) -> bool:
     try:
-        from .ros import is_log
+        from .ros import is_log  # the ROS back ends (rosbags, mcap) only for a bag or MCAP log
     except ImportError:
         return False
     return is_log(path)
@@ -33,7 +36,7 @@ def _iter_imu(path: Path, cfg: Config, allow_gaps: bool):
     if not path.exists():
         raise SinsError(f"{path}: file not found")
     if _is_log(path):
-        from .ros import read_imu as read_ros_imu
+        from .ros import read_imu as read_ros_imu  # the ROS back ends (rosbags, mcap) only for a bag or MCAP log
         ros = cfg.ros
         imu = read_ros_imu(path, topic=ros.imu_topic, time_source=ros.time, allow_gaps=allow_gaps,
                            limits=cfg.limits)
@@ -53,12 +56,11 @@ def read_gnss(path, cfg: Config) -> GnssLog:
     if not path.exists():
         raise SinsError(f"{path}: file not found")
     if _is_log(path):
-        from .ros import read_gnss as read_ros_gnss
+        from .ros import read_gnss as read_ros_gnss  # the ROS back ends (rosbags, mcap) only for a bag or MCAP log
         ros = cfg.ros
         gnss = read_ros_gnss(path, topic=ros.gnss_topic, vel_topic=ros.vel_topic, time_source=ros.time,
                              limits=cfg.limits)
     else:
-        from .gnss_csv import read_gnss_csv
         gnss = read_gnss_csv(path, cfg.gnss, limits=cfg.limits)
     offset = cfg.gnss.time_offset
     if offset:
@@ -78,12 +80,11 @@ def read_body_velocity(path, cfg: Config) -> BodyVelLog:
     if not path.exists():
         raise SinsError(f"{path}: file not found")
     if _is_log(path):
-        from ..nav.rotation import BODY_CONVENTIONS
+        # the ROS back ends (rosbags, mcap) only for a bag or MCAP log
         from .ros.odometry import read_body_velocity as read_ros_body_velocity
         ros = cfg.ros
         return read_ros_body_velocity(path, topic=ros.odom_topic, time_source=ros.time,
                                       mounting=mounting_matrix(cfg.imu.mounting),
                                       conv=BODY_CONVENTIONS[cfg.imu.body], frame=cfg.odometry.frame,
                                       imu_topic=ros.imu_topic, limits=cfg.limits)
-    from .body_vel_csv import read_body_velocity_csv
     return read_body_velocity_csv(path, cfg.odometry, cfg.imu, cfg.limits)

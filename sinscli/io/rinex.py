@@ -21,9 +21,10 @@ from ..gnss.ephemeris import NavData, finish_table, healthy_py
 from ..gnss.observations import ObsData
 from ..gnss.signals import (SYS_BDS, SYS_CHARS, SYS_GAL, SYS_GLO, SYS_GPS, SYS_QZS, high_orbit, sat_name,
                             sys_index)
-from ..gnss.timesys import BDT_OFFSET, DEFAULT_LEAP, SECONDS_PER_WEEK, epoch_text, gps_seconds
+from ..gnss.timesys import BDT_OFFSET, DEFAULT_LEAP, SECONDS_PER_WEEK, calendar, epoch_text, gps_seconds
 from . import rinex_kernels as K
 from ..inputs import input_file
+from .atomic import atomic_path, check_finite
 
 log = logging.getLogger("sins")
 
@@ -74,7 +75,7 @@ def read_bytes(path, what: str = "RINEX file") -> bytes:
 
 def _decompress(p: Path, data: bytes, kind: str) -> bytes:
     try:
-        import hatanaka
+        import hatanaka  # hatanaka only for a Hatanaka-compressed file
     except ImportError:           # pragma: no cover - a declared dependency
         raise SinsError(f"{p}: {kind} RINEX needs the 'hatanaka' package (pip install hatanaka)") from None
     try:
@@ -510,7 +511,6 @@ def _hline(text: str, label: str) -> str:
 
 
 def _cal(t):
-    from ..gnss.timesys import calendar
     return calendar(float(t))
 
 
@@ -626,7 +626,6 @@ def nav_text(nav: NavData, program: str = "sins") -> str:
 
 def write_obs(path, obs: ObsData) -> None:
     """Write ``obs`` as a RINEX 3.04 observation file (atomically; gzip when the name ends in .gz)."""
-    from .atomic import atomic_path
     if not np.isfinite(obs.time).all():
         raise SinsError(f"{path}: internal consistency check: an epoch time is not finite; nothing written")
     with atomic_path(path) as tmp:
@@ -638,7 +637,6 @@ def write_obs(path, obs: ObsData) -> None:
 
 def write_nav(path, nav: NavData) -> None:
     """Write ``nav`` as a RINEX 3.04 navigation file (atomically)."""
-    from .atomic import atomic_path, check_finite
     check_finite(path, {"ephemeris": nav.eph})
     with atomic_path(path) as tmp:
         opener = gzip.open if str(path).endswith(".gz") else open

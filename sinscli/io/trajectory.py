@@ -20,14 +20,14 @@ import pyarrow as pa
 
 from ..conventions import BODY_CONVENTIONS, FLU
 from ..errors import SinsError, quote
+from ..frames import cbn_to_enu, file_name, to_enu
 from ..inputs import closing_native, input_file, native_path
 from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, euler_to_dcm_many, quat_to_dcm_many
 from ..types import Trajectory
-from . import aided_columns
-from . import limits as limits_mod
+from . import aided_columns, limits as limits_mod
 from .atomic import StagedFile, check_finite, output_lon_lat, prepare_output
 from .csvcore import CsvTableWriter, float64_table, float_column, read_header, read_numeric_columns
-from ..frames import cbn_to_enu, file_name, to_enu
+from .imu_csv import check_time
 
 BASE_COLUMNS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading",
                 "qw", "qx", "qy", "qz"]
@@ -110,7 +110,7 @@ class TrajectoryWriter:
                 self._writer = CsvTableWriter(self._tmp, self.columns, self.sigmas, text_columns=text)
             self._writer.write(cols)
         else:
-            import pyarrow.parquet as pq
+            import pyarrow.parquet as pq  # pyarrow (0.3 s to import) only for a Parquet or innovations file
             table = float64_table({c: cols[c] for c in self.columns})
             table = table.replace_schema_metadata({BODY_METADATA: BODY_NAMES[self.conv].encode()})
             if self._writer is None:
@@ -225,7 +225,7 @@ def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) 
     lim = limits_mod.resolve(limits)
     path = input_file(path, "trajectory file")
     if path.suffix.lower() == ".parquet":
-        import pyarrow.parquet as pq
+        import pyarrow.parquet as pq  # pyarrow (0.3 s to import) only for a Parquet or innovations file
         try:
             table = pq.read_table(native_path(path))
         except Exception as exc:
@@ -253,7 +253,6 @@ def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) 
     if frame == "ned":
         data["vel_u"] = data.pop("vel_d")           # (negated by to_enu)
     data = to_enu(data, frame, to_deg)
-    from .imu_csv import check_time
     limits_mod.check_time(path, data["time"], lim, "time", first, row)
     check_time(path, data["time"], allow_gaps=True)
     limits_mod.check_position(path, data["lat"], data["lon"], data["height"], lim, first=first, row=row)
@@ -317,7 +316,7 @@ def _body_code(path, text, where) -> int | None:
 
 def _read_body_column(path) -> int:
     """The ``body`` column of a trajectory CSV: one convention name, the same on every line."""
-    import pyarrow.csv as pacsv
+    import pyarrow.csv as pacsv  # pyarrow (0.3 s to import) only for a Parquet or innovations file
     try:
         col = pacsv.read_csv(native_path(path), convert_options=pacsv.ConvertOptions(
             include_columns=[BODY_COLUMN], column_types={BODY_COLUMN: pa.string()})).column(BODY_COLUMN)

@@ -51,8 +51,8 @@ def _fletcher(buf: np.ndarray) -> tuple[int, int]:
 def frames(data: bytes, source: str, skipped: dict, last_epoch):
     """``(class, id, payload)`` of each UBX message with a valid checksum, framed by pyubx2; corrupt and
     truncated messages are recorded in ``skipped``."""
-    from pyubx2 import ERR_LOG, UBX_PROTOCOL, UBXReader
-    from pyubx2.ubxtypes_core import PARSE_NONE
+    from pyubx2 import ERR_LOG, UBX_PROTOCOL, UBXReader  # pyubx2 only for a UBX log
+    from pyubx2.ubxtypes_core import PARSE_NONE  # pyubx2 only for a UBX log
 
     errors = []
     reader = UBXReader(io.BytesIO(data), protfilter=UBX_PROTOCOL, quitonerror=ERR_LOG, parsing=PARSE_NONE,

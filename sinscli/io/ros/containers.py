@@ -19,7 +19,9 @@ import contextlib
 import heapq
 import io
 import os
+import shutil
 import sqlite3
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
@@ -27,7 +29,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from ...errors import SinsError, quote
-from ...inputs import input_file, load_yaml
+from ...inputs import input_file, load_yaml, sqlite_uri
 from . import decode
 from .decode import ImuBlock
 
@@ -156,7 +158,7 @@ class _RosbagsLog(_Log):
     """ROS 1 bag, ROS 2 bag directory or bare ``.db3``/``.mcap`` storage file through ``rosbags.AnyReader``."""
 
     def __init__(self, path: Path):
-        from rosbags.highlevel import AnyReader
+        from rosbags.highlevel import AnyReader  # rosbags only for a bag or db3 log
         self.path = path
         what = "cannot open log (truncated, corrupt or unsupported)"
         if path.suffix.lower() == ".bag":
@@ -229,7 +231,6 @@ class _RosbagsLog(_Log):
             str(path).encode("utf-8")
             return path
         except UnicodeEncodeError:
-            import tempfile
             self._alias_dir = tempfile.mkdtemp(prefix="sins-log-")
             alias = Path(self._alias_dir) / ("log" + (path.suffix if path.suffix.isascii() else ""))
             os.symlink(os.path.abspath(path), alias)
@@ -240,7 +241,6 @@ class _RosbagsLog(_Log):
             self.reader.close()
         finally:
             if self._alias_dir is not None:
-                import shutil
                 shutil.rmtree(self._alias_dir, ignore_errors=True)
 
     def iter_raw(self, topic):
@@ -317,7 +317,7 @@ class _RosbagsLog(_Log):
 
     def _bag_bulk(self, topic):
         """Imu records of a ROS 1 bag sliced with numpy from the chunks the library indexed and decompresses."""
-        from rosbags.rosbag1.reader import Header
+        from rosbags.rosbag1.reader import Header  # rosbags only for a bag or db3 log
         reader = self.reader.readers[0]
         conns = self.topics[topic].extra["connections"]
         if len(conns) != 1:
@@ -386,7 +386,6 @@ class _RosbagsLog(_Log):
 
 
 def _sqlite_connect(path: Path) -> sqlite3.Connection:
-    from ...inputs import sqlite_uri
     con = sqlite3.connect(sqlite_uri(path), uri=True)
     con.text_factory = bytes
     return con
@@ -460,9 +459,9 @@ class _McapLog(_Log):
     """An ``.mcap`` file through the ``mcap`` package (CRC-checked), decoded by mcap-ros1/ros2 support."""
 
     def __init__(self, path: Path):
-        from mcap.reader import make_reader
-        from mcap_ros1.decoder import DecoderFactory as Ros1Factory
-        from mcap_ros2.decoder import DecoderFactory as Ros2Factory
+        from mcap.reader import make_reader  # mcap only for an MCAP log
+        from mcap_ros1.decoder import DecoderFactory as Ros1Factory  # mcap only for an MCAP log
+        from mcap_ros2.decoder import DecoderFactory as Ros2Factory  # mcap only for an MCAP log
         self.path = path
         self.kind = "MCAP"
         with guard(path, None, "cannot open log (truncated, corrupt or not MCAP)"):
@@ -535,9 +534,9 @@ class _McapLog(_Log):
 
     def _index_entries(self, topic):
         """Per chunk: (chunk index, [(log_time, offset)]) from the library's message index records."""
-        from mcap.data_stream import ReadDataStream
-        from mcap.opcode import Opcode
-        from mcap.records import MessageIndex
+        from mcap.data_stream import ReadDataStream  # mcap only for an MCAP log
+        from mcap.opcode import Opcode  # mcap only for an MCAP log
+        from mcap.records import MessageIndex  # mcap only for an MCAP log
         cids = self.channels[topic]
         out = []
         for ci in self.summary.chunk_indexes:
@@ -575,9 +574,9 @@ class _McapLog(_Log):
 
         Order: (log_time, chunk offset, record offset), the order of the library's log-time iterator.
         """
-        from mcap.data_stream import ReadDataStream
-        from mcap.records import Chunk
-        from mcap.stream_reader import get_chunk_data_stream
+        from mcap.data_stream import ReadDataStream  # mcap only for an MCAP log
+        from mcap.records import Chunk  # mcap only for an MCAP log
+        from mcap.stream_reader import get_chunk_data_stream  # mcap only for an MCAP log
         info = self.topics[topic]
         cids = self.channels[topic]
         if len(cids) != 1 or not self.summary.chunk_indexes:

@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import SinsError
-from .. import limits as limits_mod
 from ...types import GnssLog
+from .. import limits as limits_mod
+from ..gnss_csv import POLE_USE
 from .containers import _Log, choose_topic, guard, open_log
 from .decode import NAVSAT_TYPE, ODOMETRY_TYPE, VEL_TYPES, check_increasing, check_time_source, message_times
 
@@ -130,7 +131,6 @@ def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source, lim: 
         raise SinsError(f"{where}: message {k} has a fix with NaN or infinite latitude/longitude/altitude")
     limits_mod.check_position(where, lla[:, 0], lla[:, 1], lla[:, 2], lim, ("latitude", "longitude", "altitude"),
                               keep, "message")
-    from ..gnss_csv import POLE_USE
     limits_mod.check_near_pole(where, lla[:, 0], "latitude", keep, "message", use=POLE_USE)
     check_increasing(t, where, f"{time_source} stamp")
     ctype = np.array([int(m.position_covariance_type) for m in msgs])

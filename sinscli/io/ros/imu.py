@@ -11,6 +11,8 @@ import numpy as np
 
 from ...errors import SinsError
 from ...types import ImuLog
+from .. import limits as limits_mod
+from ..imu_csv import TimeChecker, rates_to_increments
 from .containers import choose_topic, guard, open_log
 from .decode import ACCEL, GYRO, IMU_TYPE, check_increasing, check_time_source, stamp_seconds
 
@@ -37,8 +39,6 @@ def read_imu(path, topic=None, time_source="header", start=None, end=None, bulk=
     Rates and specific forces beyond ``limits`` (the config's section; default: the defaults) are
     refused naming the message.  ``source`` is ``"file:topic"``.
     """
-    from .. import limits as limits_mod
-    from ..imu_csv import TimeChecker, rates_to_increments
     check_time_source(time_source)
     path = Path(path)
     topic, log_ns, block = read_imu_block(path, topic, bulk=bulk)

@@ -5,13 +5,15 @@ Used by tests and benchmarks, and by anyone who wants simulated data as a bag.
 from __future__ import annotations
 
 import heapq
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 
 def _typestore(ros1: bool):
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_typestore  # rosbags only when a log is written
     return get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
 
 
@@ -122,8 +124,6 @@ def write_log(path, imu=None, gnss=None, vel=None, odom=None, *, imu_topic="/imu
     stamps) plus ``log_delay`` seconds.  Used by tests and
     benchmarks, and by anyone who wants simulated data as a bag.
     """
-    import shutil
-    import tempfile
     path = Path(path)
     suffix = path.suffix.lower()
     ros1 = suffix == ".bag" or (suffix == ".mcap" and mcap_encoding == "ros1")
@@ -157,7 +157,7 @@ def write_log(path, imu=None, gnss=None, vel=None, odom=None, *, imu_topic="/imu
         return heapq.merge(*iters, key=lambda x: (x[0], x[1]))
 
     if suffix == ".bag":
-        from rosbags.rosbag1 import Writer as Writer1
+        from rosbags.rosbag1 import Writer as Writer1  # rosbags only for a bag
         path.unlink(missing_ok=True)
         w = Writer1(path)
         if bag_compression:
@@ -167,7 +167,7 @@ def write_log(path, imu=None, gnss=None, vel=None, odom=None, *, imu_topic="/imu
             for t, i, raw in merged():
                 w.write(conns[i], t, raw)
     elif suffix == ".mcap":
-        from mcap.writer import Writer as McapWriter
+        from mcap.writer import Writer as McapWriter  # mcap only for an MCAP log
         with open(path, "wb") as f:
             w = McapWriter(f)
             w.start(profile="ros1" if ros1 else "ros2", library="sinscli")
@@ -184,8 +184,8 @@ def write_log(path, imu=None, gnss=None, vel=None, odom=None, *, imu_topic="/imu
                 seqs[i] += 1
             w.finish()
     else:
-        from rosbags.rosbag2 import StoragePlugin
-        from rosbags.rosbag2 import Writer as Writer2
+        from rosbags.rosbag2 import StoragePlugin  # rosbags only for a db3 log
+        from rosbags.rosbag2 import Writer as Writer2  # rosbags only for a db3 log
         bare = suffix == ".db3"
         target = Path(tempfile.mkdtemp(dir=path.parent)) / "bag" if bare else path
         if not bare and target.exists():
