@@ -15,7 +15,6 @@ import math
 import warnings
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from types import MappingProxyType
 
 import numpy as np
 
@@ -183,9 +182,9 @@ DEFAULTS = {name: {k: copy.deepcopy(d) for k, (d, _) in keys.items()} for name, 
 
 @dataclass(frozen=True)
 class ImuSection:
-    columns: MappingProxyType = field(default_factory=lambda: sc.frozen({}))
+    columns: sc.FrozenMap = field(default_factory=lambda: sc.frozen({}))
     ignore_columns: tuple = ()
-    units: MappingProxyType = field(default_factory=lambda: _imu_units("", "", {}))
+    units: sc.FrozenMap = field(default_factory=lambda: _imu_units("", "", {}))
     body: str = "flu"
     mounting: object = None
     static_start: bool = False
@@ -194,30 +193,30 @@ class ImuSection:
 
 @dataclass(frozen=True)
 class GnssSection:
-    columns: MappingProxyType = field(default_factory=lambda: sc.frozen({}))
+    columns: sc.FrozenMap = field(default_factory=lambda: sc.frozen({}))
     ignore_columns: tuple = ()
     lever_arm: tuple = (0.0, 0.0, 0.0)
     time_offset: float = 0.0
     frame: str = "enu"
-    units: MappingProxyType = field(default_factory=lambda: sc.frozen({"angle": "deg"}))
+    units: sc.FrozenMap = field(default_factory=lambda: sc.frozen({"angle": "deg"}))
 
 
 @dataclass(frozen=True)
 class InitSection:
     frame: str = "enu"
-    units: MappingProxyType = field(default_factory=lambda: sc.frozen({"angle": "deg"}))
+    units: sc.FrozenMap = field(default_factory=lambda: sc.frozen({"angle": "deg"}))
 
 
 @dataclass(frozen=True)
 class TruthSection:
     frame: str = "enu"
-    units: MappingProxyType = field(default_factory=lambda: sc.frozen({"angle": "deg"}))
+    units: sc.FrozenMap = field(default_factory=lambda: sc.frozen({"angle": "deg"}))
     time_offset: float = 0.0
 
 
 @dataclass(frozen=True)
 class OdometrySection:
-    columns: MappingProxyType = field(default_factory=lambda: sc.frozen({}))
+    columns: sc.FrozenMap = field(default_factory=lambda: sc.frozen({}))
     ignore_columns: tuple = ()
     frame: str = "auto"
 
@@ -235,7 +234,7 @@ class NavigationSection:
     singularity_threshold: float = 0.01
     on_singularity: str = "continue"
     krylov_substep_tol: float = 1.0e-9
-    launch: MappingProxyType | None = None
+    launch: sc.FrozenMap | None = None
 
 
 @dataclass(frozen=True)

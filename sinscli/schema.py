@@ -12,7 +12,6 @@ Pure Python (no numpy), so that every layer can use it.
 from __future__ import annotations
 
 import math
-from types import MappingProxyType
 
 from .errors import SinsError, num, quote
 
@@ -150,6 +149,19 @@ def merge(defaults: dict, data, src, prefix: str, raw=()) -> dict:
     return out
 
 
-def frozen(d: dict) -> MappingProxyType:
-    """A read-only view of a mapping (for a frozen section's mapping fields)."""
-    return MappingProxyType(dict(d))
+class FrozenMap(dict):
+    """A read-only mapping (a frozen section's mapping field): a dict that refuses every change, and pickles
+    (a config travels to the workers of a batch)."""
+
+    def _read_only(self, *args, **kwargs):
+        raise TypeError(f"{type(self).__name__} is read-only (replace the section instead)")
+
+    __setitem__ = __delitem__ = __ior__ = clear = pop = popitem = setdefault = update = _read_only
+
+    def __reduce__(self):
+        return type(self), (dict(self),)
+
+
+def frozen(d: dict) -> FrozenMap:
+    """A read-only copy of a mapping (for a frozen section's mapping fields)."""
+    return FrozenMap(d)

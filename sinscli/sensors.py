@@ -9,6 +9,7 @@ found from any working directory once the package is installed.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
@@ -52,6 +53,42 @@ MIN_TAU = 1.0e-6             # s: shortest Gauss-Markov correlation time
 def preset_text(name: str) -> str:
     """The YAML text of a shipped preset (``navigation``, ``tactical``, ``mems``), from the package data."""
     return resources.files("sinscli").joinpath("data", "sensors", f"{name.lower()}.yaml").read_text(encoding="utf-8")
+
+
+@dataclass(frozen=True)
+class SensorDescription:
+    """An IMU's error description, read once and passed on as a typed value: ``gyro`` and ``accel`` map the
+    keys of :data:`GYRO_UNITS` / :data:`ACCEL_UNITS` to SI values (read-only arrays); ``source`` says where it
+    was read (``<preset mems>``, a file, ``FILE: fusion.sensor`` for an inline mapping)."""
+    gyro: sc.FrozenMap
+    accel: sc.FrozenMap
+    source: str
+
+    def as_dict(self) -> dict:
+        """``{"gyro": {...}, "accel": {...}}`` of writable copies (the form :func:`load_sensor` returns)."""
+        return {"gyro": {k: v.copy() for k, v in self.gyro.items()},
+                "accel": {k: v.copy() for k, v in self.accel.items()}}
+
+
+def read_sensor(spec, src: str, base_dir, key: str = "fusion.sensor") -> SensorDescription:
+    """The :class:`SensorDescription` of a spec (preset name, sensor YAML path relative to ``base_dir``
+    (None: the working directory), or an inline mapping); errors name ``src`` and ``key``."""
+    sens = load_sensor(spec, None, src, Path(base_dir) if base_dir is not None else Path.cwd(), key=key)
+    if isinstance(spec, dict):
+        where = f"{src}: {key}"
+    elif spec.lower() in ("mems", "tactical", "navigation"):
+        where = f"<preset {spec}>"
+    else:
+        where = str(spec)
+
+    def frozen(d):
+        out = {}
+        for k, v in d.items():
+            v = np.array(v, dtype=float)
+            v.flags.writeable = False
+            out[k] = v
+        return sc.FrozenMap(out)
+    return SensorDescription(frozen(sens["gyro"]), frozen(sens["accel"]), where)
 
 
 def load_sensor(spec, overrides: dict | None, src: str, base_dir: Path, key: str = "imu.sensor") -> dict:

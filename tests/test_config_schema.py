@@ -179,3 +179,49 @@ def test_bad_config_from_the_command_line_is_one_line_exit_2(tmp_path):
     assert r.returncode == 2 and r.stderr == "sins: error: c.yaml: key navigation.coning: expected one of 1, 2, 3, 4, " \
                                              "got 7\n"
     assert not (tmp_path / "n.csv").exists()
+
+
+def test_a_config_pickles_and_its_mappings_are_read_only():
+    """A config travels to a batch's workers: it pickles back equal; its mapping fields refuse changes."""
+    import pickle
+    cfg = build_config({"imu": {"columns": {"time": "t"}, "units": {"gyro": "deg/s"}},
+                        "navigation": {"launch": {"lat": 30, "lon": 114, "height": 0, "azimuth": 90}}})
+    assert pickle.loads(pickle.dumps(cfg)) == cfg
+    for m in (cfg.imu.columns, cfg.imu.units, cfg.navigation.launch):
+        with pytest.raises(TypeError):
+            m.update(x=1)
+        with pytest.raises(TypeError):
+            m.pop(next(iter(m)))
+    assert dict(cfg.imu.units) == {"gyro": "deg/s", "accel": "m/s^2", "dtheta": "rad", "dvel": "m/s"}
+
+
+def test_the_sensor_description_is_read_once_into_a_typed_value(tmp_path):
+    """fusion.sensor is read when the options are built (a bad one refused there, before any log is read), into
+    a frozen SensorDescription whose values are the preset's in SI units; the filter takes that value."""
+    import pickle
+    import numpy as np
+    from sinscli.fusion.pipeline import filter_model
+    from sinscli.sensors import SensorDescription, load_sensor, read_sensor
+    fopts = build_fusion_options({"sensor": "tactical"}, "nav.yaml")
+    assert isinstance(fopts.sensor, SensorDescription) and fopts.sensor.source == "<preset tactical>"
+    ref = load_sensor("tactical", None, "x", tmp_path)
+    for which in ("gyro", "accel"):
+        assert set(getattr(fopts.sensor, which)) == set(ref[which])
+        for k, v in ref[which].items():
+            assert np.array_equal(getattr(fopts.sensor, which)[k], v)
+    with pytest.raises(ValueError):                 # read-only arrays
+        fopts.sensor.gyro["arw"][0] = 0.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        fopts.sensor.source = "x"
+    assert pickle.loads(pickle.dumps(fopts)).sensor.source == "<preset tactical>"
+    m = filter_model(fopts.sensor, 15, "nav.yaml")
+    assert np.allclose(m.arw2, ref["gyro"]["arw"] ** 2) and m.source == "<preset tactical>" and not m.default
+    assert filter_model(None, 15, "nav.yaml").default
+    (tmp_path / "imu.yaml").write_text("gyro: {arw: 0.1, bias_sigma: 10, bias_instability: 1, bias_tau: 100}\n"
+                                       "accel: {vrw: 50, bias_sigma: 100, bias_instability: 10, bias_tau: 100}\n")
+    own = build_fusion_options({"sensor": "imu.yaml"}, "nav.yaml", base_dir=tmp_path).sensor
+    again = read_sensor("imu.yaml", "x", tmp_path)
+    assert own.source == again.source == "imu.yaml"
+    assert all(np.array_equal(own.gyro[k], again.gyro[k]) for k in again.gyro) and own.gyro["arw"][0] > 0
+    with pytest.raises(SinsError, match=r"^nav.yaml: key fusion.sensor: no sensor preset or file 'nope.yaml'"):
+        build_fusion_options({"sensor": "nope.yaml"}, "nav.yaml", base_dir=tmp_path)

@@ -384,15 +384,15 @@ def test_unknown_sensor_terms_take_the_conservative_default():
     or misalignment) must not make the filter overconfident: those terms take the default preset's values,
     said in the summary; the bias model is a config choice."""
     from sinscli.fusion.pipeline import filter_model
-    from sinscli.sensors import load_sensor
+    from sinscli.sensors import load_sensor, read_sensor
     allan = {"gyro": {"bias_sigma": 0, "bias_instability": 2, "bias_tau": 100, "arw": 0.1},
              "accel": {"bias_sigma": 0, "bias_instability": 20, "bias_tau": 100, "vrw": 30}}
-    m = filter_model(allan, None, 15, "t")
+    m = filter_model(read_sensor(allan, "t", None), 15, "t")
     ref = load_sensor("mems", None, "t", ROOT)
     assert np.allclose(m.p0_bg, ref["gyro"]["bias_sigma"] ** 2 + (2 * math.radians(1) / 3600) ** 2)
     assert "gyro.bias_sigma (0: unknown)" in m.assumed and "accel.misalignment_sigma" in m.assumed
     assert np.all(m.inv_tau_g == 0)
-    decay = filter_model(allan, None, 15, "t", "gm-decay")
+    decay = filter_model(read_sensor(allan, "t", None), 15, "t", "gm-decay")
     assert np.allclose(decay.inv_tau_g, 1 / 100.0) and np.allclose(decay.q_bg, m.q_bg)
     with pytest.raises(Exception, match="fusion.bias_model"):
         build_fusion_options({"bias_model": "gm"}, "cfg.yaml")

@@ -29,7 +29,7 @@ from ..nav.pipeline import concat
 from ..nav.sanity import gyro_unit_check, mounting_warning
 from ..nav.timesync import estimate_offset, offset_refusal
 from ..nav.window import Window, check_in_log, check_init, clip_imu, from_start, trim
-from ..sensors import load_sensor
+from ..sensors import read_sensor
 from ..types import ImuLog
 from ..units import G0
 from .base import log, progress, summary_line
@@ -43,9 +43,12 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
               opts, output, quiet, window=None, odom_path=None, vehicle=None, force=False):
     src = str(config_path) if config_path else "config"
     base = Path(config_path).parent if config_path else Path.cwd()
-    fopts = build_fusion_options(cfg.fusion, src, base_dir=base, vehicle=vehicle)
-    if sensor is not None:
-        fopts = replace(fopts, sensor=sensor, base_dir=Path.cwd())
+    section = cfg.fusion
+    if sensor is not None and isinstance(section, dict):      # --sensor replaces fusion.sensor: not read
+        section = {**section, "sensor": None}
+    fopts = build_fusion_options(section, src, base_dir=base, vehicle=vehicle)
+    if sensor is not None:                  # the sensor description, read once, a typed value for the filter
+        fopts = replace(fopts, sensor=read_sensor(sensor, "command line", Path.cwd(), key="--sensor"))
     if fopts.lever_arm is None:
         fopts = replace(fopts, lever_arm=np.asarray(cfg.gnss.lever_arm, dtype=float))
     check_trajectory_output(output)
@@ -78,7 +81,7 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
             raise SinsError(text)
     lat_g = float(np.radians(gnss.lat[0]))     # before anything runs on the increments (the mounting too)
     gyro_unit_check(imu, t0, gravity(np.sin(lat_g), float(gnss.height[0])), lat_g, cfg.imu,
-                    load_sensor(fopts.sensor or "mems", None, src, fopts.base_dir or base), force,
+                    (fopts.sensor or read_sensor("mems", src, base)).as_dict(), force,
                     ros=_is_log(imu_path))
     mounting = None
     if cfg.imu.mounting == "auto":

@@ -13,6 +13,7 @@ import numpy as np
 from ..config import MAX_COUNT, MAX_LEVER_ARM
 from .. import schema as sc
 from ..conventions import BIAS_MODELS, ESTIMABLE, FUSION_STATES, VEHICLES
+from ..sensors import SensorDescription, read_sensor
 from ..units import DEG
 
 MAX_VALUE = sc.MAX_VALUE    # any number of the section: its square stays far from overflow
@@ -102,7 +103,7 @@ VEHICLE_PRESETS = {
 class FusionOptions:
     vehicle: str = "none"
     states: int = 15
-    sensor: object = None
+    sensor: SensorDescription | None = None      # read once (sinscli.sensors.read_sensor); None: the default
     noise_from_data: bool = True
     bias_model: str = "gm-noise"
     propagation_interval: float = 0.0
@@ -149,7 +150,6 @@ class FusionOptions:
     adapt_decay: float = 600.0
     scale_factor_tau: float = 10.0
     smoother_interval: float = 1.0
-    base_dir: object = None                  # for a relative sensor path
 
 
 # the one validator family (sinscli.schema), keys under ``fusion.``
@@ -178,16 +178,17 @@ def build_fusion_options(section, src: str, base_dir=None, vehicle: str | None =
     """Validate the raw ``fusion:`` mapping (None: defaults) into :class:`FusionOptions`.
 
     ``vehicle`` (``--vehicle``) overrides ``fusion.vehicle``; the vehicle's preset
-    (:data:`VEHICLE_PRESETS`) fills the keys the section does not set."""
+    (:data:`VEHICLE_PRESETS`) fills the keys the section does not set.  ``fusion.sensor`` is read here, once
+    (a relative path from ``base_dir``), into the typed :class:`~sinscli.sensors.SensorDescription`."""
     section = sc.mapping(src, "fusion", section)
     veh = sc.choice("command line" if vehicle is not None else src, "fusion.vehicle",
                     vehicle if vehicle is not None else section.get("vehicle", "none"), VEHICLES)
     d = _merge(_merge(FUSION_DEFAULTS, VEHICLE_PRESETS[veh], "<vehicle preset>"), section, src)
-    kw = {"base_dir": base_dir, "vehicle": veh}
+    kw = {"vehicle": veh}
     kw["states"] = int(sc.choice(src, "fusion.states", d["states"], FUSION_STATES))
     if d["sensor"] is not None and not isinstance(d["sensor"], (str, dict)):
         sc.expected(src, "fusion.sensor", "a preset name, a sensor YAML path or a mapping", d["sensor"])
-    kw["sensor"] = d["sensor"]
+    kw["sensor"] = None if d["sensor"] is None else read_sensor(d["sensor"], src, base_dir)
     kw["noise_from_data"] = _bool(src, "noise_from_data", d["noise_from_data"])
     kw["bias_model"] = sc.choice(src, "fusion.bias_model", d["bias_model"], BIAS_MODELS)
     kw["propagation_interval"] = _num(src, "propagation_interval", d["propagation_interval"], ge=0.0, le=0.1)

@@ -22,7 +22,7 @@ from ..nav import strapdown as sd
 from ..nav.earth import gravity, local_en
 from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
 from ..nav.rotation import conv_to_flu
-from ..sensors import G0, load_sensor
+from ..sensors import G0, SensorDescription, load_sensor, read_sensor
 from ..types import GnssLog, ImuLog, NavState, Trajectory, time_tolerance
 from ..units import DEG, UG_DECIMAL
 from . import kernel as kn
@@ -70,13 +70,13 @@ class FilterModel:
     assumed: list = field(default_factory=list)     # terms taken from the default preset (unknown)
 
 
-def filter_model(spec, base_dir, states: int, src: str, bias_model: str = "gm-noise") -> FilterModel:
-    """The filter's noise model from a sensor preset/file (None: the stated conservative default)."""
-    default = spec is None
-    spec = DEFAULT_SENSOR if default else spec
-    sens = load_sensor(spec, None, src, Path(base_dir) if base_dir is not None else Path.cwd())
-    where = f"<preset {spec}>" if isinstance(spec, str) and spec.lower() in ("mems", "tactical", "navigation") \
-        else (str(spec) if not isinstance(spec, dict) else f"{src}: fusion.sensor")
+def filter_model(sensor: SensorDescription | None, states: int, src: str, bias_model: str = "gm-noise") -> FilterModel:
+    """The filter's noise model from the sensor description read for the run (None: the stated conservative
+    default, the :data:`DEFAULT_SENSOR` preset)."""
+    default = sensor is None
+    if default:
+        sensor = read_sensor(DEFAULT_SENSOR, src, None)
+    sens, where = sensor.as_dict(), sensor.source
     for which, keys in REQUIRED_TERMS.items():
         for k in keys:
             if k not in sens[which]:
@@ -307,7 +307,7 @@ class Fusion:
                             f"not {nav.attitude} / {nav.frame}")
         self.nav, self.fopts, self.gnss, self.init = nav, fopts, gnss, init
         self.smooth = smooth
-        self.model = filter_model(fopts.sensor, fopts.base_dir, 21 if "lever_arm" in fopts.estimate else fopts.states,
+        self.model = filter_model(fopts.sensor, 21 if "lever_arm" in fopts.estimate else fopts.states,
                                   src, fopts.bias_model)
         self.data_notes = []
         if data_noise is not None and fopts.noise_from_data:
