@@ -354,7 +354,7 @@ def test_walker_gait_amplitudes_standstill_and_turns():
 @pytest.mark.parametrize("mutate, message", [
     (lambda d: d["imu"].update(output="counts"), r"key imu\.output: expected one of increments, rates, got 'counts'"),
     (lambda d: d["imu"].update(stamp_jitter=0.006), r"imu\.stamp_jitter: must be below half the IMU interval"),
-    (lambda d: d["imu"].update(time_offset="late"), r"imu\.time_offset: expected a number"),
+    (lambda d: d["imu"].update(time_offset="late"), r"key imu\.time_offset: expected a finite number"),
     (lambda d: d["imu"].update(mounting={"roll": 1, "yew": 2}), r"key imu\.mounting\.yew: unknown key"),
     (lambda d: d["imu"].update(mounting=[[1, 0], [0, 1]]), r"key imu\.mounting: expected \{roll, pitch, yaw\}"),
     (lambda d: d.update(vibration={"gyro_rms": 1, "band": [20, 60]}),

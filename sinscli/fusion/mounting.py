@@ -36,7 +36,7 @@ from ..errors import SinsError
 from ..nav.earth import local_en
 from ..nav.rotation import conv_to_flu
 from ..types import GnssLog, ImuLog, Trajectory
-from ..units import DEG, G0, MG
+from ..units import G0, MG
 from .standstill import StandstillDetector, gnss_still
 from ..config import mounting_matrix
 

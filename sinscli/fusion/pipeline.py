@@ -24,7 +24,7 @@ from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
 from ..nav.rotation import conv_to_flu
 from ..sensors import G0, SensorDescription, load_sensor, read_sensor
 from ..types import GnssLog, ImuLog, NavState, Trajectory, time_tolerance
-from ..units import DEG, UG_DECIMAL
+from ..units import UG_DECIMAL
 from . import kernel as kn
 from .model import BA, BG, PHI, SA, SG, V
 from .noise import apply_data_noise

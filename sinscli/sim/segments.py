@@ -224,7 +224,7 @@ def expand(segments: list[dict], x_start: np.ndarray, where: str) -> list[Primit
     prims: list[Primitive] = []
     n = len(segments)
     for i, seg in enumerate(segments):
-        key = f"{where}: segments[{i}]"
+        key = f"{where}: key segments[{i}]"           # the one message style (sinscli.schema)
         kind = seg["type"]
         dur = float(seg["duration"])
         new = _expand_one(kind, seg, i, n, t, dur, x, r, key)
