@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -227,7 +227,7 @@ def plan_monte_carlo(path, runs: int | None = None, seed0: int | None = None) ->
     base_opts = build_options(merged, src, conv=sc.conv, lever_arm=sc.gnss["lever_arm"], base_dir=base)
     if not base_opts.sensor.given:
         # the alignment is told the sensor the runs are drawn from (align.sensor overrides)
-        base_opts.sensor = from_sensor(prepared.sensor, "scenario")
+        base_opts = replace(base_opts, sensor=from_sensor(prepared.sensor, "scenario"))
     rw = mc["roll_window"]
     variants = [(base_opts.method, None)]
     if rw is not None and base_opts.method != "static":
