@@ -871,9 +871,9 @@ def _geometry(path: Path) -> str | None:
     lat = lon = None
     try:
         if path.suffix in (".csv", ".parquet") and path.name.startswith("out"):
-            from sinscli.config import DEFAULTS
+            from sinscli.config import Limits
             from sinscli.io.trajectory import read_trajectory
-            wide = dict(DEFAULTS["limits"], speed=1e300, height_min=-1e300, height_max=1e300)   # a diverged run
+            wide = Limits(speed=1e300, height_min=-1e300, height_max=1e300)   # a diverged run
             t = read_trajectory(path, limits=wide)                 # (from a height of 1e8 m) is written as is
             lat, lon = np.degrees(t.lat), np.degrees(t.lon)
         elif path.suffix == ".geojson":
