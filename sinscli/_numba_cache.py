@@ -9,6 +9,8 @@ the CLI says so once.
 from __future__ import annotations
 
 import contextlib
+import importlib.abc
+import importlib.util
 import os
 import sys
 import tempfile
@@ -108,3 +110,83 @@ def announce_compiles(echo, text: str):
             yield
     finally:
         _note = None
+
+
+# --- a lean numba: no SciPy on the paths that need no linear algebra (issue 21) -------------------------
+#
+# Importing numba imports SciPy to check its version (``numba._ensure_critical_deps``, 15 ms), and the
+# CPU target, initialised by the first kernel compiled *or loaded from the cache*, imports
+# ``numba.np.arraymath``, whose start-up probe for BLAS (``_check_blas``) imports ``scipy.linalg``
+# (0.2 s, with its Fortran libraries).  Neither is needed to run a kernel that calls no BLAS/LAPACK:
+# numba's compiled linear algebra finds SciPy's routines through ``numba._helperlib`` at its first call,
+# and numba checks SciPy again (``ensure_blas``/``ensure_lapack``, the ILP64 check) whenever it compiles
+# one.  So when numba is imported after ``sinscli`` (every ``sins`` command), its import runs with
+# ``scipy`` hidden, and ``arraymath``'s probe asks only whether SciPy is installed.  A command that needs
+# SciPy imports it where it uses it; ``tests/test_cli_startup.py`` checks that plain navigation never does.
+
+def _probe_blas() -> None:
+    """``numba.np.arraymath``'s start-up probe: BLAS is there when SciPy is installed (not imported)."""
+    if importlib.util.find_spec("scipy") is None:
+        raise ImportError("scipy 0.16+ is required for linear algebra")
+
+
+def _lean_arraymath() -> None:
+    """Import ``numba.np.arraymath`` (the CPU target would, at its first kernel) with :func:`_probe_blas`
+    as its BLAS probe; numba's own ``ensure_blas`` is put back for every later use."""
+    if "numba.np.arraymath" in sys.modules:
+        return
+    import numba.np.linalg as nplinalg    # noqa: numba is imported here already
+    real = nplinalg.ensure_blas
+    nplinalg.ensure_blas = _probe_blas
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        nplinalg.ensure_blas = real
+
+
+class _NumbaLoader(importlib.abc.Loader):
+    """numba's own loader, run with ``scipy`` hidden (its version check is skipped: pyproject requires
+    scipy >= 1.11), then :func:`_lean_arraymath`."""
+
+    def __init__(self, loader):
+        self._loader = loader
+
+    def create_module(self, spec):
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module):
+        hide = "scipy" not in sys.modules
+        if hide:
+            sys.modules["scipy"] = None           # `import scipy` raises ImportError, which numba passes
+        try:
+            self._loader.exec_module(module)
+        finally:
+            if hide and "scipy" in sys.modules and sys.modules["scipy"] is None:
+                del sys.modules["scipy"]
+        _lean_arraymath()
+
+    def __getattr__(self, name):                  # get_resource_reader, is_package, ... as numba's loader
+        return getattr(self._loader, name)
+
+
+class _NumbaFinder(importlib.abc.MetaPathFinder):
+    """Finds ``numba`` once, through the other finders, and wraps its loader in :class:`_NumbaLoader`."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "numba":
+            return None
+        with contextlib.suppress(ValueError):
+            sys.meta_path.remove(self)
+        spec = importlib.util.find_spec("numba")
+        if spec is not None and spec.loader is not None:
+            spec.loader = _NumbaLoader(spec.loader)
+        return spec
+
+
+def lean_numba() -> None:
+    """Make the coming import of numba lean (see above); when numba is loaded already, only the probe."""
+    if "numba" in sys.modules:
+        if "numba.np.arraymath" not in sys.modules and sys.modules["numba"] is not None:
+            _lean_arraymath()
+    elif not any(isinstance(f, _NumbaFinder) for f in sys.meta_path):
+        sys.meta_path.insert(0, _NumbaFinder())
