@@ -14,6 +14,8 @@ import importlib.util
 import os
 import sys
 import tempfile
+import threading
+import time
 from pathlib import Path
 
 
@@ -73,25 +75,112 @@ def ensure_cache_dir() -> str | None:
 
 _announced = False          # a first-compile note was shown in this process
 _note = None               # the running command's own text for it (set_compile_note), else the generic one
+_note_seconds = None       # and its own estimate for the progress line (CompileProgress)
 
 
-def set_compile_note(text: str) -> None:
+def set_compile_note(text: str, seconds: float | None = None) -> None:
     """The text of the first-compile note for the rest of the running command (``sins navigate`` names its
-    kernels and the estimate of its first run) instead of the generic one of :func:`announce_compiles`."""
-    global _note
-    _note = text
+    kernels and the estimate of its first run) instead of the generic one of :func:`announce_compiles`;
+    ``seconds``, the idle estimate of its compile, replaces the command's in the progress line."""
+    global _note, _note_seconds
+    _note, _note_seconds = text, seconds
+
+
+class CompileProgress:
+    """A refreshed line on ``stream`` while numba compiles (issue 21: never a silent minute): the seconds spent
+    compiling so far against the estimate, redrawn every second on a terminal (``\\r``), a new line every
+    ``every_s`` seconds elsewhere (logs, CI).  ``estimate_s`` is the idle machine's figure; the line scales it
+    by the load (numba compiles on one thread: with L runnable jobs on N CPUs it gets about N/L of one)."""
+
+    def __init__(self, stream, estimate_s: float | None, every_s: float = 15.0):
+        self.stream = stream
+        self.tty = bool(getattr(stream, "isatty", lambda: False)())
+        self.every_s = 1.0 if self.tty else every_s
+        self.base_s = estimate_s
+        self._lock = threading.Lock()
+        self._depth = 0                 # nested numba:compile events under way
+        self._since = None              # perf_counter() when the outermost compile started
+        self._spent = 0.0               # seconds of finished compiles
+        self._drawn = False             # a terminal line is open (needs its newline)
+        self._stop = threading.Event()
+        self._thread = None
+
+    def estimate(self) -> float | None:
+        base = _note_seconds if _note_seconds is not None else self.base_s
+        if base is None:
+            return None
+        try:
+            load = os.getloadavg()[0]
+        except OSError:
+            load = 0.0
+        return base * max(1.0, load / (os.cpu_count() or 1))
+
+    def seconds(self) -> float:
+        with self._lock:
+            return self._spent + (time.perf_counter() - self._since if self._since is not None else 0.0)
+
+    def line(self) -> str:
+        t, est = self.seconds(), self.estimate()
+        if est is None:
+            return f"sins: kernels: {t:.0f} s so far (first run only)"
+        if t <= est:
+            return f"sins: kernels: {t:.0f} s of about {est:.0f} s (first run only)"
+        return f"sins: kernels: {t:.0f} s, longer than the {est:.0f} s expected at this load (first run only)"
+
+    def _draw(self, final: bool = False) -> None:
+        text = self.line()
+        if self.tty:
+            self.stream.write("\r" + text + "\x1b[K" + ("\n" if final else ""))
+            self._drawn = not final
+        else:
+            self.stream.write(text + "\n")
+        self.stream.flush()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.every_s):
+            with self._lock:
+                busy = self._depth > 0
+            if busy:
+                self._draw()
+
+    def start(self) -> None:
+        with self._lock:
+            if self._depth == 0:
+                self._since = time.perf_counter()
+            self._depth += 1
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="sins-compile-progress", daemon=True)
+            self._thread.start()
+
+    def end(self) -> None:
+        with self._lock:
+            self._depth = max(0, self._depth - 1)
+            if self._depth == 0 and self._since is not None:
+                self._spent += time.perf_counter() - self._since
+                self._since = None
+            close = self._depth == 0 and self._drawn
+        if close:
+            self._draw(final=True)           # the terminal line ends where the compile ends
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+        if self._drawn:
+            self._draw(final=True)
 
 
 @contextlib.contextmanager
-def announce_compiles(echo, text: str):
+def announce_compiles(echo, text: str, progress: CompileProgress | None = None):
     """While active (one command), the first numba compile of this process (a kernel missing from the
     on-disk cache) calls ``echo(note)`` once, before the compiler runs: the command says why it pauses.
-    ``note`` is ``text``, or what the command gave :func:`set_compile_note`.
+    ``note`` is ``text``, or what the command gave :func:`set_compile_note`.  With ``progress``, every
+    compile of the command also drives that refreshed line (:class:`CompileProgress`).
 
     Listens to numba's ``numba:compile`` event, which fires only when a kernel is compiled, never when
     it is loaded from the cache; once a note was shown, no later compile of the process repeats it.
     """
-    global _note
+    global _note, _note_seconds
     from numba.core import event   # numba only when a command compiles (sins --help loads none)
 
     class _FirstCompile(event.Listener):
@@ -100,16 +189,21 @@ def announce_compiles(echo, text: str):
             if not _announced:
                 _announced = True
                 echo(_note or text)
+            if progress is not None:
+                progress.start()
 
         def on_end(self, ev):
-            pass
+            if progress is not None:
+                progress.end()
 
-    _note = None
+    _note = _note_seconds = None
     try:
         with event.install_listener("numba:compile", _FirstCompile()):
             yield
     finally:
-        _note = None
+        if progress is not None:
+            progress.close()
+        _note = _note_seconds = None
 
 
 # --- a lean numba: no SciPy on the paths that need no linear algebra (issue 21) -------------------------

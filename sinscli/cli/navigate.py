@@ -152,7 +152,8 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from .._numba_cache import set_compile_note
     from ..nav.pipeline import first_run_seconds
-    set_compile_note(f"sins: compiling navigation kernels (first run only, about {first_run_seconds(opts)} s)")
+    seconds = first_run_seconds(opts)
+    set_compile_note(f"sins: compiling navigation kernels (first run only, about {seconds} s)", seconds)
     blocks = iter_imu(imu, cfg, allow_gaps=nav["allow_gaps"])
     first = next(blocks, None)
     if first is None or len(first) == 0:
