@@ -189,34 +189,40 @@ def d2d(bits):
 _PAIRS = np.frombuffer("".join(f"{i:02d}" for i in range(100)).encode(), np.uint8).copy()   # "00".."99"
 
 
+_U10, _U100, _U10K, _U48 = np.uint64(10), np.uint64(100), np.uint64(10_000), np.uint64(48)
+
+
 @njit(cache=True, inline="always")
 def _ndigits(v):
+    """Decimal digits of ``v`` (uint64, > 0)."""
     n = 1
-    while v >= 10000:
-        v //= 10000
+    while v >= _U10K:
+        v //= _U10K
         n += 4
-    if v >= 100:
-        v //= 100
+    if v >= _U100:
+        v //= _U100
         n += 2
-    if v >= 10:
+    if v >= _U10:
         n += 1
     return n
 
 
 @njit(cache=True, inline="always")
 def _put_digits(v, out, end, count):
-    """The last ``count`` decimal digits of ``v`` (int64) into ``out[end - count:end]``, two at a time;
-    returns what is left of ``v``."""
+    """The last ``count`` decimal digits of ``v`` (uint64: unsigned division is the cheaper) into
+    ``out[end - count:end]``, two at a time; returns what is left of ``v``."""
     while count >= 2:
-        r = v % 100
-        v //= 100
+        q = v // _U100
+        r = v - q * _U100
+        v = q
         out[end - 1] = _PAIRS[2 * r + 1]
         out[end - 2] = _PAIRS[2 * r]
         end -= 2
         count -= 2
     if count:
-        out[end - 1] = 48 + v % 10
-        v //= 10
+        q = v // _U10
+        out[end - 1] = v - q * _U10 + _U48
+        v = q
     return v
 
 
@@ -232,8 +238,7 @@ def write_float(x, out, pos):
     if bits == np.uint64(0):
         out[pos] = 48
         return pos + 1
-    d, exp = d2d(bits)
-    digits = np.int64(d)                               # at most 17 digits
+    digits, exp = d2d(bits)                            # at most 17 digits
     n = _ndigits(digits)
     point = n + exp                                    # value = 0.d1d2...dn * 10**point
     sci = point - 1
@@ -262,7 +267,7 @@ def write_float(x, out, pos):
     # d.ddde+XX
     end = pos + n + (1 if n > 1 else 0)
     digits = _put_digits(digits, out, end, n - 1)
-    out[pos] = 48 + digits
+    out[pos] = digits + _U48
     if n > 1:
         out[pos + 1] = 46
     pos = end
