@@ -27,7 +27,7 @@ def _span(t) -> str:
 
 
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-              opts, output, quiet, window=None, odom_path=None, vehicle=None):
+              opts, output, quiet, window=None, odom_path=None, vehicle=None, force=False):
     from dataclasses import replace
 
     from ..allan.rest import noise_from_rest
@@ -65,6 +65,21 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
             raise
         raise SinsError(f"{exc} (after the GNSS time offset of {offset:g} s, --time-offset or gnss.time_offset)") \
             from None
+    if not force:                              # a constant offset the spans cannot show (nav/timesync.py)
+        from ..nav.timesync import estimate_offset, offset_refusal
+        est = estimate_offset(imu.time, imu.dtheta_b, imu.dvel_b, t0, gnss.time, gnss.lat, gnss.lon, gnss.height,
+                              gnss.vel_n)
+        text = offset_refusal(est, str(gnss.source), float(cfg["gnss"]["time_offset"]))
+        if text:
+            raise SinsError(text)
+    from ..io.readers import _is_log
+    from ..nav.earth import gravity
+    from ..nav.sanity import gyro_unit_check
+    from ..sensors import load_sensor
+    lat_g = float(np.radians(gnss.lat[0]))     # before anything runs on the increments (the mounting too)
+    gyro_unit_check(imu, t0, gravity(np.sin(lat_g), float(gnss.height[0])), lat_g, cfg["imu"],
+                    load_sensor(fopts.sensor or "mems", None, src, fopts.base_dir or base), force,
+                    ros=_is_log(imu_path))
     mounting = None
     if cfg["imu"].get("mounting") == "auto":
         imu, mounting = _auto_mounting(imu, gnss, opts.conv, fopts, output)
@@ -74,7 +89,6 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         if len(body_vel.time) == 0 or body_vel.time[-1] < t0 or body_vel.time[0] > imu.time[-1]:
             raise SinsError(f"{body_vel.source}: the body velocity ({_span(body_vel.time)}) does not overlap the "
                             f"IMU log ({t0!r} to {float(imu.time[-1])!r} s)")
-    from ..nav.earth import gravity
     from ..nav.sanity import mounting_warning
     init_bias = None
     if align_method is not None:             # the attitude comes from the log: check its up axis
@@ -125,17 +139,12 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         log.debug("rejected %s %s at %.6f s: innovation %.4g, sigma %.4g, NIS %.3g", r["type"], r["axis"],
                   r["time"], r["innovation"], r["sigma"], r["nis"])
     guard_trajectory(output, traj)               # both outputs or neither: the guard before either is written
-    if innovations_path is not None:
-        write_innovations(innovations_path, records)
-    try:
-        write_trajectory(output, traj, opts.conv)
-        if mounting is not None:
-            with atomic_path(mounting_snippet_path(output), suffix=".yaml") as tmp:
-                Path(tmp).write_text(mounting.snippet(), encoding="utf-8")
-    except BaseException:
-        if innovations_path is not None:
-            Path(innovations_path).unlink(missing_ok=True)
-        raise
+    if innovations_path is not None:               # both staged in the command's output set (io/atomic.py):
+        write_innovations(innovations_path, records)   # in place together, or neither (an earlier pair kept)
+    write_trajectory(output, traj, opts.conv)
+    if mounting is not None:
+        with atomic_path(mounting_snippet_path(output), suffix=".yaml") as tmp:
+            Path(tmp).write_text(mounting.snippet(), encoding="utf-8")
     for line in summary.lines():
         click.echo(f"sins: {line}", err=True)
     for w in summary.warnings:

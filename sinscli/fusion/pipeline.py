@@ -594,7 +594,7 @@ class Fusion:
                      "accepted", c, e[2])
 
     def _columns(self, var, bias) -> dict:
-        """FORMATS.md aided-trajectory columns from the row variances and the sensor estimates (SI)."""
+        """docs/formats.md aided-trajectory columns from the row variances and the sensor estimates (SI)."""
         d = math.degrees(1.0)
         out = {}
         for i, k in enumerate(SIGMA_COLUMNS[:6]):
