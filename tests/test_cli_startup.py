@@ -119,12 +119,15 @@ def test_plain_navigate_loads_no_scipy(tmp_path):
 def test_lean_numba_keeps_linear_algebra_working():
     """With numba imported through ``sinscli`` (SciPy hidden at its import), a kernel that calls LAPACK still
     compiles and gives numpy's answer; SciPy is imported then, by numba, for that kernel only."""
-    code = ("import sys, sinscli, numpy as np\nfrom numba import njit\n"
-            "assert 'scipy.linalg' not in sys.modules\n"
-            "f = njit(lambda a: np.linalg.solve(a, np.ones(3)))\n"
-            "a = np.array([[4.0, 1, 0], [1, 3, 1], [0, 1, 2]])\n"
-            "assert np.allclose(f(a), np.linalg.solve(a, np.ones(3)), rtol=0, atol=1e-15)\n"
-            "print('scipy.linalg' in sys.modules)\n")
+    code = """if True:
+        import sys, sinscli, numpy as np
+        from numba import njit
+        assert 'scipy.linalg' not in sys.modules
+        f = njit(lambda a: np.linalg.solve(a, np.ones(3)))
+        a = np.array([[4.0, 1, 0], [1, 3, 1], [0, 1, 2]])
+        assert np.allclose(f(a), np.linalg.solve(a, np.ones(3)), rtol=0, atol=1e-15)
+        print('scipy.linalg' in sys.modules)
+    """
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "True"

@@ -87,6 +87,13 @@ def second_difference_sums(x, ms):
 
 
 @njit(cache=True)
+def _all_chunks(x, m, part):
+    """Every chunk of :func:`_chunk_sums`, in order, on this thread."""
+    for ch in range(NCHUNK):
+        _chunk_sums(x, m, ch, part)
+
+
+@njit(cache=True)
 def second_difference_sums_serial(x, ms):
     """:func:`second_difference_sums` on one thread, the same chunks in the same order (the same bits): for
     short stretches (the fusion's and the alignment's rest windows), where starting numba's thread pool and
@@ -94,8 +101,7 @@ def second_difference_sums_serial(x, ms):
     out = np.zeros((ms.shape[0], x.shape[1]))
     part = np.zeros((NCHUNK, x.shape[1]))
     for a in range(ms.shape[0]):
-        for ch in range(NCHUNK):
-            _chunk_sums(x, ms[a], ch, part)
+        _all_chunks(x, ms[a], part)
         _add_chunks(part, out, a)
     return out
 
