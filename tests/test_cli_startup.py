@@ -131,3 +131,16 @@ def test_lean_numba_keeps_linear_algebra_working():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "True"
+
+
+def test_commands_run_one_blas_thread_unless_the_user_says():
+    """Issue 21: OpenBLAS's threads spin on vectors of ~10,000 (25x the CPU of one thread under load); the command
+    line sets one thread before numpy loads, and a user's OPENBLAS_NUM_THREADS is kept."""
+    import os
+    code = "import sinscli.cli, os, numpy; print(os.environ['OPENBLAS_NUM_THREADS'])"
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    assert r.stdout.strip() == "1"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=dict(env, OPENBLAS_NUM_THREADS="3"),
+                       check=True)
+    assert r.stdout.strip() == "3"
