@@ -58,9 +58,10 @@ def write_increment_csv(path: Path, n: int) -> None:
         for a in range(0, n, step):
             k = np.arange(a, min(a + step, n))
             j = k % len(drive.time)
-            cols = {"time": (k + 1) * dt}
-            for i in range(3):
+            cols = {"time": (k + 1) * dt}              # in the header's order (the columns were interleaved
+            for i in range(3):                          # before issue 21: dvel under dtheta names)
                 cols[names[i]] = drive.dtheta_b[j, i]
+            for i in range(3):
                 cols[names[3 + i]] = drive.dvel_b[j, i]
             pacsv.write_csv(pa.table(cols), fh, write_options=opts)
 
