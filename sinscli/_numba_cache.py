@@ -98,6 +98,7 @@ class CompileProgress:
         self.every_s = 1.0 if self.tty else every_s
         self.base_s = estimate_s
         self._lock = threading.Lock()
+        self._io = threading.Lock()     # one writer of the line at a time (the refresher and the main thread)
         self._depth = 0                 # nested numba:compile events under way
         self._since = None              # perf_counter() when the outermost compile started
         self._spent = 0.0               # seconds of finished compiles
@@ -129,12 +130,15 @@ class CompileProgress:
 
     def _draw(self, final: bool = False) -> None:
         text = self.line()
-        if self.tty:
-            self.stream.write("\r" + text + "\x1b[K" + ("\n" if final else ""))
-            self._drawn = not final
-        else:
-            self.stream.write(text + "\n")
-        self.stream.flush()
+        with self._io:
+            if final and not self._drawn:
+                return
+            if self.tty:
+                self.stream.write("\r" + text + "\x1b[K" + ("\n" if final else ""))
+                self._drawn = not final
+            else:
+                self.stream.write(text + "\n")
+            self.stream.flush()
 
     def _run(self) -> None:
         while not self._stop.wait(self.every_s):

@@ -134,3 +134,22 @@ def test_progress_line_is_refreshed_while_compiling_and_scaled_by_the_load(monke
     assert len(lines) >= 3 and out.getvalue() == after_compile, out.getvalue()
     assert all(ln.startswith("sins: kernels: ") and ln.endswith("of about 12 s (first run only)") for ln in lines)
     assert 0.25 <= progress.seconds() < 5.0
+
+
+def test_progress_on_a_terminal_redraws_one_line_and_ends_it():
+    import io
+    import time
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    out = Tty()
+    progress = _numba_cache.CompileProgress(out, estimate_s=None)
+    progress.start()
+    time.sleep(1.3)                       # one redraw (every second on a terminal)
+    progress.end()
+    progress.close()
+    text = out.getvalue()
+    assert text.startswith("\rsins: kernels: 1 s so far (first run only)\x1b[K") and text.endswith("\n")
+    assert text.count("\n") == 1          # one line, redrawn in place, ended once
