@@ -60,7 +60,8 @@ def run(work: Path, pip_cache: bool = False, echo=print) -> dict:
     """Install into ``work/venv`` and run the README's first command there twice; returns the figures."""
     install, commands = readme_first_command()
     venv = work / "venv"
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "VIRTUAL_ENV", "PYTHON"))}
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith(("NUMBA_", "VIRTUAL_ENV", "PYTHON", "SINS_NO_PRECOMPILE"))}   # the README's install
     env["XDG_CACHE_HOME"] = str(work / "xdg-cache")            # empty: no user-wide numba or pip cache
     if not pip_cache:
         env["PIP_NO_CACHE_DIR"] = "1"
