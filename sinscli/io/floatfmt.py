@@ -242,35 +242,33 @@ def write_float(x, out, pos):
     n = _ndigits(digits)
     point = n + exp                                    # value = 0.d1d2...dn * 10**point
     sci = point - 1
-    if -6 <= sci < 10:
-        if point <= 0:                                 # 0.000ddd
+    fixed = -6 <= sci < 10
+    if fixed and point <= 0:                           # 0.000ddd
+        out[pos] = 48
+        out[pos + 1] = 46
+        pos += 2
+        for _ in range(-point):
             out[pos] = 48
-            out[pos + 1] = 46
-            pos += 2
-            for _ in range(-point):
-                out[pos] = 48
-                pos += 1
-            _put_digits(digits, out, pos + n, n)
-            return pos + n
+            pos += 1
+    start = pos if fixed else pos + 1
+    _put_digits(digits, out, start + n, n)             # the digits, once; then the point or the exponent
+    if fixed:
+        if point <= 0:
+            return start + n
         if point >= n:                                 # ddd000
-            end = pos + n
-            _put_digits(digits, out, end, n)
+            end = start + n
             for _ in range(point - n):
                 out[end] = 48
                 end += 1
             return end
-        end = pos + n + 1                              # dd.ddd
-        digits = _put_digits(digits, out, end, n - point)
-        out[pos + point] = 46
-        _put_digits(digits, out, pos + point, point)
-        return end
-    # d.ddde+XX
-    end = pos + n + (1 if n > 1 else 0)
-    digits = _put_digits(digits, out, end, n - 1)
-    out[pos] = digits + _U48
+        for k in range(start + n, start + point, -1):  # dd.ddd: the fraction one to the right
+            out[k] = out[k - 1]
+        out[start + point] = 46
+        return start + n + 1
+    out[pos] = out[pos + 1]                            # d.ddde+XX
     if n > 1:
         out[pos + 1] = 46
-    pos = end
+    pos += n + (1 if n > 1 else 0)
     out[pos] = 101                                     # "e"
     out[pos + 1] = 43 if sci >= 0 else 45
     pos += 2
