@@ -18,7 +18,6 @@ import numpy as np
 
 from ..errors import SinsError
 from ..nav import strapdown as sd
-from ..nav.chisq import chi2_quantile
 from ..nav.earth import gravity, local_en
 from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
 from ..nav.rotation import conv_to_flu
@@ -131,9 +130,9 @@ def _fill_unknown_terms(sens: dict, src: str) -> list:
 
 
 def chi2_gate(p: float, m: int) -> float:
-    """The chi-square gate of an ``m``-dimensional innovation: the ``p`` quantile of chi2(m) (``nav/chisq.py``:
-    scipy.stats to 1e-14 without its 0.3-0.6 s import in every fused run, issue 21)."""
-    return chi2_quantile(p, m)
+    """The chi-square gate of an ``m``-dimensional innovation: the ``p`` quantile of chi2(m) (scipy.stats)."""
+    from scipy.stats import chi2   # 0.3-0.6 s of import: only when a fused run builds its gates, not at import
+    return float(chi2.ppf(p, m))
 
 
 def gnss_rows(gnss: GnssLog, fopts: FusionOptions, t_min: float) -> np.ndarray:
