@@ -28,18 +28,10 @@ from bench_navigate import best_of  # noqa: E402
 
 
 def two_constellation_nav(path):
-    """The shipped GPS file plus a second Keplerian constellation (its orbits turned by 60 deg in node and 1 rad
-    in anomaly, labelled Galileo), as the simulator's tests make it."""
-    from sinscli.gnss import ephemeris as E
-    from sinscli.gnss.ephemeris import NavData, finish_table
+    """The shipped GPS file plus a synthetic second constellation (:func:`with_second_constellation`)."""
     from sinscli.io.rinex import write_nav
-    from sinscli.sim.raw_gnss import check_config, load_nav_for_sim
-    nav = load_nav_for_sim(check_config({}))
-    gal = nav.eph.copy()
-    gal[:, E.SYS], gal[:, E.SOURCE] = 2, 513
-    gal[:, E.OMEGA0] += np.radians(60.0)
-    gal[:, E.M0] += 1.0
-    write_nav(path, NavData(eph=finish_table(np.concatenate([nav.eph, gal])), ion_gps=nav.ion_gps, source="two"))
+    from sinscli.sim.raw_gnss import check_config, load_nav_for_sim, with_second_constellation
+    write_nav(path, with_second_constellation(load_nav_for_sim(check_config({}))))
     return path
 
 

@@ -309,20 +309,10 @@ def test_tc_monte_carlo_nees():
 
 # ---------------------------------------------------------------- constellations, clock, few satellites, smoother
 def _two_constellation_nav(tmp_path):
-    """The shipped GPS file and a second Keplerian constellation labelled Galileo (the GPS orbits turned by 60 deg
-    in node and 1 rad in anomaly, as tests/test_gnss_sim.py makes it)."""
-    from sinscli.gnss import ephemeris as E
-    from sinscli.gnss.ephemeris import NavData, finish_table
+    """The shipped GPS file and a synthetic second constellation labelled Galileo (:func:`with_second_constellation`)."""
     from sinscli.io.rinex import write_nav
-    from sinscli.sim.raw_gnss import check_config, load_nav_for_sim
-    nav = load_nav_for_sim(check_config({}))
-    gal = nav.eph.copy()
-    gal[:, E.SYS], gal[:, E.SOURCE] = 2, 513
-    gal[:, E.OMEGA0] += np.radians(60.0)
-    gal[:, E.M0] += 1.0
-    gal[:, E.TGD1], gal[:, E.TGD2] = 2e-9, 3e-9
-    write_nav(tmp_path / "two.rnx", NavData(eph=finish_table(np.concatenate([nav.eph, gal])), ion_gps=nav.ion_gps,
-                                            source="two"))
+    from sinscli.sim.raw_gnss import check_config, load_nav_for_sim, with_second_constellation
+    write_nav(tmp_path / "two.rnx", with_second_constellation(load_nav_for_sim(check_config({}))))
     return str(tmp_path / "two.rnx")
 
 
@@ -422,3 +412,91 @@ def test_one_satellite():
     _, lc_w = _window_rms(lc, sim, 150.0, 20.0)
     print(f"one satellite for 20 s: TC {tc_w:.3f} m, LC {lc_w:.3f} m")
     assert tc_w <= lc_w
+
+
+# ---------------------------------------------------------------- the command
+def _sins(args, cwd):
+    import os
+    import shutil
+    import subprocess
+    import sys
+    exe = shutil.which("sins", path=str(Path(sys.executable).parent) + os.pathsep + os.environ.get("PATH", "")) or "sins"
+    return subprocess.run([exe, *args], cwd=cwd, capture_output=True, text=True)
+
+
+@pytest.fixture(scope="module")
+def simdir(tmp_path_factory):
+    """`sins simulate` of the drive (150 s) with raw GNSS (configs/raw_gnss/urban.yaml's canyons of 3 and 2
+    satellites) and the GPS time offset it prints."""
+    d = tmp_path_factory.mktemp("tc")
+    r = _sins(["simulate", str(ROOT / "configs/scenarios/vehicle_drive.yaml"), "-o", "sim", "--duration", "150",
+               "--raw-gnss", str(ROOT / "configs/raw_gnss/urban.yaml")], d)
+    assert r.returncode == 0, r.stderr
+    offset = re.search(r"--time-offset (-?\d+)", r.stdout + r.stderr).group(1)
+    return d, offset
+
+
+def test_cli_gnss_raw(simdir):
+    """`sins navigate IMU --gnss-raw OBS --nav NAV --time-offset ... --vehicle car --smooth --innovations F`: the
+    summary's satellite, canyon and clock lines, one innovation row per satellite and measurement with the
+    satellite's name, and the smoothed trajectory within a metre of the truth (horizontal RMS)."""
+    from sinscli.io.innovations import read_innovations
+    from sinscli.io.trajectory import read_trajectory
+    d, offset = simdir
+    r = _sins(["navigate", "sim/imu.csv", "--gnss-raw", "sim/obs.rnx", "--nav", "sim/nav.rnx", "--init", "sim/init.yaml",
+               "--time-offset", offset, "--vehicle", "car", "--smooth", "--innovations", "inn.csv", "-o", "tc.csv", "-q"], d)
+    assert r.returncode == 0, r.stderr
+    assert "Traceback" not in r.stderr
+    assert "raw GNSS (tightly coupled): 150 epochs" in r.stderr
+    assert "50 epoch(s) with 1-3 satellites, 0 with none" in r.stderr
+    assert re.search(r"receiver clock \(G\) at the end: bias [0-9.]+ m", r.stderr)
+    rec = read_innovations(d / "inn.csv")
+    head = (d / "inn.csv").read_text().splitlines()[0]
+    assert head == "time,type,axis,innovation,sigma,nis,accepted,sat"
+    pr = rec[rec["type"] == "pseudorange"]
+    assert len(pr) > 500 and np.all(np.char.startswith(pr["sat"].astype(str), "G")) and set(pr["axis"]) == {"los"}
+    assert len(rec[rec["type"] == "doppler"]) > 500
+    # per epoch one row per satellite: the satellites of an epoch are distinct, 5 or more before the first canyon
+    for t in np.unique(pr["time"][pr["time"] < 60.0]):
+        names = pr["sat"][pr["time"] == t]
+        assert len(set(names)) == len(names) >= 5
+    traj = read_trajectory(d / "tc.csv")
+    truth = read_trajectory(d / "sim" / "truth.csv")
+    dr = errors(traj, truth)[0]
+    assert horizontal_rms(dr) < 1.0
+
+
+@pytest.mark.parametrize("case", ["both", "nav_alone", "no_nav", "truncated", "time_base", "bad_systems"])
+def test_cli_gnss_raw_bad_input(case, simdir):
+    """One line `sins: error: ...`, exit 2, nothing written: --gnss with --gnss-raw, --nav without --gnss-raw,
+    RINEX observations without --nav, a truncated observation file (file and line named), raw epochs on
+    another time base than the IMU (no --time-offset), a bad fusion.raw.systems."""
+    d, offset = simdir
+    args = ["navigate", "sim/imu.csv", "--init", "sim/init.yaml", "-o", "out.csv", "-q"]
+    obs, expect = "sim/obs.rnx", ""
+    if case == "both":
+        args += ["--gnss", "sim/gnss.csv", "--gnss-raw", obs, "--nav", "sim/nav.rnx"]
+        expect = "not both"
+    elif case == "nav_alone":
+        args += ["--gnss", "sim/gnss.csv", "--nav", "sim/nav.rnx"]
+        expect = "--nav needs --gnss-raw"
+    elif case == "no_nav":
+        args += ["--gnss-raw", obs, "--time-offset", offset]
+        expect = "need --nav"
+    elif case == "truncated":
+        text = (d / obs).read_text().splitlines()
+        (d / "cut.rnx").write_text("\n".join(text[:len(text) // 2 - 3]) + "\n")
+        args += ["--gnss-raw", "cut.rnx", "--nav", "sim/nav.rnx", "--time-offset", offset]
+        expect = "cut.rnx"
+    elif case == "time_base":
+        args += ["--gnss-raw", obs, "--nav", "sim/nav.rnx"]
+        expect = "obs.rnx"
+    elif case == "bad_systems":
+        (d / "c.yaml").write_text("fusion: {raw: {systems: GX}}\n")
+        args += ["--gnss-raw", obs, "--nav", "sim/nav.rnx", "--time-offset", offset, "--config", "c.yaml"]
+        expect = "fusion.raw.systems"
+    r = _sins(args, d)
+    assert r.returncode == 2, r.stderr
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip() and "WARNING" not in ln]
+    assert len(lines) == 1 and lines[0].startswith("sins: error:") and expect in lines[0], r.stderr
+    assert not (d / "out.csv").exists()

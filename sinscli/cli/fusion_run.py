@@ -69,6 +69,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         check_gnss_against_imu(gnss if raw is None else _epochs_log(obs, cfg), t0, float(imu.time[-1]))
     except SinsError as exc:
         offset = float(cfg["gnss"]["time_offset"])
+        if not offset and raw is not None:
+            raise SinsError(f"{exc} (raw observations are stamped in GPS time: --time-offset or gnss.time_offset "
+                            f"maps them onto the IMU's clock)") from None
         if not offset:
             raise
         raise SinsError(f"{exc} (after the GNSS time offset of {offset:g} s, --time-offset or gnss.time_offset)") \

@@ -262,6 +262,15 @@ def _dops(x, el, az, use, sysv, nsat, clk_of, m):
 
 
 @njit(cache=True)
+def epoch_arrays(nsat):
+    """The per-satellite arrays of one epoch that :func:`epoch_satellites` and :func:`_pseudorange_rows` fill:
+    ``(sysv, kk, sx, dts, ddts, use, iono_used, el, az, rows)``."""
+    return (np.empty(nsat, np.int64), np.full(nsat, -1, np.int64), np.zeros((nsat, 6)), np.zeros(nsat),
+            np.zeros(nsat), np.zeros(nsat, np.bool_), np.zeros(nsat, np.bool_), np.full(nsat, np.nan),
+            np.full(nsat, np.nan), np.zeros(nsat, np.int64))
+
+
+@njit(cache=True)
 def epoch_satellites(eph, opts, sys_on, t, a0, nsat, rsys, rprn, p1, p2, b1, f1, f2, sysv, kk, sx, dts, ddts, use,
                      iono_used, rec_status):
     """The satellites of one epoch (records ``a0 .. a0 + nsat`` received at ``t``, receiver clock time): per
@@ -362,16 +371,7 @@ def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, 
         nsat = start[e + 1] - a0
         if nsat <= 0:
             continue
-        sysv = np.empty(nsat, np.int64)
-        kk = np.full(nsat, -1, np.int64)
-        sx = np.zeros((nsat, 6))
-        dts = np.zeros(nsat)
-        ddts = np.zeros(nsat)
-        use = np.zeros(nsat, np.bool_)
-        iono_used = np.zeros(nsat, np.bool_)
-        el = np.full(nsat, np.nan)
-        az = np.full(nsat, np.nan)
-        rows = np.zeros(nsat, np.int64)
+        sysv, kk, sx, dts, ddts, use, iono_used, el, az, rows = epoch_arrays(nsat)
         pp1 = p1[a0:a0 + nsat]
         pp2 = p2[a0:a0 + nsat]
         bb1 = b1[a0:a0 + nsat]

@@ -25,7 +25,7 @@ from numba import njit
 from .model import geo_range, range_rate
 from .orbits import earth_rate
 from .signals import C_LIGHT, N_SYS
-from .spp import _pseudorange_rows, doppler_variance, epoch_satellites
+from .spp import _pseudorange_rows, doppler_variance, epoch_arrays, epoch_satellites
 
 MAX_EPOCH_SAT = 128
 
@@ -70,16 +70,7 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
         nsat = min(start[e + 1] - a0, MAX_EPOCH_SAT)
         if nsat <= 0:
             continue
-        sysv = np.empty(nsat, np.int64)
-        kk = np.full(nsat, -1, np.int64)
-        sx = np.zeros((nsat, 6))
-        dts = np.zeros(nsat)
-        ddts = np.zeros(nsat)
-        use = np.zeros(nsat, np.bool_)
-        iono_used = np.zeros(nsat, np.bool_)
-        el = np.full(nsat, np.nan)
-        az = np.full(nsat, np.nan)
-        rows = np.zeros(nsat, np.int64)
+        sysv, kk, sx, dts, ddts, use, iono_used, el, az, rows = epoch_arrays(nsat)
         h = np.zeros((nsat, 4))
         w = np.zeros(nsat)
         v = np.zeros(nsat)

@@ -272,6 +272,22 @@ def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> Ra
     return RawSim(obs, nav, t_true, pos, vel, bias, drift, counts, cfg)
 
 
+def with_second_constellation(nav: NavData, sys_letter: str = "E") -> NavData:
+    """``nav`` plus a synthetic second Keplerian constellation for tests and benchmarks: its GPS orbits turned by
+    60 deg in node and 1 rad in mean anomaly, labelled with ``sys_letter`` (Galileo I/NAV by default, group
+    delays 2 and 3 ns), so that a receiver sees two systems with their own clock offsets."""
+    from ..gnss import ephemeris as E
+    from ..gnss.ephemeris import finish_table
+    other = nav.eph[nav.eph[:, E.SYS] == SYS_GPS].copy()
+    other[:, E.SYS] = sys_index(sys_letter)
+    other[:, E.SOURCE] = 513 if sys_index(sys_letter) == SYS_GAL else 0
+    other[:, E.OMEGA0] += math.radians(60.0)
+    other[:, E.M0] += 1.0
+    other[:, E.TGD1], other[:, E.TGD2] = 2e-9, 3e-9
+    return NavData(eph=finish_table(np.concatenate([nav.eph, other])), ion_gps=nav.ion_gps,
+                   source=f"{nav.source} + synthetic {sys_letter}")
+
+
 def load_nav_for_sim(cfg: dict) -> NavData:
     from ..io.rinex import read_nav
     return read_nav(cfg["nav"] if cfg.get("nav") else shipped_nav())
@@ -363,4 +379,5 @@ def write_raw(sim: RawSim, outdir) -> list[Path]:
     return [outdir / "obs.rnx", outdir / "nav.rnx", outdir / "gnss_truth.csv"]
 
 
-__all__ = ["simulate_raw", "static_receiver", "from_trajectory", "write_raw", "check_config", "SYS_CHARS"]
+__all__ = ["simulate_raw", "static_receiver", "from_trajectory", "write_raw", "check_config", "SYS_CHARS",
+           "with_second_constellation"]
