@@ -500,3 +500,16 @@ def test_cli_gnss_raw_bad_input(case, simdir):
     lines = [ln for ln in r.stderr.splitlines() if ln.strip() and "WARNING" not in ln]
     assert len(lines) == 1 and lines[0].startswith("sins: error:") and expect in lines[0], r.stderr
     assert not (d / "out.csv").exists()
+
+
+def test_navigation_yaml_documents_raw_and_clock():
+    """configs/navigation.yaml's fusion.raw and fusion.clock keys are the options' defaults, every one of them."""
+    from sinscli.config import load_config
+    from sinscli.fusion.options import FUSION_DEFAULTS
+    cfg = load_config(ROOT / "configs" / "navigation.yaml")["fusion"]
+    for sec in ("raw", "clock"):
+        assert cfg[sec] == FUSION_DEFAULTS[sec], sec
+    a, b = build_fusion_options(cfg, "nav.yaml"), build_fusion_options(None, "defaults")
+    for k, v in vars(b).items():
+        if k.startswith(("raw_", "clock_")):
+            assert getattr(a, k) == v, k

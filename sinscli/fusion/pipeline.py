@@ -40,6 +40,7 @@ REQUIRED_TERMS = {"gyro": ("arw", "bias_sigma", "bias_instability", "bias_tau"),
                   "accel": ("vrw", "bias_sigma", "bias_instability", "bias_tau")}
 PRIO = {kn.MT_COURSE: 0, kn.MT_CLOCK: 1, kn.MT_GNSS_POS: 2, kn.MT_PR: 2, kn.MT_GNSS_VEL: 3, kn.MT_DOP: 3,
         kn.MT_ZUPT: 4, kn.MT_ZARU: 5, kn.MT_NHC: 6, kn.MT_ODOM: 7}
+PRIO_OF_KIND = np.array([PRIO[k] for k in range(len(kn.MEAS_NAMES))])     # the same, indexed by kind
 AXES = np.array(["e", "n", "u", "x", "y", "z", "los"])
 INNOVATION_DTYPE = np.dtype([("time", "f8"), ("type", "U16"), ("axis", "U8"), ("innovation", "f8"),
                              ("sigma", "f8"), ("nis", "f8"), ("accepted", "?"), ("sat", "U4")])
@@ -306,7 +307,7 @@ def course_rows(gnss: GnssLog, fopts: FusionOptions, sp: np.ndarray, t_min: floa
 def sort_rows(rows: np.ndarray) -> np.ndarray:
     if len(rows) == 0:
         return rows.reshape(0, kn.MW)
-    prio = np.vectorize(PRIO.get)(rows[:, 1].astype(int))
+    prio = PRIO_OF_KIND[rows[:, 1].astype(int)]
     return rows[np.lexsort((prio, rows[:, 0]))]
 
 

@@ -259,7 +259,7 @@ class RawSummary:
             spans = [f"{clock(a, t0)} for {d:.3g} s ({k})" for a, d, k in self.few_spans]
             more = f" and {len(spans) - 4} more" if len(spans) > 4 else ""
             few += ": " + ", ".join(spans[:4]) + more
-        out.append(few + " (each satellite is used on its own: no fix needed)")
+        out.append(few + (" (each satellite is used on its own: no fix needed)" if self.few else ""))
         if self.rms:
             out.append("fusion: innovation RMS of the accepted " + ", ".join(
                 f"pseudoranges {v:.3g} m" if k == "pseudorange" else f"range rates (Doppler) {v:.3g} m/s"
