@@ -17,7 +17,7 @@ from click.testing import CliRunner
 from sinscli.fusion import kernel as kn
 from sinscli.fusion.evaluate import errors, horizontal_rms
 from sinscli.fusion.options import build_fusion_options
-from sinscli.fusion.pipeline import Fusion, chi2_ppf, fuse_blocks, run_fusion
+from sinscli.fusion.pipeline import Fusion, chi2_gate, fuse_blocks, run_fusion
 from sinscli.fusion.raw import raw_measurements, raw_spp, spp_log
 from sinscli.nav.pipeline import NavOptions
 from sinscli.sim.raw_gnss import simulate_from_result
@@ -298,8 +298,8 @@ def test_tc_monte_carlo_nees():
                            f.fs[kn.F_CLK + 1] - np.interp(t, tg, raw.clock_drift) * C])
             nees[s, j, 3] = ec @ np.linalg.solve(P[f.clk:f.clk + 2, f.clk:f.clk + 2], ec)
     mean = nees.mean(axis=0)
-    lo = np.array([chi2_ppf(0.025, 3 * N)] * 3 + [chi2_ppf(0.025, 2 * N)]) / N
-    hi = np.array([chi2_ppf(0.975, 3 * N)] * 3 + [chi2_ppf(0.975, 2 * N)]) / N
+    lo = np.array([chi2_gate(0.025, 3 * N)] * 3 + [chi2_gate(0.025, 2 * N)]) / N
+    hi = np.array([chi2_gate(0.975, 3 * N)] * 3 + [chi2_gate(0.975, 2 * N)]) / N
     print("mean NEES pos vel att clock at 120 s", mean[0], "at the canyon's end", mean[1], "band", lo, hi)
     assert np.all(mean <= hi), (mean, hi)
     assert mean[0, 0] >= lo[0] and mean[0, 3] >= lo[3], mean[0]
