@@ -96,7 +96,6 @@ def _kernel_state(kind):
     cv[kn.C_NX], cv[kn.C_NCORE], cv[kn.C_LA], cv[kn.C_TD], cv[kn.C_CLK] = nx, 21, LA, TD, CLK
     cv[kn.C_ISB:kn.C_ISB + 7] = -1
     cv[kn.C_ISB + 2] = ISB
-    cv[kn.C_CLONE] = -1
     lat, lon, h = math.radians(30.0), math.radians(114.0), 50.0
     c = np.asarray(euler_to_dcm(math.radians(2.0), math.radians(-3.0), math.radians(40.0), 0))
     st = sd.new_state(0.0, lat, lon, h, np.array([8.0, 11.0, 0.5]), c)

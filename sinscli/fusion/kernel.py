@@ -64,12 +64,9 @@ from .updates import innovation_covariance, kalman_apply, nis_of, skew_into
 MT_GNSS_POS, MT_GNSS_VEL, MT_ZUPT, MT_ZARU, MT_NHC, MT_ODOM, MT_COURSE = 0, 1, 2, 3, 4, 5, 6
 # raw GNSS (tightly coupled): one satellite's pseudorange (z = corrected pseudorange, m; s = sigma) or range
 # rate (z = corrected range rate, m/s), aux = (row of the satellite table SAT, system); the epoch's clock row
-# (z = its receiver clock from the pseudoranges, m, and drift, m/s; s = sigma): the clock-jump check; one
-# satellite's time-differenced carrier phase since the previous epoch (z = the corrected delta range, m, the
-# satellite-table row of the previous epoch, the previous epoch's time; s = sigma)
-MT_PR, MT_DOP, MT_CLOCK, MT_TDCP = 7, 8, 9, 10
-MEAS_NAMES = ("gnss_pos", "gnss_vel", "zupt", "zaru", "nhc", "odom", "course", "pseudorange", "doppler", "clock",
-              "tdcp")
+# (z = its receiver clock from the pseudoranges, m, and drift, m/s; s = sigma): the clock-jump check
+MT_PR, MT_DOP, MT_CLOCK = 7, 8, 9
+MEAS_NAMES = ("gnss_pos", "gnss_vel", "zupt", "zaru", "nhc", "odom", "course", "pseudorange", "doppler", "clock")
 AX_LOS = 6                                  # axis code of a line-of-sight measurement
 
 # a measurement row; the course row (heading from the GNSS course) carries z = (course, v_e, v_n) and
@@ -86,10 +83,9 @@ SAT_POS, SAT_VEL, SAT_SYS = SAT.pos, SAT.vel, SAT.sys
 
 # the kinds whose measurement noise is adapted (index into the FS fields rs/ra)
 NK = 4
-K_OF_KIND = (0, 1, -1, -1, 2, 3, -1, -1, -1, -1, -1)    # gnss_pos, gnss_vel, -, -, nhc, odom, -, raw: -
+K_OF_KIND = (0, 1, -1, -1, 2, 3, -1, -1, -1, -1)   # gnss_pos, gnss_vel, -, -, nhc, odom, -, raw: -
 ADAPT_NAMES = ("gnss_pos", "gnss_vel", "nhc", "odom")
-NX_MAX = 34                                 # 21 + lever arm (3) + time offset (1) + clock (2) + 3 ISB + clone (4)
-CLONE_FLOOR = 1.0e-6                        # m^2: the clones' own variance (P stays positive definite)
+NX_MAX = 30                                 # 21 + lever arm (3) + time offset (1) + clock (2) + 3 ISB
 
 # configuration vector (read-only in the kernel)
 CV = Layout("fusion config", [
@@ -124,9 +120,7 @@ CV = Layout("fusion config", [
     ("q_isb", 1),           # inter-system bias random walk density, m^2/s
     ("clk_jump", 1),        # m: an epoch's clock this far from the filter's (and 10 sigma) is a clock jump
     ("clk_p0", 1),          # m: the clock bias 1-sigma after a jump
-    ("clone", 1),           # the first of the clone states (TDCP: the position E N U and the clock bias at the
-                            # previous raw epoch), or -1
-], size=78)
+], size=77)
 C_NX, C_NCORE, C_LA, C_TD = CV.nx, CV.ncore, CV.la, CV.td
 C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT = CV.method, CV.order, CV.nsub, CV.every, CV.conv, CV.prop_dt
 C_GATE, C_ROBUST = CV.gate, CV.robust
@@ -138,7 +132,6 @@ C_RADAPT_BAND = CV.radapt_band
 C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT = CV.qb_max, CV.qb_tau, CV.qb_thr, CV.qb_base, CV.outage_dt
 C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD = CV.smooth_dt, CV.zupt_maxv, CV.nhc_ax, CV.fwd
 C_CLK, C_ISB, C_QCLK, C_QISB, C_CLK_JUMP, C_CLK_P0 = CV.clk, CV.isb, CV.q_clk, CV.q_isb, CV.clk_jump, CV.clk_p0
-C_CLONE = CV.clone
 CV_SIZE = CV.size
 
 # the filter's scalars (read and written by the kernel, carried between blocks)
@@ -169,12 +162,7 @@ FS = Layout("fusion filter scalars", [
     ("ep_t", 1),            # the current raw epoch: its time, pseudoranges accepted and rejected
     ("ep_acc", 1), ("ep_rej", 1),
     ("ep_nrej", 1), ("ep_t0", 1),   # consecutive epochs whose pseudoranges were all rejected, and the first
-    ("ep_raw", 1),          # the current measurement group has raw rows (the clone follows it)
-    ("cb", 1),              # the clock bias clone (m): the bias after the previous raw epoch's updates
-    ("ant_prev", 3),        # the antenna there (ECEF, m; moved with the position clone's corrections)
-    ("l_prev", 3),          # the lever arm in ENU there (Cbn l, m)
-    ("t_clone", 1),         # that epoch's time (-inf: none yet)
-], size=213)
+], size=200)
 F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD = FS.bg, FS.ba, FS.sg, FS.sa, FS.lever, FS.td
 F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA = FS.qs_drift, FS.t_qs, FS.rs, FS.rp, FS.ra
 F_ACC_T, F_ACC_DV, F_ACC_DTH, F_W, F_HAVE_W, F_F = FS.acc_t, FS.acc_dv, FS.acc_dth, FS.w, FS.have_w, FS.f
@@ -183,7 +171,6 @@ F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH = FS.head_known, FS.nrej, FS.t
 F_ERR, F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC = FS.err, FS.err_t, FS.reset, FS.tprev, FS.nsamp_out, FS.xacc
 F_CLK, F_ISB, F_EP_T, F_EP_ACC, F_EP_REJ, F_EP_NREJ, F_EP_T0 = FS.clk, FS.isb, FS.ep_t, FS.ep_acc, FS.ep_rej, \
     FS.ep_nrej, FS.ep_t0
-F_EP_RAW, F_CB, F_ANT_PREV, F_L_PREV, F_T_CLONE = FS.ep_raw, FS.cb, FS.ant_prev, FS.l_prev, FS.t_clone
 FS_SIZE = FS.size
 
 ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
@@ -212,11 +199,10 @@ def workspace(nx):
     return mats, np.zeros((WV.size, nx)), np.zeros((2, 3, 3))
 
 
-def epoch_width(ncore: int, nx: int, clk: int = -1, clone: int = -1) -> int:
+def epoch_width(ncore: int, nx: int, clk: int = -1) -> int:
     """Floats of one smoother epoch's transition matrix: its navigation rows over the core states, the
-    diagonal of the rest, with a receiver clock (state ``clk``) its bias-drift entry, and with the clones
-    (states ``clone`` ..) the entries that copy the position and the bias into them (:func:`_store_epoch`)."""
-    return 9 * ncore + (nx - 9) + (1 if clk >= 0 else 0) + (4 if clone >= 0 else 0)
+    diagonal of the rest and, with a receiver clock (state ``clk``), its bias-drift entry (:func:`_store_epoch`)."""
+    return 9 * ncore + (nx - 9) + (1 if clk >= 0 else 0)
 
 
 @njit(cache=True)
@@ -271,12 +257,6 @@ def feedback(st, fs, cv, x, nx, method):
     if clk >= 0:
         fs[F_CLK] -= x[clk]
         fs[F_CLK + 1] -= x[clk + 1]
-        q = int(cv[C_CLONE])
-        if q >= 0:                              # the clones' estimates: the antenna and the bias back then
-            fs[F_CB] -= x[q + 3]
-            ue, un, uu = enu_axes(lat, st[sd.S_LON])
-            for i in range(3):
-                fs[F_ANT_PREV + i] -= ue[i] * x[q] + un[i] * x[q + 1] + uu[i] * x[q + 2]
         for s in range(N_SYS):
             k = int(cv[C_ISB + s])
             if k >= 0:
@@ -539,66 +519,6 @@ def _cross(a, b):
 
 
 @njit(cache=True)
-def _antenna_ecef(st, fs, c):
-    """The antenna's ECEF position at the stamp + tau, ``r(lat, lon, h) + C_n^e (Cbn l + tau v_ant)``, and
-    ``(v_ant, Cbn (w x l), Cbn l, w_in)`` of :func:`_antenna_velocity` (the low-passed rate)."""
-    lat, lon, h = st[sd.S_LAT], st[sd.S_LON], st[sd.S_H]
-    vel = (st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2])
-    lever = (fs[F_LEVER], fs[F_LEVER + 1], fs[F_LEVER + 2])
-    tau = fs[F_TD]
-    w = (fs[F_W], fs[F_W + 1], fs[F_W + 2])
-    v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
-    ue, un, uu = enu_axes(lat, lon)
-    x0, y0, z0 = geodetic_to_ecef(lat, lon, h)
-    d = (l_n[0] + v_ant[0] * tau, l_n[1] + v_ant[1] * tau, l_n[2] + v_ant[2] * tau)
-    rx = x0 + ue[0] * d[0] + un[0] * d[1] + uu[0] * d[2]
-    ry = y0 + ue[1] * d[0] + un[1] * d[1] + uu[1] * d[2]
-    rz = z0 + ue[2] * d[0] + un[2] * d[1] + uu[2] * d[2]
-    return rx, ry, rz, v_ant, cw, l_n, w_in
-
-
-@njit(cache=True)
-def _clone(st, fs, cv, P, nx, t, Phi, store):
-    """After a raw epoch's updates (stochastic cloning; Roumeliotis & Burdick 2002): the clone states take the
-    position error and the clock bias error (``x_q+a = x_R+a``, ``x_q+3 = x_b``: their rows and columns of P,
-    plus :data:`CLONE_FLOOR` on the diagonal), and the antenna's ECEF position, the lever arm in ENU, the bias
-    estimate and the time are kept: the next epoch's time-differenced carrier phase measures the change since
-    then exactly, whatever the filter corrected in between.  With ``store`` the smoother's transition product
-    starts with the copy (the clone rows of Phi the unit rows they copy): the copy is a transition, P^+ was
-    stored before it."""
-    fs[F_EP_RAW] = 0.0
-    q = int(cv[C_CLONE])
-    if q < 0:
-        return
-    clk = int(cv[C_CLK])
-    for a in range(4):
-        src = R + a if a < 3 else clk
-        for j in range(nx):
-            P[q + a, j] = P[src, j]
-    for a in range(4):
-        src = R + a if a < 3 else clk
-        for i in range(nx):
-            P[i, q + a] = P[i, src]
-    for a in range(4):
-        P[q + a, q + a] += CLONE_FLOOR
-    fs[F_CB] = fs[F_CLK]
-    c = sd._cbn(st)
-    rx, ry, rz, v_ant, cw, l_n, w_in = _antenna_ecef(st, fs, c)
-    fs[F_ANT_PREV] = rx
-    fs[F_ANT_PREV + 1] = ry
-    fs[F_ANT_PREV + 2] = rz
-    for i in range(3):
-        fs[F_L_PREV + i] = l_n[i]
-    fs[F_T_CLONE] = t
-    if store:
-        for a in range(4):
-            src = R + a if a < 3 else clk
-            for j in range(nx):
-                Phi[q + a, j] = 0.0
-            Phi[q + a, src] = 1.0
-
-
-@njit(cache=True)
 def _dvant_dlever(c, w, w_in):
     """``d v_ant / d l = Cbn [w x] - [w_in x] Cbn`` (:func:`_antenna_velocity`)."""
     wx = ((0.0, -w[2], w[1]), (w[2], 0.0, -w[0]), (-w[1], w[0], 0.0))
@@ -630,21 +550,24 @@ def _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat):
     if clk < 0:
         return 0, 0, 0, 1, 2
     head_known = fs[F_HEAD_KNOWN] > 0.0
-    if (kind == MT_DOP or kind == MT_TDCP) and (not head_known or fs[F_HAVE_W] == 0.0):
+    if kind == MT_DOP and (not head_known or fs[F_HAVE_W] == 0.0):
         return 0, 0, 0, 1, 2
-    q = int(cv[C_CLONE])
-    if kind == MT_TDCP and (q < 0 or fs[F_T_CLONE] != row[RW_Z + 2]):
-        return 0, 0, 0, 1, 2                    # no clone of the epoch this delta range starts from
     k = int(row[RW_AUX])
     sys = int(sat[k, SAT_SYS])
     c = sd._cbn(st)
     lat, lon, h = st[sd.S_LAT], st[sd.S_LON], st[sd.S_H]
+    vel = (st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2])
     lever = (fs[F_LEVER], fs[F_LEVER + 1], fs[F_LEVER + 2])
     la, td = int(cv[C_LA]), int(cv[C_TD])
     tau = fs[F_TD]
     w = (fs[F_W], fs[F_W + 1], fs[F_W + 2])
-    rx, ry, rz, v_ant, cw, l_n, w_in = _antenna_ecef(st, fs, c)
+    v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
     ue, un, uu = enu_axes(lat, lon)
+    x0, y0, z0 = geodetic_to_ecef(lat, lon, h)
+    d = (l_n[0] + v_ant[0] * tau, l_n[1] + v_ant[1] * tau, l_n[2] + v_ant[2] * tau)
+    rx = x0 + ue[0] * d[0] + un[0] * d[1] + uu[0] * d[2]
+    ry = y0 + ue[1] * d[0] + un[1] * d[1] + uu[1] * d[2]
+    rz = z0 + ue[2] * d[0] + un[2] * d[1] + uu[2] * d[2]
     sx, sy, sz = sat[k, SAT_POS], sat[k, SAT_POS + 1], sat[k, SAT_POS + 2]
     omge = earth_rate(sys)
     rho, ex, ey, ez = geo_range(sx, sy, sz, rx, ry, rz, omge)
@@ -653,25 +576,7 @@ def _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat):
     isb = int(cv[C_ISB + sys])
     s0 = row[RW_S]
     r[0] = s0 * s0
-    if kind == MT_TDCP:
-        # delta range since the clone's epoch: rho(r_a) - rho(r_a,prev) + b - b_prev, with the errors of the
-        # antenna then (the position clone, the lever arm then; the attitude error taken as now's over an
-        # epoch) and of the bias then (its clone); the lever-arm and time-offset states cancel to first order
-        kp = int(row[RW_Z + 1])
-        rho_p, epx, epy, epz = geo_range(sat[kp, SAT_POS], sat[kp, SAT_POS + 1], sat[kp, SAT_POS + 2],
-                                         fs[F_ANT_PREV], fs[F_ANT_PREV + 1], fs[F_ANT_PREV + 2], omge)
-        e_p = (ue[0] * epx + ue[1] * epy + ue[2] * epz, un[0] * epx + un[1] * epy + un[2] * epz,
-               uu[0] * epx + uu[1] * epy + uu[2] * epz)
-        z[0] = rho - rho_p + fs[F_CLK] - fs[F_CB] - row[RW_Z]
-        exl = _cross(e, l_n)
-        epl = _cross(e_p, (fs[F_L_PREV], fs[F_L_PREV + 1], fs[F_L_PREV + 2]))
-        for i in range(3):
-            H[0, R + i] = -e[i]
-            H[0, q + i] = e_p[i]
-            H[0, PHI + i] = epl[i] - exl[i]
-        H[0, clk] = 1.0
-        H[0, q + 3] = -1.0
-    elif kind == MT_PR:
+    if kind == MT_PR:
         z[0] = rho + fs[F_CLK] + (fs[F_ISB + sys] if isb >= 0 else 0.0) - row[RW_Z]
         # the antenna offset l_n + tau v_ant turns with the attitude error: [l_n x] + tau ([cw x] - [w_in x][l_n x])
         exl = _cross(e, l_n)
@@ -783,7 +688,7 @@ def _model(row, kind, st, fs, cv, nx, H, z, r, sat):
     for a in range(3):
         for j in range(nx):
             H[a, j] = 0.0
-    if kind == MT_PR or kind == MT_DOP or kind == MT_TDCP:
+    if kind == MT_PR or kind == MT_DOP:
         return _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat)
     c = sd._cbn(st)
     lat, lon, h = st[sd.S_LAT], st[sd.S_LON], st[sd.S_H]
@@ -984,8 +889,6 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
         return n_inn, _heading_from_course(row, st, fs, cv, P, nx, evs, n_evs)
     if kind == MT_CLOCK:
         return n_inn, _clock_check(row, fs, cv, P, nx, evs, n_evs)
-    if kind == MT_PR or kind == MT_DOP or kind == MT_TDCP:
-        fs[F_EP_RAW] = 1.0                      # the clones follow this group (_clone)
     H = vecs[V_H:V_H + 3]
     z = vecs[V_Z]
     r = vecs[V_R]
@@ -1060,7 +963,7 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
         acc = True
         fs[F_EP_NREJ] = 0.0
         fs[F_RESET] = 1.0
-    elif acc and (k >= 0 or kind == MT_PR or kind == MT_DOP or kind == MT_TDCP):
+    elif acc and (k >= 0 or kind == MT_PR or kind == MT_DOP):
         # IGG-III robust weight: above the full-weight bound the noise is inflated smoothly up to the gate
         k0 = cv[C_ROBUST + m - 1]
         if k0 > 0.0 and nis > k0:
@@ -1078,7 +981,7 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
         else:
             fs[F_EP_REJ] += 1.0
     axes = (a0, a1, a2)
-    sat_row = row[RW_AUX] if kind == MT_PR or kind == MT_DOP or kind == MT_TDCP else -1.0
+    sat_row = row[RW_AUX] if kind == MT_PR or kind == MT_DOP else -1.0
     for a in range(m):
         n_inn = _record(inn, n_inn, t, kind, axis0 + axes[a], z[a], S[a, a], nis_report, acc, hph[a], rst[a],
                         exit_fix, a, sat_row)
@@ -1123,12 +1026,11 @@ def _widen_nav(P, nx, ratio):
 
 
 @njit(cache=True)
-def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep, clk, clone):
+def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep, clk):
     """One smoother epoch: P- and P+ (upper triangles, row by row), the transition matrix since the
     previous epoch (its navigation rows over the core states, then the diagonal of the other rows, then with
-    a receiver clock at state ``clk`` its bias-drift entry and with the clones from ``clone`` the entries that
-    copy the position and the bias into them, :func:`_clone`), the correction fed back since the previous epoch,
-    the reset flag; the transition matrix restarts at I."""
+    a receiver clock at state ``clk`` its bias-drift entry), the correction fed back since the previous
+    epoch, the reset flag; the transition matrix restarts at I."""
     ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset = ep
     if n_ep < ep_t.shape[0]:
         ep_t[n_ep] = t
@@ -1150,11 +1052,6 @@ def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep, clk, clone):
             u += 1
         if clk >= 0:
             ep_ft[n_ep, u] = Phi[clk, clk + 1]
-            u += 1
-        if clone >= 0:
-            for a in range(3):
-                ep_ft[n_ep, u + a] = Phi[clone + a, R + a]
-            ep_ft[n_ep, u + 3] = Phi[clone + 3, clk]
         ep_reset[n_ep] = fs[F_RESET]
     for i in range(nx):
         for j in range(nx):
@@ -1184,10 +1081,7 @@ def _measure_group(tm, meas, im, st, fs, cv, P, ws, rec, ep, n_ep, tol, sat):
     if not _health(P, nx, fs, tm, mats[W_L], True):
         return im, n_inn, n_evs, n_ep
     if store:
-        n_ep = _store_epoch(tm, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]),
-                            int(cv[C_CLONE]))
-    if fs[F_EP_RAW] > 0.0:
-        _clone(st, fs, cv, P, nx, tm, mats[W_PHI], store)
+        n_ep = _store_epoch(tm, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]))
     return im, n_inn, n_evs, n_ep
 
 
@@ -1312,8 +1206,7 @@ def fuse(imu, nav, meas, ws, out, rec, ep, n_ep, sat):
                 for i in range(nx):
                     for j in range(nx):
                         Pm[i, j] = P[i, j]
-                n_ep = _store_epoch(tk, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]),
-                                    int(cv[C_CLONE]))
+                n_ep = _store_epoch(tk, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]))
         if fs[F_NSAMP_OUT] >= per_out and n_out < out_t.shape[0]:
             fs[F_NSAMP_OUT] = 0.0
             out_t[n_out] = tk

@@ -93,9 +93,6 @@ FUSION_DEFAULTS = {
         "iono_var": 0.5,             # the Klobuchar residual's 1-sigma as a share of its delay
         "tropo_sigma": 0.1,          # m: troposphere residual at the zenith (times the mapping function)
         "smooth_code": 0.0,          # s: carrier smoothing (Hatch) of the pseudoranges; 0: raw
-        "tdcp": True,                # time-differenced carrier phase between consecutive epochs (delta range)
-        "carrier_sigma": 0.003,      # m: carrier-phase sigma at the zenith and cn0_ref (same shape as the code's)
-        "slip_threshold": 0.5,       # m: carrier change against the Doppler's over an epoch beyond this: a slip
     },
     "clock": {                       # the receiver clock states (raw GNSS), defaults of a TCXO
         "h0": 2.0e-19,               # s: white frequency noise, Allan h_0 (Brown & Hwang table 9.1, TCXO)
@@ -188,9 +185,6 @@ class FusionOptions:
     raw_iono_var: float = 0.5
     raw_tropo_sigma: float = 0.1             # m
     raw_smooth_code: float = 0.0             # s
-    raw_tdcp: bool = True
-    raw_carrier_sigma: float = 0.003         # m
-    raw_slip_threshold: float = 0.5          # m
     clock_h0: float = 2.0e-19                # s
     clock_h_2: float = 2.0e-20               # 1/s
     clock_bias_sigma: float = 30.0           # m
@@ -383,9 +377,6 @@ def _raw_clock(src, d, kw) -> None:
     kw["raw_iono_var"] = _num(src, "raw.iono_var", rw["iono_var"], ge=0.0, le=10.0)
     kw["raw_tropo_sigma"] = _num(src, "raw.tropo_sigma", rw["tropo_sigma"], ge=0.0, le=MAX_POS)
     kw["raw_smooth_code"] = _num(src, "raw.smooth_code", rw["smooth_code"], ge=0.0, le=3600.0)
-    kw["raw_tdcp"] = _bool(src, "raw.tdcp", rw["tdcp"])
-    kw["raw_carrier_sigma"] = _num(src, "raw.carrier_sigma", rw["carrier_sigma"], gt=0.0, le=MAX_POS)
-    kw["raw_slip_threshold"] = _num(src, "raw.slip_threshold", rw["slip_threshold"], gt=0.0, le=MAX_POS)
     ck = d["clock"]
     kw["clock_h0"] = _num(src, "clock.h0", ck["h0"], ge=0.0, le=1e-12)
     kw["clock_h_2"] = _num(src, "clock.h_2", ck["h_2"], ge=0.0, le=1e-12)

@@ -39,7 +39,7 @@ DEFAULT_SENSOR = "mems"
 REQUIRED_TERMS = {"gyro": ("arw", "bias_sigma", "bias_instability", "bias_tau"),
                   "accel": ("vrw", "bias_sigma", "bias_instability", "bias_tau")}
 PRIO = {kn.MT_COURSE: 0, kn.MT_CLOCK: 1, kn.MT_GNSS_POS: 2, kn.MT_PR: 2, kn.MT_GNSS_VEL: 3, kn.MT_DOP: 3,
-        kn.MT_TDCP: 3, kn.MT_ZUPT: 4, kn.MT_ZARU: 5, kn.MT_NHC: 6, kn.MT_ODOM: 7}
+        kn.MT_ZUPT: 4, kn.MT_ZARU: 5, kn.MT_NHC: 6, kn.MT_ODOM: 7}
 PRIO_OF_KIND = np.array([PRIO[k] for k in range(len(kn.MEAS_NAMES))])     # the same, indexed by kind
 AXES = np.array(["e", "n", "u", "x", "y", "z", "los"])
 INNOVATION_DTYPE = np.dtype([("time", "f8"), ("type", "U16"), ("axis", "U8"), ("innovation", "f8"),
@@ -379,13 +379,10 @@ class Fusion:
         self.raw = raw
         self.clk = -1
         self.isb = {}
-        self.clone = -1
         if raw is not None:
             self.clk, nx = nx, nx + 2
             for s_ in raw.isb_systems:
                 self.isb[s_], nx = nx, nx + 1
-            if raw.tdcp:                    # the position and bias clones of the time-differenced carrier phase
-                self.clone, nx = nx, nx + 4
         self.sat = raw.sat if raw is not None else np.zeros((0, kn.SW))
         self.ncore, self.nx = ncore, nx
         c = np.asarray(init.Cbn, dtype=float)
@@ -414,7 +411,6 @@ class Fusion:
             self.fs[kn.F_CLK + 1] = d0
             for s_, v in raw.isb0.items():
                 self.fs[kn.F_ISB + s_] = v
-            self.fs[kn.F_T_CLONE] = -np.inf
         if init_bias:
             self.fs[kn.F_BG:kn.F_BG + 3] = init_bias.get("gyro", np.zeros(3))
             self.fs[kn.F_BA:kn.F_BA + 3] = init_bias.get("accel", np.zeros(3))
@@ -445,7 +441,7 @@ class Fusion:
         self._t_nhc = init.time
         self._t_end_gnss = t_end
         self.inn_parts, self.ev_parts = [], []
-        self.epochs = EpochStore(nx, kn.epoch_width(ncore, nx, self.clk, self.clone)) if smooth else None
+        self.epochs = EpochStore(nx, kn.epoch_width(ncore, nx, self.clk)) if smooth else None
         self.smoother_guard = None
         self.forward_rows = []          # kept for the smoother: (trajectory, variances, sensor estimates)
         self.applied = 0
@@ -509,7 +505,6 @@ class Fusion:
         cv[kn.C_QISB] = f.clock_isb_walk ** 2
         cv[kn.C_CLK_JUMP] = f.clock_jump
         cv[kn.C_CLK_P0] = f.clock_bias_sigma
-        cv[kn.C_CLONE] = self.clone
         return cv
 
     def _initial_covariance(self, s: dict):
@@ -542,10 +537,6 @@ class Fusion:
             P[self.clk + 1, self.clk + 1] = f.clock_drift_sigma ** 2
             for k in self.isb.values():
                 P[k, k] = f.clock_isb_sigma ** 2
-            if self.clone >= 0:             # unobserved until the first raw epoch clones into them
-                for a in range(3):
-                    P[self.clone + a, self.clone + a] = P[a, a]
-                P[self.clone + 3, self.clone + 3] = P[self.clk, self.clk]
         return P
 
     # ------------------------------------------------------------------ running
@@ -738,7 +729,7 @@ class Fusion:
         self.forward_rows = []
         self.smoother_guard = smooth_rows(traj.time, traj.lat, traj.lon, traj.height, traj.vel_n, traj.Cbn, var,
                                           bias, self.epochs.trimmed(), self.ncore, self.nx, int(self.cv[kn.C_FWD]),
-                                          self.clk, self.clone)
+                                          self.clk)
         traj.extra = self._columns(var, bias)
         return traj
 
@@ -825,13 +816,13 @@ class Fusion:
         n = raw.epoch_nsat[inside]
         rs = RawSummary(epochs=int(inside.sum()), few=int(((n > 0) & (n < 4)).sum()), none=int((n == 0).sum()))
         rs.few_spans = few_satellite_spans(raw.epoch_time[inside], n)
-        m = (rec["type"] == "pseudorange") | (rec["type"] == "doppler") | (rec["type"] == "tdcp")
+        m = (rec["type"] == "pseudorange") | (rec["type"] == "doppler")
         sats = rec["sat"][m]
         letters = np.array([x[:1] for x in sats])
         rs.per_system = satellite_counts(letters, rec["type"][m], rec["accepted"][m])
         for c in rs.per_system:
             rs.satellites[c] = int(len(np.unique(sats[letters == c])))
-        for t in ("pseudorange", "doppler", "tdcp"):
+        for t, unit in (("pseudorange", "m"), ("doppler", "m/s")):
             a = rec[(rec["type"] == t) & rec["accepted"]]
             if len(a):
                 rs.rms[t] = float(np.sqrt(np.mean(a["innovation"] ** 2)))
@@ -844,7 +835,6 @@ class Fusion:
         ev = self.events()
         rs.jumps = int(np.sum(ev[:, 1] == kn.EV_CLOCK_JUMP)) if len(ev) else 0
         rs.ref = ref
-        rs.slips = raw.slips
         rs.notes = list(raw.notes)
         return rs
 

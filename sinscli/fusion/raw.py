@@ -51,8 +51,6 @@ class RawMeasurements:
     spp: GnssLog = None                 # the epochs' single-point fixes (time on the IMU's clock)
     obs_source: str = ""
     notes: list = field(default_factory=list)
-    tdcp: bool = False                  # time-differenced carrier-phase rows (the filter clones position and bias)
-    slips: int = 0                      # carrier pairs left out as cycle slips (loss-of-lock flag or Doppler test)
 
     def sat_names(self) -> np.ndarray:
         """``G05`` per satellite-table row."""
@@ -118,7 +116,7 @@ def raw_measurements(obs: ObsData, nav: NavData, fopts, offset: float, init: Nav
     sys_on[systems] = True
     ion = nav.ion_gps if nav.ion_gps is not None else nav.ion_bds
     ion = np.zeros(8) if ion is None else np.asarray(ion, dtype=np.float64)
-    (ok, sx, prc, var_pr, ratec, var_rate, el, az, cdts, shape, atm, clk, drift,
+    (ok, sx, prc, var_pr, ratec, var_rate, el, az, clk, drift,
      spread) = tc_records(nav.eph, ion, opts, sys_on, obs.time, obs.start, obs.sys.astype(np.int64),
                           obs.prn.astype(np.int64), sig.p1, sig.p2, sig.b1, sig.b2, sig.f1, sig.f2, sig.cn0, sig.dop,
                           np.ascontiguousarray(pos0), np.ascontiguousarray(vel0))
@@ -167,10 +165,8 @@ def raw_measurements(obs: ObsData, nav: NavData, fopts, offset: float, init: Nav
     clock_rows = np.column_stack([t_epoch[ce], np.full(ne, kn.MT_CLOCK), clk[ce, ref], np.nan_to_num(drift[ce]),
                                   np.zeros(ne), np.maximum(spread[ce], SPREAD_FLOOR), np.zeros((ne, 2)),
                                   np.full(ne, -1.0), np.full(ne, float(ref))])
-    tdcp_rows, slips = _tdcp_rows(obs, sig, ok, idx, t_epoch, cdts - atm, shape, var_rate, fopts) \
-        if fopts.raw_tdcp else (np.zeros((0, kn.MW)), 0)
-    rows = np.vstack([clock_rows, pr_rows, dop_rows, tdcp_rows])
-    order = {kn.MT_CLOCK: 0, kn.MT_PR: 1, kn.MT_DOP: 2, kn.MT_TDCP: 3}
+    rows = np.vstack([clock_rows, pr_rows, dop_rows])
+    order = {kn.MT_CLOCK: 0, kn.MT_PR: 1, kn.MT_DOP: 2}
     key = np.array([order[int(k)] for k in rows[:, 1]])
     rows = rows[np.lexsort((key, rows[:, 0]))]
     # the clock's start: the first epoch after the initial time with the reference system's satellites
@@ -189,59 +185,17 @@ def raw_measurements(obs: ObsData, nav: NavData, fopts, offset: float, init: Nav
     return RawMeasurements(rows=rows, sat=sat, ref=ref, isb_systems=isb_systems, t0=float(t_epoch[e0]),
                            clock0=(float(c_ref[e0]), float(d0)), isb0=isb0, clock0_sigma=(b_sig, 0.0),
                            epoch_time=t_epoch, epoch_nsat=nsat, spp=spp_log(spp, offset, obs.source),
-                           obs_source=obs.source, notes=notes, tdcp=bool(len(tdcp_rows)), slips=slips)
-
-
-MAX_TDCP_GAP = 2.5          # nominal epoch intervals: consecutive epochs further apart give no delta range
-
-
-def _tdcp_rows(obs, sig, ok, idx, t_epoch, corr, shape, var_rate, fopts):
-    """Time-differenced carrier-phase rows (``MT_TDCP``) of every satellite usable in two consecutive epochs with the
-    primary signal's carrier in both: ``z = lambda (L_k - L_k-1) + Delta corr``, ``corr = c dt_sv - (T - I)`` (the
-    changes of the satellite clock and of the modelled troposphere and ionosphere removed: the filter predicts
-    ``rho_k - rho_k-1 + b_k - b_k-1``), the satellite-table row of the previous epoch and its time; sigma
-    ``sqrt(2) carrier_sigma`` times the elevation/C/N0 shape.  A pair is left out as a cycle slip when the receiver
-    flags a loss of lock (LLI bit 0) or when the carrier's change differs from the Doppler's, ``-lambda (D_k +
-    D_k-1)/2 dt``, by more than ``raw.slip_threshold`` and 5 sigma of the Dopplers' mean (the filter's gate
-    takes the smaller ones).  Returns ``(rows, slips)``."""
-    ep = obs.epoch_of_record()
-    key = obs.sys.astype(np.int64) * 1024 + obs.prn.astype(np.int64)
-    lam = np.where(sig.f1 > 0, C_LIGHT / np.where(sig.f1 > 0, sig.f1, 1.0), np.nan)
-    usable = ok & np.isfinite(sig.l1) & np.isfinite(lam)
-    r = np.nonzero(usable)[0]
-    o = np.lexsort((ep[r], key[r]))
-    r = r[o]
-    prev, cur = r[:-1], r[1:]
-    pair = (key[prev] == key[cur]) & (ep[cur] == ep[prev] + 1) & (sig.f1[cur] == sig.f1[prev])
-    step = float(np.median(np.diff(obs.time))) if len(obs) > 1 else 1.0
-    dt_rx = obs.time[ep[cur]] - obs.time[ep[prev]]
-    pair &= dt_rx <= MAX_TDCP_GAP * step
-    prev, cur, dt_rx = prev[pair], cur[pair], dt_rx[pair]
-    dl = lam[cur] * (sig.l1[cur] - sig.l1[prev])
-    lli = (sig.lli1[cur] & 1) != 0
-    dd = -lam[cur] * 0.5 * (sig.dop[cur] + sig.dop[prev]) * dt_rx
-    sd = 0.5 * np.sqrt(var_rate[cur] + var_rate[prev]) * dt_rx
-    jump = np.isfinite(dd) & (np.abs(dl - dd) > np.maximum(fopts.raw_slip_threshold, 5.0 * np.nan_to_num(sd)))
-    good = ~lli & ~jump
-    slips = int(np.count_nonzero(~good))
-    prev, cur, dl = prev[good], cur[good], dl[good]
-    side = np.full(len(obs.sys), -1.0)
-    side[idx] = np.arange(len(idx), dtype=float)
-    n = len(cur)
-    z = np.zeros(n)
-    return np.column_stack([t_epoch[ep[cur]], np.full(n, kn.MT_TDCP), dl + (corr[cur] - corr[prev]), side[prev],
-                            t_epoch[ep[prev]], fopts.raw_carrier_sigma * np.sqrt(2.0 * shape[cur]), z, z, side[cur],
-                            obs.sys[cur].astype(float)]), slips
+                           obs_source=obs.source, notes=notes)
 
 
 def satellite_counts(letters, rec_type, accepted):
     """Per system letter (of each record's satellite) ``(pseudoranges used, rejected, range rates used,
-    rejected, delta ranges used, rejected)``."""
+    rejected)``."""
     out = {}
     for s in sorted(np.unique(letters), key=lambda c: SYS_CHARS.find(str(c))):
         m = letters == s
         c = []
-        for t in ("pseudorange", "doppler", "tdcp"):
+        for t in ("pseudorange", "doppler"):
             k = m & (rec_type == t)
             c += [int((k & accepted).sum()), int((k & ~accepted).sum())]
         out[str(s)] = tuple(c)

@@ -240,21 +240,20 @@ class RawSummary:
     few: int = 0                                        # epochs with 1-3 usable satellites
     none: int = 0                                       # epochs without a usable satellite
     few_spans: list = field(default_factory=list)       # (start, length, least count) of stretches under 4
-    per_system: dict = field(default_factory=dict)      # letter -> (pr, range rate, delta range: used, rejected)
+    per_system: dict = field(default_factory=dict)      # letter -> (pr used, rejected, range rate used, rejected)
     satellites: dict = field(default_factory=dict)      # letter -> distinct satellites measured
     rms: dict = field(default_factory=dict)             # "pseudorange" (m), "doppler" (m/s): accepted innovations
     clock: tuple = ()                                   # bias m, its sigma, drift m/s, its sigma (final)
     isb: list = field(default_factory=list)             # ("E-G", m, sigma m)
     ref: str = "G"
     jumps: int = 0
-    slips: int = 0
     notes: list = field(default_factory=list)
 
     def lines(self, t0: float) -> list[str]:
         out = [f"fusion: raw GNSS (tightly coupled): {self.epochs} epochs; per constellation satellites, "
-               f"pseudoranges, range rates (Doppler) and delta ranges (carrier) used/rejected: " + "; ".join(
-                   f"{c} {self.satellites.get(c, 0)} sats, {a}/{b}, {d}/{e}, {g}/{h}"
-                   for c, (a, b, d, e, g, h) in self.per_system.items())]
+               f"pseudoranges used/rejected, range rates used/rejected: " + "; ".join(
+                   f"{c} {self.satellites.get(c, 0)} sats, {a}/{b}, {d}/{e}"
+                   for c, (a, b, d, e) in self.per_system.items())]
         few = f"fusion: {self.few} epoch(s) with 1-3 satellites, {self.none} with none"
         if self.few_spans:
             spans = [f"{clock(a, t0)} for {d:.3g} s ({k})" for a, d, k in self.few_spans]
@@ -262,10 +261,9 @@ class RawSummary:
             few += ": " + ", ".join(spans[:4]) + more
         out.append(few + (" (each satellite is used on its own: no fix needed)" if self.few else ""))
         if self.rms:
-            what = {"pseudorange": "pseudoranges {:.3g} m", "doppler": "range rates (Doppler) {:.3g} m/s",
-                    "tdcp": "delta ranges (carrier) {:.3g} m"}
             out.append("fusion: innovation RMS of the accepted " + ", ".join(
-                what[k].format(v) for k, v in self.rms.items()))
+                f"pseudoranges {v:.3g} m" if k == "pseudorange" else f"range rates (Doppler) {v:.3g} m/s"
+                for k, v in self.rms.items()))
         if self.clock:
             b, sb, d, sd = self.clock
             txt = (f"fusion: receiver clock ({self.ref}) at the end: bias {b:.6g} m ({b / 299.792458:.6g} us) "
@@ -275,9 +273,6 @@ class RawSummary:
             if self.jumps:
                 txt += f"; {self.jumps} clock jump(s) reset the bias"
             out.append(txt)
-        if self.slips:
-            out.append(f"fusion: {self.slips} carrier pair(s) left out as cycle slips (loss-of-lock flag or the "
-                       f"Doppler's test)")
         for n in self.notes:
             out.append(f"fusion: raw GNSS: {n}")
         return out

@@ -10,9 +10,7 @@ depend on the receiver's state (docs/raw_gnss.md, "Tightly coupled"):
   troposphere, and the noise variance with the elevation/C/N0 model, the ionosphere and troposphere residuals
   and the URA), so that the filter predicts ``P_c = rho + c dt_r + ISB``;
 * the corrected range rate ``-lambda D + c d(dt_sv)`` and its variance
-  (:func:`sinscli.gnss.spp.doppler_variance`), the filter predicting ``d rho/dt + c d(dt_r)``;
-* the satellite clock and the carrier's atmospheric terms, which the time-differenced carrier phase removes
-  (:func:`sinscli.fusion.raw._tdcp_rows`).
+  (:func:`sinscli.gnss.spp.doppler_variance`), the filter predicting ``d rho/dt + c d(dt_r)``.
 
 The ionosphere and troposphere need the receiver's position: an approximate one per epoch (the epoch's SPP
 fix, interpolated across epochs without one; metres of error change them by millimetres).  Per epoch also a
@@ -21,17 +19,13 @@ tag of the filter's rows, the filter's initial clock and its clock-jump check.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
-from .corrections import F_L1, klobuchar, tropo_delay
-from .model import ecef_to_geodetic, geo_range, range_rate
+from .model import geo_range, range_rate
 from .orbits import earth_rate
 from .signals import C_LIGHT, N_SYS
-from .spp import (IONO_OFF, O_DOP_SIGMA, O_IONO, O_TROPO, _pseudorange_rows, doppler_variance, epoch_arrays,
-                  epoch_satellites)
+from .spp import _pseudorange_rows, doppler_variance, epoch_arrays, epoch_satellites
 
 MAX_EPOCH_SAT = 128
 
@@ -47,9 +41,7 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
     """Per record r: ``ok`` (usable: ephemeris, observation, above the mask), ``sx (R, 6)`` satellite ECEF
     position (m) and velocity (m/s) at transmission, ``prc`` corrected pseudorange (m), ``var_pr`` (m^2),
     ``ratec`` corrected range rate (m/s, NaN without Doppler), ``var_rate`` ((m/s)^2), ``el``, ``az`` (rad,
-    at ``pos0``), ``cdts`` the satellite clock ``c dt_sv`` (m), ``shape`` the elevation/C/N0 factor of the
-    variances (1 at the zenith and the reference C/N0; :func:`sinscli.gnss.spp.doppler_variance`), ``atm`` the
-    carrier's atmospheric terms ``T - I`` on the primary frequency (m; the models the options turn on).  Per epoch e: ``clk (E, N_SYS)`` the median of ``P_c - rho`` of each system's satellites at
+    at ``pos0``).  Per epoch e: ``clk (E, N_SYS)`` the median of ``P_c - rho`` of each system's satellites at
     the approximate ECEF position ``pos0[e]`` (m; NaN: none), ``drift (E,)`` the median of the range-rate
     residuals at ``pos0[e]``, ``vel0[e]`` (m/s, NaN: no Doppler), ``spread (E,)`` the largest deviation from
     the median among the satellites of the epoch's clocks (m).
@@ -66,9 +58,6 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
     var_rate = np.full(nr, np.nan)
     rel = np.full(nr, np.nan)
     raz = np.full(nr, np.nan)
-    cdts = np.full(nr, np.nan)
-    shape = np.full(nr, np.nan)
-    atm = np.zeros(nr)
     clk = np.full((ne, N_SYS), np.nan)
     drift = np.full(ne, np.nan)
     spread = np.zeros(ne)
@@ -76,8 +65,6 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
     clk_of = np.zeros(N_SYS, np.int64)          # every system on one clock column, x[3] = 0: v = P_c - rho
     x = np.zeros(4)
     res = np.zeros(MAX_EPOCH_SAT)
-    unit = opts.copy()                          # the variance shape: a Doppler sigma of 1
-    unit[O_DOP_SIGMA] = 1.0
     for e in range(ne):
         a0 = start[e]
         nsat = min(start[e + 1] - a0, MAX_EPOCH_SAT)
@@ -98,8 +85,6 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
                               b1[a0:a0 + nsat], b2[a0:a0 + nsat], f1[a0:a0 + nsat], f2[a0:a0 + nsat],
                               cn0[a0:a0 + nsat], sysv, kk, sx, dts, use, iono_used, h, w, v, el, az)
         nd = 0
-        lat, lon, hgt = ecef_to_geodetic(x[0], x[1], x[2])
-        tow = t - math.floor(t / 604800.0) * 604800.0
         for j in range(n):
             i = rows[j]
             r = a0 + i
@@ -113,12 +98,6 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
             var_pr[r] = 1.0 / w[j]
             rel[r] = el[i]
             raz[r] = az[i]
-            cdts[r] = C_LIGHT * dts[i]
-            shape[r] = doppler_variance(unit, el[i], cn0[r])
-            if opts[O_TROPO] > 0.0:
-                atm[r] += tropo_delay(lat, hgt, el[i])
-            if opts[O_IONO] != IONO_OFF:
-                atm[r] -= klobuchar(ion, lat, lon, az[i], el[i], tow) * (F_L1 / f1[r]) ** 2
             d = dop[r]
             if d == d and vel0[e, 0] == vel0[e, 0]:
                 ratec[r] = -C_LIGHT / f1[r] * d + C_LIGHT * ddts[i]
@@ -145,7 +124,7 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
                 for q in range(m):
                     worst = max(worst, abs(res[q] - c))
         spread[e] = worst
-    return ok, sx_out, prc, var_pr, ratec, var_rate, rel, raz, cdts, shape, atm, clk, drift, spread
+    return ok, sx_out, prc, var_pr, ratec, var_rate, rel, raz, clk, drift, spread
 
 
 __all__ = ["tc_records"]
