@@ -78,7 +78,7 @@ def timed_batch(batch: Path, out: Path, **backend):
     """Run a batch; returns (total wall, times of each job result, the jobs' own worker seconds)."""
     import pandas as pd
 
-    from sinscli.report.batch import load_batch, run_batch
+    from sinscli.batch.compare import load_batch, run_batch
     stamps = []
     t0 = time.perf_counter()
     res = run_batch(load_batch(batch), out, on_progress=lambda n: stamps.append(time.perf_counter()), **backend)
@@ -94,7 +94,7 @@ def scaling(tmp: Path, only: str | None = None) -> None:
     batch = batch_file(tmp / "scaling", seeds=40, duration=240.0)
     print(f"scaling machine_parallelism={machine_parallelism():.2f} (2 spinning processes / 1; {load()})",
           flush=True)
-    from sinscli.report.exec import PoolBackend
+    from sinscli.batch.exec import PoolBackend
     # (--jobs 1 runs in this process: a pool of one process is the fair baseline of a pool of two)
     for kind, one, two in (("dask-local", {"scheduler": "local:1"}, {"scheduler": "local:2"}),
                            ("pool", {"backend": lambda: PoolBackend(1)}, {"backend": lambda: PoolBackend(2)})):
@@ -136,7 +136,7 @@ def memory(tmp: Path, runs: int) -> None:
 def memory_child(scenario: str, outdir: str, runs: int) -> None:
     import pandas as pd
 
-    from sinscli.report.mc_study import run_mc_study
+    from sinscli.batch.mc_study import run_mc_study
     study = run_mc_study(scenario, outdir, runs, scheduler="local:2")
     rows = len(pd.read_parquet(Path(outdir) / "results.parquet"))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0          # KiB on Linux

@@ -14,7 +14,7 @@ import numpy as np
 from bench_navigate import best_of   # same folder: one timing helper for the benchmarks
 from sinscli.report.compare_page import compare_page
 from sinscli.report.digest import digest
-from sinscli.report.errors import ErrorSeries, build_table
+from sinscli.evaluate.errors import ErrorSeries, build_table
 from sinscli.report.figures import plot_all
 
 

@@ -1,7 +1,9 @@
 """sins: strapdown inertial navigation of IMU/GNSS logs.
 
-Layout: ``io`` (readers, writers) -> ``align`` / ``nav`` / ``report`` (pipeline
-stages) -> ``io`` (writers); numerical kernels live in ``nav`` with no I/O.
+Layers, top to bottom (imports run down only; ``tests/test_layers.py`` checks it): ``cli`` -> ``batch``
+-> ``report`` -> ``evaluate``, ``align`` -> ``allan``, ``sim`` -> ``fusion`` and ``io`` (siblings) -> ``gnss`` ->
+``nav`` -> ``config``, ``sensors`` -> ``inputs``, ``frames`` -> ``errors``, ``types``, ``units``, ``layout``.
+Numerical kernels live in ``nav`` (and ``fusion``, ``gnss``) with no I/O.
 """
 __version__ = "0.1.0"
 

@@ -62,7 +62,7 @@ def ensure_cache_dir() -> str | None:
         return None                            # nothing writable at all: numba's own error will say so
     os.environ["NUMBA_CACHE_DIR"] = str(d)
     if "numba" in sys.modules:                 # numba read its config already
-        from numba.core import config
+        from numba.core import config   # numba is loaded already here; the package's import loads none
         config.CACHE_DIR = str(d)
     where = f"NUMBA_CACHE_DIR={given}" if given else f"{user or 'the home folder'}"
     return (f"cannot write numba's kernel cache (neither the package's __pycache__ nor {where} is writable); "
@@ -90,7 +90,7 @@ def announce_compiles(echo, text: str):
     it is loaded from the cache; once a note was shown, no later compile of the process repeats it.
     """
     global _note
-    from numba.core import event
+    from numba.core import event   # numba only when a command compiles (sins --help loads none)
 
     class _FirstCompile(event.Listener):
         def on_start(self, ev):

@@ -8,15 +8,19 @@ from __future__ import annotations
 
 import copy
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from .errors import SinsError, num, quote
+from .frames import validate_section
+from .inputs import load_yaml
+from .units import DEG, DEG_PER_H, G0, MG
 
-GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
-ACCEL_UNITS = {"m/s^2": 1.0, "g": 9.80665, "mg": 9.80665e-3}
-ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
+GYRO_UNITS = {"rad/s": 1.0, "deg/s": DEG, "deg/h": DEG_PER_H}
+ACCEL_UNITS = {"m/s^2": 1.0, "g": G0, "mg": MG}
+ANGLE_UNITS = {"rad": 1.0, "deg": DEG}
 VEL_UNITS = {"m/s": 1.0}
 IMU_NAMES = ["time", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z",
              "dtheta_x", "dtheta_y", "dtheta_z", "dvel_x", "dvel_y", "dvel_z"]
@@ -41,7 +45,7 @@ DEFAULTS = {
         "ignore_columns": [],
         "lever_arm": [0.0, 0.0, 0.0],   # antenna position in body axes, m
         "time_offset": 0.0,             # s added to every GNSS time on reading (e.g. -18: GPS time -> UTC)
-        "frame": "enu",                 # enu | ned: velocity columns (NED: vel_d, std_d, std_vel_d; io/frames.py)
+        "frame": "enu",                 # enu | ned: velocity columns (NED: vel_d, std_d, std_vel_d; frames.py)
         "units": {"angle": "deg"},      # lat, lon in deg | rad
     },
     "init": {                     # the --init file (init YAML or trajectory)
@@ -121,7 +125,6 @@ def load_config(path=None, extra_sections=STAGE_SECTIONS) -> dict:
         cfg[name] = None
     if path is None:
         return cfg
-    from .io.inputs import load_yaml
     path = Path(path)
     data = load_yaml(path, "config file")
     if data is None:
@@ -238,21 +241,20 @@ def validate(cfg: dict, src: str) -> None:
         if not isinstance(off, (int, float)) or isinstance(off, bool) or not abs(off) <= lim["time"]:
             _fail(src, f"{section}.time_offset", f"expected a number of seconds within +-{lim['time']:g} (the "
                                                  f"config's limits.time), got {off!r}")
-    from .io.frames import validate_section
     for section in ("gnss", "init", "truth"):
         validate_section(cfg[section], section, lambda key, msg: _fail(src, key, msg))
 
 
 def mounting_angles(c: np.ndarray) -> dict:
     """The ``{roll, pitch, yaw}`` (degrees) of ``imu.mounting`` giving the rotation ``c`` (the inverse of
-    :func:`mounting_matrix`: ``c = Rz(yaw) Ry(pitch) Rx(roll)``); pitch in [-90, 90]."""
-    c = np.asarray(c, dtype=float)
-    pitch = math.asin(max(-1.0, min(1.0, -c[2, 0])))
-    if abs(c[2, 0]) < 1.0 - 1e-12:
-        roll, yaw = math.atan2(c[2, 1], c[2, 2]), math.atan2(c[1, 0], c[0, 0])
-    else:                                   # pitch +-90: the roll is folded into the yaw
-        roll, yaw = 0.0, math.atan2(-c[0, 1], c[1, 1])
-    return {k: float(np.round(math.degrees(v), 6)) + 0.0 for k, v in (("roll", roll), ("pitch", pitch), ("yaw", yaw))}
+    :func:`mounting_matrix`: ``c = Rz(yaw) Ry(pitch) Rx(roll)``); pitch in [-90, 90], and at pitch +-90 the
+    roll folded into the yaw (roll 0)."""
+    # scipy.spatial (0.56 s to import) only when a mounting is suggested or given (tests/test_cli_startup.py)
+    from scipy.spatial.transform import Rotation
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)         # gimbal lock: the roll is set to 0, as documented
+        yaw, pitch, roll = Rotation.from_matrix(np.asarray(c, dtype=float)).as_euler("ZYX", degrees=True)
+    return {k: float(np.round(v, 6)) + 0.0 for k, v in (("roll", roll), ("pitch", pitch), ("yaw", yaw))}
 
 
 def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
@@ -274,13 +276,9 @@ def mounting_matrix(mounting, src: str = "config") -> np.ndarray:
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not abs(v) <= 360.0:
                 _fail(src, f"imu.mounting.{k}", f"expected a number of degrees in [-360, 360], got {v!r}")
             ang[k] = math.radians(v)
-        cr, sr = math.cos(ang["roll"]), math.sin(ang["roll"])
-        cp, sp = math.cos(ang["pitch"]), math.sin(ang["pitch"])
-        cy, sy = math.cos(ang["yaw"]), math.sin(ang["yaw"])
-        rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-        ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-        rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-        return rz @ ry @ rx
+        # scipy.spatial (0.56 s to import) only for a config with a mounting (tests/test_cli_startup.py)
+        from scipy.spatial.transform import Rotation
+        return Rotation.from_euler("ZYX", [ang["yaw"], ang["pitch"], ang["roll"]]).as_matrix()
     try:
         m = np.array(mounting, dtype=float)
     except (TypeError, ValueError):

@@ -15,33 +15,30 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SinsError, num, quote
-from .io.inputs import load_yaml, parse_yaml
-
-DEG = np.pi / 180.0
-G0 = 9.80665                      # m/s^2 per g (unit conversion only)
-ARCSEC = DEG / 3600.0
+from .inputs import load_yaml, parse_yaml
+from .units import ARCSEC, DEG_PER_H, DEG_PER_SQRT_H, G0, PPM, UG  # noqa: F401  (G0: sensors.G0 of fusion/)
 
 # key -> factor to SI (rad/s, rad/sqrt(s), m/s^2, m/s/sqrt(s), dimensionless, rad, s)
 GYRO_UNITS = {
-    "bias": DEG / 3600.0,                  # deg/h, fixed value(s)
-    "bias_sigma": DEG / 3600.0,            # deg/h, turn-on bias drawn per run
-    "bias_instability": DEG / 3600.0,      # deg/h, Gauss-Markov steady-state sigma
+    "bias": DEG_PER_H,                     # deg/h, fixed value(s)
+    "bias_sigma": DEG_PER_H,               # deg/h, turn-on bias drawn per run
+    "bias_instability": DEG_PER_H,         # deg/h, Gauss-Markov steady-state sigma
     "bias_tau": 1.0,                       # s, Gauss-Markov correlation time
-    "arw": DEG / 60.0,                     # deg/sqrt(h) -> rad/sqrt(s)
-    "scale_factor": 1e-6,                  # ppm
-    "scale_factor_sigma": 1e-6,            # ppm
+    "arw": DEG_PER_SQRT_H,                 # deg/sqrt(h) -> rad/sqrt(s)
+    "scale_factor": PPM,                   # ppm
+    "scale_factor_sigma": PPM,             # ppm
     "misalignment": ARCSEC,                # arcsec (6 values or one)
     "misalignment_sigma": ARCSEC,          # arcsec
     "quantization": 1.0,                   # rad per count
 }
 ACCEL_UNITS = {
-    "bias": 1e-6 * G0,                     # micro-g
-    "bias_sigma": 1e-6 * G0,               # micro-g
-    "bias_instability": 1e-6 * G0,         # micro-g
+    "bias": UG,                            # micro-g
+    "bias_sigma": UG,                      # micro-g
+    "bias_instability": UG,                # micro-g
     "bias_tau": 1.0,                       # s
-    "vrw": 1e-6 * G0,                      # micro-g/sqrt(Hz) -> m/s/sqrt(s)
-    "scale_factor": 1e-6,                  # ppm
-    "scale_factor_sigma": 1e-6,            # ppm
+    "vrw": UG,                             # micro-g/sqrt(Hz) -> m/s/sqrt(s)
+    "scale_factor": PPM,                   # ppm
+    "scale_factor_sigma": PPM,             # ppm
     "misalignment": ARCSEC,                # arcsec
     "misalignment_sigma": ARCSEC,          # arcsec
     "quantization": 1.0,                   # m/s per count

@@ -198,7 +198,7 @@ def test_kf_plot_draws_a_supplied_heading_as_a_marker(data, tmp_path):
     figure draws as a separate marker instead of a jump of the line at the last epoch."""
     import matplotlib.image as mpimg
 
-    from sinscli.align import figures
+    from sinscli.report import align_figures as figures
 
     seen = {}
     real = figures.series_figure

@@ -10,6 +10,7 @@ from sinscli.align.options import AlignOptions, SensorSpec
 from sinscli.align.pipeline import align
 from sinscli.nav.earth import OMEGA_IE, gravity
 from sinscli.nav.rotation import attitude_error_many, rotvec_to_dcm
+from sinscli.nav import imu_stats
 
 
 def dcm_to_rotvec_many(c):
@@ -78,7 +79,7 @@ def test_error_free_static_base_is_aligned_exactly(perfect_static):
     for method in ("static", "inertial"):
         res = align(r.imu, AlignOptions(method=method, position=POS, sensor=SPEC))
         assert _err_deg(r.truth.Cbn[-1], res.state.Cbn).max() < 1e-8, method
-    w_mean, f_mean = coarse.mean_rates(r.imu.time, r.imu.dtheta_b, r.imu.dvel_b, r.imu.t0)
+    w_mean, f_mean = imu_stats.mean_rates(r.imu.time, r.imu.dtheta_b, r.imu.dvel_b, r.imu.t0)
     assert _err_deg(r.truth.Cbn[0], coarse.triad(f_mean, w_mean, LAT)).max() < 1e-8
 
 

@@ -75,7 +75,7 @@ def test_a_worker_that_cannot_see_a_file_and_a_failing_job_are_reported(tmp_path
     """The batch file is checked at the client; the file then vanishes before the workers read it
     (as on a worker without the shared filesystem): that job's error names the path and the host,
     the scenario jobs still finish and are reported."""
-    from sinscli.report.batch import load_batch, run_batch
+    from sinscli.batch.compare import load_batch, run_batch
     address, _ = cluster
     batch = write_batch(tmp_path / "b", seeds=2, files=True)
     spec = load_batch(batch)
@@ -146,7 +146,7 @@ def test_scheduler_option_errors(tmp_path, monkeypatch):
         r = compare(batch, "-o", tmp_path / "o", *args)
         assert r.exit_code == 2 and f"sins: error: " in r.output and text in r.output, r.output
         assert not (tmp_path / "o").exists()
-    import sinscli.report.exec as ex
+    import sinscli.batch.exec as ex
     monkeypatch.setattr(ex, "CONNECT_TIMEOUT_S", 2.0)
     t = time.monotonic()
     r = compare(batch, "-o", tmp_path / "o", "--scheduler", "tcp://127.0.0.1:9")       # nothing listens there
@@ -174,7 +174,7 @@ def test_without_dask_the_scheduler_option_says_what_to_install(tmp_path, monkey
                                                 "'sinscli[distributed]' (pip install '.[distributed]' in a checkout)")
     assert not (tmp_path / "o").exists()
     with pytest.raises(SinsError, match="--scheduler needs Dask"):
-        from sinscli.report.exec import open_backend
+        from sinscli.batch.exec import open_backend
         open_backend(scheduler="local:1")
     # the local pool needs nothing of Dask
     r = compare(batch, "-o", tmp_path / "o", "-q", "--jobs", "1")

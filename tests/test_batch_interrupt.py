@@ -20,7 +20,7 @@ import yaml
 from click.testing import CliRunner
 
 from sinscli.cli import main
-from sinscli.report.jobs import FINGERPRINT
+from sinscli.batch.jobs import FINGERPRINT
 
 from batchutil import assert_same_report, start_sins, stop, write_batch
 
@@ -90,6 +90,7 @@ def test_signal_stops_the_batch_and_leaves_only_finished_jobs(tmp_path, backend,
     assert "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_monte_carlo_interrupted_and_resumed(tmp_path):
     """``sins align --monte-carlo`` keeps the same contract: SIGTERM, then --resume, then the same report."""
     scen = {"name": "mc_rest", "start": {"lat": 30.0, "lon": 114.0, "height": 50.0, "heading": 0.0},
@@ -122,12 +123,13 @@ def test_monte_carlo_interrupted_and_resumed(tmp_path):
     assert len(pd.read_parquet(tmp_path / "out" / "results.parquet")) == 300 * 2
 
 
+@pytest.mark.slow
 def test_interrupted_1000_job_batch_resumes_to_the_same_report(tmp_path):
     """1,000 tiny jobs (1,000 seeds x 1 method, in this process); interrupted after 400 finished,
     the folder holds exactly those; ``--resume`` runs the other 600 and writes the report of an
     uninterrupted run, byte for byte."""
-    from sinscli.report.batch import load_batch, run_batch
-    from sinscli.report.jobs import StudyInterrupted
+    from sinscli.batch.compare import load_batch, run_batch
+    from sinscli.batch.jobs import StudyInterrupted
 
     batch = write_batch(tmp_path / "b", seeds=1000, duration=0.5,
                         methods=[{"name": "quat2", "attitude": "quat", "coning": 2}])

@@ -22,8 +22,8 @@ from click.testing import CliRunner
 from sinscli.cli import main
 from sinscli.errors import SinsError
 from sinscli.report.digest import TAIL_EPOCHS, table_from_tails, tail_table
-from sinscli.report.errors import ROWS, build_table, compare_trajectories
-from sinscli.report.stats import describe, row_statistics
+from sinscli.evaluate.errors import ROWS, build_table, compare_trajectories
+from sinscli.evaluate.stats import describe, row_statistics
 
 from batchutil import SINS, write_batch
 from test_report_errors import displaced, make_truth
@@ -49,7 +49,7 @@ def _series(sub: int, shift: float, n: int = 400):
     truth = make_truth(n=n)
     nav = displaced(truth, [0.1 * shift, 0.2, -0.3 * shift], [0.01 * shift, 0.0, 0.02], phi_n=[1e-6, -2e-6 * shift, 3e-6])
     keep = np.arange(0, n, sub)
-    from sinscli.report.errors import _subset
+    from sinscli.evaluate.errors import _subset
     return compare_trajectories(truth, _subset(nav, keep))
 
 

@@ -31,7 +31,7 @@ def _probe(*args):
 
 
 @pytest.mark.parametrize("args", [["--help"], ["navigate", "--help"], ["simulate", "--help"],
-                                  ["compare", "--help"]], ids=" ".join)
+                                  ["compare", "--help"], ["allan", "--help"], ["info", "--help"]], ids=" ".join)
 def test_help_loads_no_heavy_module(args):
     text, res = _probe(*args)
     assert res["code"] == 0 and "Usage: sins" in text
@@ -72,3 +72,28 @@ def test_installed_console_script_help(tmp_path):
     assert r.returncode == 0 and "navigate  Navigate IMU increments" in r.stdout
     r = subprocess.run([str(exe), "navigate", "--help"], cwd=tmp_path, capture_output=True, text=True)
     assert r.returncode == 0 and "[flu|frd|rfu]" in r.stdout
+
+
+@pytest.mark.parametrize("module, heavy", [
+    ("sinscli", ["numba", "numpy"]),                                     # _numba_cache: numba's event on demand
+    ("sinscli.report.report", ["pandas", "scipy.stats", "sinscli.fusion.pipeline"]),   # compare_page, tables
+    ("sinscli.batch.exec", ["distributed", "psutil"]),                  # the optional Dask extra
+    ("sinscli.config", ["scipy.spatial"]),                                # Rotation only for a mounting
+], ids=lambda x: x if isinstance(x, str) else "")
+def test_function_local_imports_keep_their_modules_out(module, heavy):
+    """What the function-local imports (each with its reason, tests/test_layers.py) save: importing the
+    module does not load these (the time saved: python -X importtime, benchmarks/bench_startup.py)."""
+    r = subprocess.run([sys.executable, "-c", f"import sys, {module}; print('\\n'.join(sys.modules))"],
+                       capture_output=True, text=True, check=True)
+    assert not set(r.stdout.split()) & set(heavy)
+
+
+@pytest.mark.parametrize("command", ["align", "convert"])
+def test_help_of_the_reader_commands_loads_no_stage(command):
+    """``align`` and ``convert`` import their readers at module level (numpy, numba); their stages, the plots and
+    the batch machinery load only when they run (the function-local imports of cli/align.py, cli/convert.py)."""
+    text, res = _probe(command, "--help")
+    assert res["code"] == 0 and "Usage: sins" in text
+    stages = ("matplotlib", "pandas", "sinscli.align", "sinscli.batch", "sinscli.report", "sinscli.sim",
+              "sinscli.fusion")
+    assert [m for m in res["modules"] if any(m == h or m.startswith(h + ".") for h in stages)] == []

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from sinscli.io.frames import C_NED_ENU
+from sinscli.frames import C_NED_ENU
 from sinscli.io.trajectory import read_trajectory
 from sinscli.nav.rotation import FRD, cbn_from_flu, dcm_to_quat_many
 from test_contract import refused, sins

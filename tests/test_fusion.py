@@ -8,16 +8,18 @@ import shutil
 import sys
 import subprocess
 from pathlib import Path
+from statistics import NormalDist
 
 import numpy as np
 import pytest
 import yaml
+from scipy.stats import chi2
 
 from sinscli.fusion import kernel as kn
-from sinscli.fusion.evaluate import errors, horizontal_rms
+from sinscli.evaluate.fusion import errors, horizontal_rms
 from sinscli.fusion.options import build_fusion_options
 from sinscli.allan.rest import noise_from_rest
-from sinscli.fusion.pipeline import SIGMA_COLUMNS, chi2_ppf, run_fusion
+from sinscli.fusion.pipeline import SIGMA_COLUMNS, run_fusion
 from sinscli.sim.run import simulate
 from sinscli.types import BodyVelLog, GnssLog
 
@@ -166,8 +168,12 @@ def test_fault_fixes_rejected():
     lat[bad] += np.degrees(50.0 * np.cos(ang) / 6.37e6)
     lon[bad] += np.degrees(50.0 * np.sin(ang) / (6.37e6 * np.cos(np.radians(lat[bad]))))
     faulty = GnssLog(g.time, lat, lon, g.height, g.vel_n, g.std_pos, g.std_vel, "faults")
-    traj, inn, summ, _ = run_fusion(sim.imu, sim.init, faulty, _opts(sensor="mems", use_gnss_velocity=False),
-                                    init_sigma=INIT_SIGMA)
+    traj, inn, summ, fz = run_fusion(sim.imu, sim.init, faulty, _opts(sensor="mems", use_gnss_velocity=False),
+                                     init_sigma=INIT_SIGMA)
+    # the gates the kernel used: the 0.9999 quantiles of chi2(1..3) in closed form (m = 2: -2 ln(1 - p))
+    p = fz.fopts.gate_probability
+    assert fz.cv[kn.C_GATE + 1] == pytest.approx(-2.0 * math.log1p(-p), rel=1e-12)
+    assert fz.cv[kn.C_GATE] == pytest.approx(NormalDist().inv_cdf(0.5 + 0.5 * p) ** 2, rel=1e-9)
     rej_t = np.unique(inn["time"][(inn["type"] == "gnss_pos") & ~inn["accepted"]])
     assert set(np.round(g.time[bad], 6)) <= set(np.round(rej_t, 6))
     assert len(rej_t) <= len(bad) + 2
@@ -189,6 +195,7 @@ def _mc_run(seed, sensor_file=None, fsensor="mems", duration=150.0):
     return sim, run_fusion(sim.imu, sim.init, sim.gnss, _opts(sensor=fsensor), init_sigma=INIT_SIGMA)
 
 
+@pytest.mark.slow
 def test_monte_carlo_consistency():
     """50 seeded runs (sensor without scale-factor/misalignment errors, which the 15 states do not model):
     the mean NEES of position, velocity and attitude at the end lies in the two-sided 95 % band of
@@ -214,7 +221,7 @@ def test_monte_carlo_consistency():
         sa = np.sqrt(np.diag(P)[12:15])
         inside += list(np.abs(bg - sim.sensor["gyro"]["bias"]) <= 3 * sg)
         inside += list(np.abs(ba - sim.sensor["accel"]["bias"]) <= 3 * sa)
-    lo, hi = chi2_ppf(0.025, 3 * N) / N, chi2_ppf(0.975, 3 * N) / N
+    lo, hi = chi2.ppf(0.025, 3 * N) / N, chi2.ppf(0.975, 3 * N) / N
     mean = nees.mean(axis=0)
     assert adapted <= 2, adapted                       # the adaptation leaves an honest filter (almost) alone
     assert np.all(mean <= hi), (mean, lo, hi)          # never overconfident

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
-from sinscli.fusion.evaluate import errors_at
+from sinscli.evaluate.fusion import errors_at
 from sinscli.io.trajectory import read_trajectory
 from sinscli.sensors import preset_text
 from sinscli.sim.run import simulate, write_sim

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sinscli.io.imu_csv import apply_mounting
-from sinscli.fusion.evaluate import errors
+from sinscli.evaluate.fusion import errors
 from sinscli.fusion.options import build_fusion_options
 from sinscli.fusion.pipeline import SIGMA_COLUMNS, run_fusion
 from sinscli.fusion.smoother import NPS, _keep, _phi, _unpack, rts_backward

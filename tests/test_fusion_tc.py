@@ -15,7 +15,7 @@ import yaml
 from click.testing import CliRunner
 
 from sinscli.fusion import kernel as kn
-from sinscli.fusion.evaluate import errors, horizontal_rms
+from sinscli.evaluate.fusion import errors, horizontal_rms
 from sinscli.fusion.options import build_fusion_options
 from sinscli.fusion.pipeline import Fusion, chi2_gate, fuse_blocks, run_fusion
 from sinscli.fusion.raw import raw_measurements, raw_spp, spp_log

@@ -743,6 +743,7 @@ def test_seed_inputs_pass(seeds, tmp_path):
             assert cls == "ok", f"sins {' '.join(args)}: {cls}: {detail or err}"
 
 
+@pytest.mark.slow
 def test_fuzz_contract(seeds, tmp_path):
     rng = np.random.default_rng(SEED)
     counts = collections.Counter()

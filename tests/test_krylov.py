@@ -253,18 +253,6 @@ def test_euler3_init_rebuilds():
     assert a[2] == 0.0 and np.abs(K.euler3_dcm(a) - c).max() < 1e-12
 
 
-def test_check_orthonormal():
-    c = random_dcms(1, seed=1)[0]
-    assert K.check_orthonormal(c) < 1e-15
-    assert abs(K.check_orthonormal(c * 1.001) - (1.001 ** 3 - 1.0)) < 1e-12   # |det - 1|
-    bad = c.copy()
-    bad[0, 1] += 1e-5
-    assert 5e-6 < K.check_orthonormal(bad) < 3e-5
-    assert K.check_orthonormal(-c) == pytest.approx(2.0)       # reflection: det = -1
-    bad[1, 1] = np.nan
-    assert K.check_orthonormal(bad) == math.inf
-
-
 def test_wrap_pi():
     vals = np.array([0.0, math.pi, -math.pi, 3 * math.pi, -3 * math.pi, 7.0, -7.0, 1e3, -0.5])
     for v in vals:

@@ -20,7 +20,7 @@ from sinscli import config as config_mod
 from sinscli.nav import krylov as K
 from sinscli.nav.pipeline import NavOptions, navigate
 from sinscli.nav.rotation import rotvec_to_dcm
-from sinscli.report.errors import compare_trajectories
+from sinscli.evaluate.errors import compare_trajectories
 from sinscli.sim import simulate, write_sim
 from test_krylov import err_deg, margins_deg, random_dcms
 

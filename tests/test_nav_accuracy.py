@@ -3,7 +3,7 @@
 Truth comes from two independent sources: closed-form increments written here
 (rest on the rotating earth), and the simulator's analytic motions (Taylor
 jets + Gauss-Legendre quadrature, :mod:`sinscli.sim`).  Errors are computed by
-:mod:`sinscli.report.errors` (DCM difference, metres E/N/U).
+:mod:`sinscli.evaluate.errors` (DCM difference, metres E/N/U).
 """
 import math
 
@@ -13,7 +13,7 @@ import pytest
 from sinscli.nav import earth
 from sinscli.nav.pipeline import NavOptions, navigate
 from sinscli.nav.rotation import euler_to_dcm
-from sinscli.report.errors import compare_trajectories
+from sinscli.evaluate.errors import compare_trajectories
 from sinscli.sim import motions
 from sinscli.types import ImuLog, NavState
 

@@ -8,7 +8,7 @@ from click.testing import CliRunner
 from sinscli.cli import main
 from sinscli.io.imu_csv import read_imu_csv, rates_to_increments
 from sinscli.io.trajectory import read_trajectory
-from sinscli.report.errors import compare_trajectories
+from sinscli.evaluate.errors import compare_trajectories
 from sinscli.sim import motions, write_sim
 
 

@@ -21,7 +21,7 @@ from sinscli.nav import earth
 from sinscli.nav.inertial import COLUMNS, LaunchFrame, earth_state, inertial_state
 from sinscli.nav.pipeline import NavOptions, navigate
 from sinscli.nav.rotation import euler_to_dcm
-from sinscli.report.errors import compare_trajectories
+from sinscli.evaluate.errors import compare_trajectories
 from sinscli.sim import simulate, write_sim
 from sinscli.sim.imu_synth import j2_gravity_n
 from sinscli.types import ImuLog, NavState

@@ -16,7 +16,7 @@ from sinscli.io.trajectory import read_trajectory
 from sinscli.nav import krylov as K
 from sinscli.nav.pipeline import NavOptions, navigate
 from sinscli.nav.rotation import conv_to_flu, dcm_to_quat, quat_to_dcm_many
-from sinscli.report.errors import compare_trajectories
+from sinscli.evaluate.errors import compare_trajectories
 from sinscli.sim import motions, write_sim
 from sinscli.types import ImuLog, NavState
 from test_krylov import Motion, err_deg, quat_run, run_case

@@ -8,7 +8,7 @@ from click.testing import CliRunner
 
 from sinscli.cli import main
 from sinscli.errors import SinsError
-from sinscli.report.batch import count_jobs, default_method_name, load_batch
+from sinscli.batch.compare import count_jobs, default_method_name, load_batch
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -100,9 +100,9 @@ def test_shipped_batches_are_valid():
 def test_monte_carlo_table_rms_and_max():
     import pandas as pd
 
-    from sinscli.report.batch_report import mc_table
-    from sinscli.report.errors import ROW_UNITS, ROWS
-    from sinscli.report.stats import row_statistics
+    from sinscli.batch.compare_report import mc_table
+    from sinscli.evaluate.errors import ROW_UNITS, ROWS
+    from sinscli.evaluate.stats import row_statistics
     vals = np.zeros((len(ROWS), 4))
     pos_e, max_att = ROWS.index("pos_E"), ROWS.index("max_att_deg")
     vals[pos_e] = [3.0, -4.0, 1.0, 1.0]          # a#s0, a#s1, b#s0, b#s1

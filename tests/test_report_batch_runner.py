@@ -8,14 +8,13 @@ simulator and worker processes is in test_report_batch_e2e.py.)
 """
 import csv
 import dataclasses
-import sys
-import types
 from pathlib import Path
 
 import numpy as np
 import yaml
 from click.testing import CliRunner
 
+from sinscli.batch import compare_job
 from sinscli.cli import main
 from sinscli.io.imu_csv import write_imu_csv
 from sinscli.io.init_state import write_init_yaml
@@ -57,10 +56,9 @@ def make_dataset(d: Path, broken=False):
 
 
 def test_runner_reports_known_errors_and_a_failed_job(tmp_path, monkeypatch):
-    mod = types.ModuleType("sinscli.nav.pipeline")
-    mod.NavOptions = FakeOptions
-    mod.navigate = fake_navigate
-    monkeypatch.setitem(sys.modules, "sinscli.nav.pipeline", mod)
+    # the stand-in navigator where the batch worker looks it up (--jobs 1 runs the jobs in this process)
+    monkeypatch.setattr(compare_job, "NavOptions", FakeOptions)
+    monkeypatch.setattr(compare_job, "navigate", fake_navigate)
     make_dataset(tmp_path / "good")
     make_dataset(tmp_path / "bad", broken=True)
     batch = {"title": "stand-in", "timeseries_every": 7,

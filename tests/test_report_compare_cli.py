@@ -8,7 +8,7 @@ from click.testing import CliRunner
 
 from sinscli.cli import main
 from sinscli.io.trajectory import write_trajectory
-from sinscli.report.errors import ROWS
+from sinscli.evaluate.errors import ROWS
 from sinscli.types import Trajectory
 
 from test_report_errors import displaced, make_truth

@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from sinscli.io.trajectory import write_trajectory
 from sinscli.nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef
 from sinscli.nav.rotation import dcm_to_euler_many, euler_to_dcm_many, level_heading_frame, rotvec_to_dcm
-from sinscli.report.errors import CONSISTENCY_ROWS, build_consistency, compare_trajectories
+from sinscli.evaluate.errors import CONSISTENCY_ROWS, build_consistency, compare_trajectories
 from sinscli.report.figures import _line_plot, series_lines
 from sinscli.types import Trajectory
 
@@ -139,7 +139,7 @@ def test_a_batch_job_file_carries_the_sigma_report(tmp_path):
     import filecmp
 
     from sinscli.report.digest import SeriesDigest, digest
-    from sinscli.report.errors import build_table
+    from sinscli.evaluate.errors import build_table
     from sinscli.report.report import write_report, write_report_files
 
     truth = _truth(3000)

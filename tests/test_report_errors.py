@@ -10,7 +10,7 @@ import pytest
 from sinscli.errors import SinsError
 from sinscli.nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef
 from sinscli.nav.rotation import FLU, FRD, RFU, dcm_to_euler_many, euler_to_dcm_many, rotvec_to_dcm, skew
-from sinscli.report.errors import (ROWS, build_table, common_epoch, compare_trajectories, interpolate_truth,
+from sinscli.evaluate.errors import (ROWS, build_table, common_epoch, compare_trajectories, interpolate_truth,
                                    match_epochs)
 from sinscli.types import Trajectory
 

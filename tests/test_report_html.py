@@ -5,10 +5,10 @@ import re
 import numpy as np
 import pytest
 
-from sinscli.align.figures import robust_range, series_figure
+from sinscli.report.align_figures import robust_range, series_figure
 from sinscli.report.compare_page import display_unit, row_meaning, summary_lines
 from sinscli.report.digest import SeriesDigest
-from sinscli.report.errors import ROWS, ErrorSeries, headline_errors
+from sinscli.evaluate.errors import ROWS, ErrorSeries, headline_errors
 from sinscli.report.webpage import Page, asset
 
 

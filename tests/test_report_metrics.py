@@ -15,8 +15,8 @@ from sinscli.io.trajectory import write_trajectory
 from sinscli.io.tum import write_tum
 from sinscli.nav.earth import enu_rotation, lla_to_ecef
 from sinscli.nav.rotation import dcm_to_quat_many, rotvec_to_dcm
-from sinscli.report import metrics as M
-from sinscli.report.errors import compare_trajectories
+from sinscli.evaluate import metrics as M
+from sinscli.evaluate.errors import compare_trajectories
 
 from test_report_errors import displaced, make_truth
 

@@ -11,7 +11,7 @@ import yaml
 from sinscli.config import mounting_matrix
 from sinscli.io.imu_csv import apply_mounting
 from sinscli.nav.pipeline import NavOptions, navigate
-from sinscli.report.errors import compare_trajectories
+from sinscli.evaluate.errors import compare_trajectories
 from sinscli.sim import simulate
 
 SCEN = Path(__file__).resolve().parents[1] / "configs" / "scenarios"

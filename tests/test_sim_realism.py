@@ -15,7 +15,7 @@ from sinscli.io.body_vel_csv import read_body_velocity_csv
 from sinscli.io.gnss_csv import read_gnss_csv
 from sinscli.io.imu_csv import apply_mounting, read_imu_csv
 from sinscli.nav.pipeline import NavOptions, navigate
-from sinscli.report.errors import compare_trajectories
+from sinscli.evaluate.errors import compare_trajectories
 from sinscli.sensors import load_sensor
 from sinscli.sim import simulate
 from sinscli.sim.errors import gauss_markov_times

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..nav.earth import OMEGA_IE
-from . import coarse
+from ..nav import imu_stats
 
 DEG = math.pi / 180.0
 UG = 9.80665e-6
@@ -247,7 +247,7 @@ def rest_span(time, dtheta_b, dvel_b, t0, g, rate_tol, accel_tol, block=1.0):
     t = np.asarray(time, dtype=float) - t0
     if t[-1] < 2.0 * block:
         return None
-    wb, fb = coarse.block_means(time, dtheta_b, dvel_b, t0, block)
+    wb, fb = imu_stats.block_means(time, dtheta_b, dvel_b, t0, block)
     nb = wb.shape[0]
     quiet = np.abs(np.linalg.norm(fb, axis=1) - g) < REST_FORCE
     quiet &= np.linalg.norm(wb, axis=1) < 2.0 * DEG

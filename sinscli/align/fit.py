@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..nav.linalg import cholesky_inverse
 from ..nav.rotation import rotvec_to_dcm, skew
 from . import inertial
 from .budget import Z995, t995
@@ -200,38 +201,6 @@ def inv_psd(N, floor=1e-13):
     vals, vecs = np.linalg.eigh(0.5 * (Ns + Ns.T))
     vals = np.maximum(vals, floor * max(float(vals.max()), 1e-300))
     return (vecs / vals) @ vecs.T / np.outer(d, d)
-
-
-@njit(cache=True)
-def cholesky_inverse(S):
-    """``(L^-1, log det S)`` with ``S = L L^T`` (Cholesky-Banachiewicz, then forward substitution).
-
-    A plain kernel for the few-hundred-epoch covariances here: LAPACK's threaded routines can take
-    hundreds of times longer on a loaded 2-core machine (threads waking up), this does not."""
-    n = S.shape[0]
-    L = np.zeros((n, n))
-    logdet = 0.0
-    for i in range(n):
-        for j in range(i + 1):
-            acc = S[i, j]
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            if i == j:
-                if acc <= 0.0:
-                    acc = 1e-300
-                L[i, i] = np.sqrt(acc)
-                logdet += 2.0 * np.log(L[i, i])
-            else:
-                L[i, j] = acc / L[j, j]
-    Li = np.zeros((n, n))
-    for c in range(n):
-        Li[c, c] = 1.0 / L[c, c]
-        for i in range(c + 1, n):
-            acc = 0.0
-            for k in range(c, i):
-                acc -= L[i, k] * Li[k, c]
-            Li[i, c] = acc / L[i, i]
-    return Li, logdet
 
 
 class Whitener:

@@ -13,7 +13,7 @@ Statistics at the end are compared with the static-base limits of
 1-sigma it reports (:meth:`McResult.sigma_rows`, :class:`Coverage`).
 
 For studies spread over workers (``sins align --monte-carlo N --scheduler``,
-:mod:`sinscli.report.mc_study`) the work is split: :func:`plan_monte_carlo`
+:mod:`sinscli.batch.mc_study`) the work is split: :func:`plan_monte_carlo`
 checks the file at the client and gives a small :class:`McPlan`; each worker
 builds the truth once (:func:`scenario_runs`) and runs seeds
 (:func:`run_seed`); the client adds the runs in seed order into a

@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import SinsError
 from ..nav.earth import gravity, radii
 from ..nav.pipeline import NavOptions
+from ..nav import imu_stats
 from ..nav.rotation import conv_to_flu, dcm_to_euler, dcm_to_euler_many, euler_to_dcm, rotvec_to_dcm
 from ..types import GnssLog, ImuLog, NavState, time_tolerance
 from . import budget as budget_mod
@@ -262,14 +263,14 @@ def _epoch_rows(time_rel: np.ndarray, interval: float) -> np.ndarray:
 
 def _rest_statistics(w: Window, opts: AlignOptions):
     """Motion statistics of the window: ``(moving, rate deviation, force deviation)``."""
-    dw, df, _, _ = coarse.motion_statistics(w.time, w.dtheta_b, w.dvel_b, w.t0, opts.static_block)
+    dw, df, _, _ = imu_stats.motion_statistics(w.time, w.dtheta_b, w.dvel_b, w.t0, opts.static_block)
     moving = dw > opts.static_rate or df > opts.static_accel
     return moving, dw, df
 
 
 def check_gravity(w: Window, g: float) -> None:
     """A base at rest or swaying measures gravity on average: refuse a log that cannot be levelled."""
-    _, f = coarse.mean_rates(w.time, w.dtheta_b, w.dvel_b, w.t0)
+    _, f = imu_stats.mean_rates(w.time, w.dtheta_b, w.dvel_b, w.t0)
     mag = float(np.linalg.norm(f))
     if 0.5 * g <= mag <= 1.5 * g:
         return
@@ -307,7 +308,7 @@ def _turning(w: Window) -> bool:
     """Does the body turn (its rate change) by more than ``TURN_MIN`` over the window?  Without it the
     gyro scale factor and misalignment act as a constant bias (``E w`` with ``w`` constant), which
     the bias term already carries."""
-    dw, _ = coarse.block_deviations(w.time, w.dtheta_b, w.dvel_b, w.t0, 1.0)
+    dw, _ = imu_stats.block_deviations(w.time, w.dtheta_b, w.dvel_b, w.t0, 1.0)
     return float(dw.sum()) > TURN_MIN
 
 
@@ -349,7 +350,7 @@ def _static(w: Window, opts: AlignOptions, lat: float, g: float, b) -> _Solution
                         f"{math.degrees(dw):.3g} deg/s, limit {math.degrees(opts.static_rate):.3g}; specific force by "
                         f"{df:.3g} m/s^2, limit {opts.static_accel:.3g}): --method static needs a base at rest; "
                         f"use --method inertial (swaying base) or gnss-inertial (moving)")
-    w_mean, f_mean = coarse.mean_rates(w.time, w.dtheta_b, w.dvel_b, w.t0)
+    w_mean, f_mean = imu_stats.mean_rates(w.time, w.dtheta_b, w.dvel_b, w.t0)
     cbn = coarse.triad(f_mean, w_mean, lat)
     rows = _epoch_rows(w.time - w.t0, opts.obs_interval)
     times = w.all_times[rows]

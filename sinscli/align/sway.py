@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError
-from ..io.inputs import load_yaml
+from ..inputs import load_yaml
 from ..sim.jets import Jet, axis_rotation, stack
 from ..sim.segments import C_FLU_TO_RFU, Primitive
 

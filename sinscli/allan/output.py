@@ -3,10 +3,12 @@ every number through the writer guard :func:`sinscli.io.atomic.check_finite`).""
 from __future__ import annotations
 
 import csv
+import json
 import math
 from pathlib import Path
 
 import numpy as np
+import yaml
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -25,8 +27,6 @@ def _r(x) -> str:
 
 def _scalar(text: str) -> str:
     """``text`` as a YAML scalar that reads back as the same string (quoted where plain would not)."""
-    import json
-    import yaml
     try:
         plain = yaml.safe_load(text) == text and "\n" not in text and "#" not in text
     except yaml.YAMLError:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..align.coarse import block_deviations
+from ..nav.imu_stats import block_deviations
 from ..errors import SinsError
 from ..sensors import ACCEL_UNITS, GYRO_UNITS
 from ..types import ImuLog, time_tolerance

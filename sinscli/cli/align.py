@@ -88,6 +88,7 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
     for out in (output, series, plot):         # before any work: a directory, no permission, an input
         if out is not None:
             prepare_output(out)
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..align.options import build_options, load_align_config, parse_position
     from ..align.pipeline import align
     from ..config import merge
@@ -112,6 +113,7 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
     imu_log = read_imu(imu, cfg)
     gnss = read_gnss(gnss_path, cfg) if gnss_path is not None else None
     if gnss is not None:
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from ..io.gnss_csv import check_gnss_against_imu
         check_gnss_against_imu(gnss, imu_log.t0 if imu_log.t0 is not None else float(imu_log.time[0]),
                                float(imu_log.time[-1]))
@@ -126,7 +128,8 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
     if series is not None:
         _write_series(series, res, eul, conv)
     if plot is not None:
-        from ..align.figures import plot_series
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
+        from ..report.align_figures import plot_series
         final = np.degrees(dcm_to_euler_many(res.state.Cbn[None], conv)[0])
         plot_series(plot, res.series.time - res.t0, eul,
                     title=f"Alignment of {Path(imu).name} (--method {res.method}), heading from {res.heading_source}",
@@ -142,6 +145,7 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
 
 
 def _write_series(path, res, eul, conv):
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..io.csvcore import write_table_csv
     data = {"time": res.series.time, "roll": eul[:, 0], "pitch": eul[:, 1], "heading": eul[:, 2]}
     if res.series.cbn0 is not None:
@@ -152,7 +156,8 @@ def _write_series(path, res, eul, conv):
 
 
 def _monte_carlo(scenario, runs, seed, outdir, quiet, jobs, scheduler, resume, figures):
-    from ..report.mc_study import run_mc_study
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
+    from ..batch.mc_study import run_mc_study
 
     def on_error(msg):
         click.echo(f"\nsins: error: {msg}", err=True)

@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from .base import main, progress, quiet_option
+from ..units import UG
 
 
 @main.command("allan")
@@ -34,6 +35,7 @@ def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir,
     force); the fit needs hours for the bias terms.  sensor.yaml is in the schema
     of the shipped presets (sinscli.sensors.load_sensor; a scenario's imu.sensor takes its path).
     """
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..align.options import build_options, load_align_config
     from ..allan.output import plot_allan, write_allan_csv, write_fit_csv, write_sensor_yaml
     from ..allan.pipeline import characterize
@@ -41,6 +43,7 @@ def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir,
     from ..io.readers import read_imu
     from ..report.report import staged_dir
 
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..io.atomic import prepare_output
     prepare_output(outdir, directory=True)      # before any work: a file, no permission
     cfg, al = load_align_config(config_path)
@@ -65,12 +68,13 @@ def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir,
         plot_allan(tmp / "allan.png", res, f"sins allan: {Path(log).name}, {res.duration / 3600.0:.3g} h at "
                                            f"{1.0 / res.tau0:.4g} Hz")
     if not quiet:
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         import numpy as np
         from ..allan.fit import TERMS
         g = [f.white for f in res.fits[:3]]
         a = [f.white for f in res.fits[3:]]
         click.echo(f"sins: allan: {res.n} samples, {res.duration:.6g} s; ARW {np.degrees(np.mean(g)) * 60:.4g} "
-                   f"deg/sqrt(h), VRW {np.mean(a) / 9.80665e-6:.4g} micro-g/sqrt(Hz) (axis means) -> "
+                   f"deg/sqrt(h), VRW {np.mean(a) / UG:.4g} micro-g/sqrt(Hz) (axis means) -> "
                    f"{outdir}/sensor.yaml", err=True)
         names = {"quantization": "quantization", "white": "random walk (ARW/VRW)",
                  "gauss_markov": "bias instability (Gauss-Markov)", "rate_random_walk": "rate random walk"}

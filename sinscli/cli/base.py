@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import contextlib
+import importlib
 import logging
 import os
 import signal
@@ -10,6 +11,8 @@ import threading
 
 import click
 
+from .. import NUMBA_CACHE_NOTE
+from .._numba_cache import announce_compiles
 from ..errors import SinsError
 
 log = logging.getLogger("sins")
@@ -94,7 +97,7 @@ class _Command(click.Command):
     before it runs, so that an output naming one of them is refused, whatever the command."""
 
     def invoke(self, ctx):
-        from ..io.atomic import end_inputs, reset_inputs
+        from ..inputs import end_inputs, reset_inputs   # PyYAML: not for --help (tests/test_cli_startup.py)
         paths = []
         for param in self.params:
             if param.name in OUTPUT_PARAMS or not isinstance(param.type, click.Path):
@@ -105,7 +108,6 @@ class _Command(click.Command):
         try:
             if self.name not in COMPILING_COMMANDS or ctx.params.get("quiet"):
                 return super().invoke(ctx)
-            from .._numba_cache import announce_compiles
             path = ctx.command_path.split(" ", 1)[1] if " " in ctx.command_path else self.name   # "gnss spp"
             note = f"sins: compiling the kernels of sins {path} (first run only; later runs load them)"
             with announce_compiles(lambda text: click.echo(text, err=True), note):
@@ -125,7 +127,6 @@ class _Group(click.Group):
 
     def get_command(self, ctx, name):
         if name not in self.commands and name in COMMANDS:
-            import importlib
             importlib.import_module(f"{__package__}.{COMMANDS[name]}")   # registers on ``main``
         return self.commands.get(name)
 
@@ -194,7 +195,6 @@ def main(ctx, debug, verbose):
     # the root logger stays at WARNING: --debug is for sins, not for numba's compiler dumps
     logging.basicConfig(level=logging.WARNING, format="sins: %(levelname)s: %(message)s", stream=sys.stderr)
     logging.getLogger("sins").setLevel(level)
-    from .. import NUMBA_CACHE_NOTE
     if NUMBA_CACHE_NOTE:
         log.warning(NUMBA_CACHE_NOTE)
 

@@ -41,7 +41,7 @@ def verbose(ctx) -> bool:
 def interrupted_exit():
     """SIGINT, SIGTERM or SIGHUP during a batch: one line saying what was kept and how to resume,
     exit status 128 + the signal number."""
-    from ..report.jobs import StudyInterrupted
+    from ..batch.jobs import StudyInterrupted   # numpy: not for --help (tests/test_cli_startup.py)
     try:
         yield
     except StudyInterrupted as exc:

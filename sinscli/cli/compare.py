@@ -96,6 +96,7 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
     (nothing written); in batch mode 1 when some jobs failed (the others are
     still reported, the failures listed in summary.md and on stderr).
     """
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..io.atomic import prepare_output
     prepare_output(outdir, directory=True)      # before any work: a file, no permission
     if truth is None:
@@ -119,11 +120,13 @@ def compare(ctx, inputs, truth, outdir, label, epoch, interpolate, body, timeser
                         "is given alone, without --truth")
     mopts = None
     if metrics is not None or any(_is_tum(p) for p in (truth, *inputs)):
-        from ..report.compare_metrics import MetricOptions, parse_metrics
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
+        from ..evaluate.compare_metrics import MetricOptions, parse_metrics
         mopts = MetricOptions(parse_metrics(metrics or "ate,rpe"), align_traj, rpe_delta, rpe_unit, rpe_pairs)
     elif (align_traj, rpe_delta, rpe_unit, rpe_pairs) != ("none", 1.0, "s", "ref"):
         raise SinsError("--align-traj and --rpe-* set how the trajectory metrics are computed: "
                         "give --metrics ate,rpe too")
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..config import load_config, merge
     from ..nav.window import make_window
     window = make_window(start, end, None)
@@ -141,10 +144,12 @@ def _read(path: Path, section=None):
     """A trajectory (CSV/Parquet) or the rows of a TUM file; ``section`` (the config's ``truth``) its frame and
     angle units."""
     if _is_tum(path):
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from ..io.tum import read_tum
-        from ..report.compare_metrics import TumTrack
+        from ..evaluate.compare_metrics import TumTrack
         return TumTrack(*read_tum(path), source=str(path))
-    from ..io.frames import convention
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
+    from ..frames import convention
     from ..io.trajectory import read_trajectory
     return read_trajectory(path, None, *convention(section))
 
@@ -168,7 +173,8 @@ def default_title(truth_path: Path, legend: dict[str, str]) -> str:
 
 def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts, gnss_path=None,
             window=None, truth_cfg=None):
-    from ..report.errors import compare_trajectories
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
+    from ..evaluate.errors import compare_trajectories
     from ..report.report import write_report
     from ..types import Trajectory
 
@@ -189,6 +195,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         if not isinstance(truth, Trajectory):
             raise SinsError(f"--gnss {gnss_path}: the plan view with GNSS needs a truth with latitude and longitude "
                             "(not a TUM file)")
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from ..io.gnss_csv import read_gnss_csv
         from ..report.compare_page import gnss_overlay
         gnss = gnss_overlay(read_gnss_csv(gnss_path), truth, gnss_path.name)
@@ -196,7 +203,8 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
     series, results, frame = {}, {}, ""
     with progress(len(navs) + 1, "compare", quiet) as bar:
         if mopts is not None:
-            from ..report.compare_metrics import common_frame, compute_metrics
+            # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
+            from ..evaluate.compare_metrics import common_frame, compute_metrics
             ref, poses, frame = common_frame(truth, trajs, conv)
         for k, (name, path, nav) in enumerate(zip(names, navs, trajs)):
             if full:
@@ -209,7 +217,8 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         if interpolate:
             notes.append("The truth was interpolated at the navigation epochs.")
         if mopts is not None:
-            from ..report.compare_metrics import describe
+            # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
+            from ..evaluate.compare_metrics import describe
             notes.append(describe(mopts, frame))
         if not full:
             notes.append("TUM inputs hold no latitude, longitude or velocity: the seed-000 rows (DCM elements, "
@@ -221,7 +230,8 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
     at = "" if table.epoch is None else f" at t = {float(table.epoch)!r} s"
     click.echo(f"sins: compare: {len(navs)} method(s){at} -> {outdir}/index.html", err=True)
     if results:
-        from ..report.compare_metrics import summary_lines
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
+        from ..evaluate.compare_metrics import summary_lines
         for line in summary_lines(results, mopts):
             click.echo(f"sins: compare: {line}", err=True)
 
@@ -230,6 +240,7 @@ def _to_flu(tracks, paths, default: int) -> list[str]:
     """Turn each trajectory's attitude into that of its FLU body axes (the file's own convention: its marker,
     else its angles, else ``default``), in place, so that files of different conventions compare.  Returns
     the report's note on the conventions."""
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..io.trajectory import BODY_NAMES
     from ..nav.rotation import body_flu_in_enu
     from ..types import Trajectory
@@ -249,6 +260,7 @@ def _to_flu(tracks, paths, default: int) -> list[str]:
 def _apply_window(truth, truth_path, trajs, navs, window, time_offset) -> list[str]:
     """Shift the truth's times by ``time_offset`` and cut every track to the window, in place; refuse a
     window or an offset that leaves no common epoch.  Returns the report's notes on them."""
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..errors import num
     from ..nav.window import Window, check_in_log, cut_track
     notes = []
@@ -262,7 +274,7 @@ def _apply_window(truth, truth_path, trajs, navs, window, time_offset) -> list[s
         for nav, path in zip(trajs, navs):
             cut_track(nav, window, str(path))
         notes.append(f"Window: {window.text()} (tables, maxima and figures cover it only).")
-    for nav, path in zip(trajs, navs):                  # (without an offset report/errors.py diagnoses it)
+    for nav, path in zip(trajs, navs):                  # (without an offset evaluate/errors.py diagnoses it)
         if time_offset and (nav.time[-1] < truth.time[0] or nav.time[0] > truth.time[-1]):
             shift = f" after the truth time offset of {num(float(time_offset))} s (--time-offset, truth.time_offset)"
             raise SinsError(f"{path}: no epoch in common with the truth {truth_path}{shift} (navigation "
@@ -272,7 +284,8 @@ def _apply_window(truth, truth_path, trajs, navs, window, time_offset) -> list[s
 
 
 def _batch(batch_path, outdir, jobs, scheduler, resume, figures, quiet, ctx):
-    from ..report.batch import count_jobs, load_batch, run_batch
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
+    from ..batch.compare import count_jobs, load_batch, run_batch
 
     spec = load_batch(batch_path)
 

@@ -42,7 +42,7 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
       sins convert husky_imu_gps.bag -o husky/ --time header
     """
     prepare_output(outdir, directory=True)
-    from ..io.raw_summary import convert_ubx, raw_kind
+    from ..io.raw_summary import convert_ubx, raw_kind   # loaded when the command runs: --help stays light
     if raw_kind(log_path) == "ubx":                 # u-blox log -> RINEX 3.04 obs/nav (docs/raw_gnss.md)
         paths, obs, nav = convert_ubx(log_path, outdir)
         click.echo(f"wrote {', '.join(str(p) for p in paths)}: {len(obs)} epochs, {len(nav)} ephemerides from "
@@ -69,6 +69,7 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
             gnss = ros.read_gnss(log_path, topic=gnss_topic, vel_topic=vel_topic, time_source=time_source)
             bar.update(1)
         if want_odom:
+            # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
             from ..io.ros.odometry import read_twist_topic
             from ..types import BodyVelLog
             where, t, v, cov, frame, imu_frame = read_twist_topic(log_path, odom_topic, time_source, imu_topic)

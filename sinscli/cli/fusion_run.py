@@ -168,7 +168,7 @@ def _read_raw(raw, fopts, cfg):
     """``(obs, nav, spp, fixes)`` of ``--gnss-raw OBS --nav NAV``: the tables, their single-point solution and its
     fixes as a GNSS log on the IMU's clock (``gnss.time_offset``)."""
     from ..fusion.raw import raw_spp, spp_log
-    from ..gnss.raw_input import read_raw
+    from ..io.raw_input import read_raw
     obs_path, nav_paths = raw
     obs, nav = read_raw(obs_path, nav_paths)
     if len(obs) == 0:

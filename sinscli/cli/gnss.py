@@ -52,14 +52,14 @@ def spp_cmd(obs_path, nav_paths, output, systems, elev_mask, iono, no_tropo, no_
     Example:
       sins gnss spp slac1350.20o --nav brdc1350.20n -o gnss.csv
     """
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     import numpy as np
-
     from ..errors import SinsError
     from ..gnss import spp as S
-    from ..gnss.pipeline import parse_systems
-    from ..gnss.raw_input import read_raw
+    from ..gnss.pipeline import parse_systems, run_spp_chunks
     from ..gnss.timesys import SECONDS_PER_WEEK
     from ..io.atomic import prepare_output
+    from ..io.raw_input import read_raw
     from ..io.spp_csv import write_spp_csv
 
     prepare_output(output)
@@ -69,7 +69,6 @@ def spp_cmd(obs_path, nav_paths, output, systems, elev_mask, iono, no_tropo, no_
         raise SinsError(f"{obs_path}: no observation epochs")
     opts = S.spp_options(elev_mask_deg=elev_mask, iono=iono, tropo=not no_tropo, code_a=code_sigma,
                          code_b=code_sigma, doppler_sigma=doppler_sigma, fde=not no_fde)
-    from ..gnss.pipeline import run_spp_chunks
     with progress(len(obs), "spp", quiet) as bar:
         res = run_spp_chunks(obs, nav, sys_list, opts, fde_alpha, bar.update, smooth=smooth_code)
     ok = res.fix

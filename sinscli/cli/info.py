@@ -68,17 +68,19 @@ def info_cmd(log, as_json, imu_window, config_path):
       sins info husky_imu_gps.bag
       sins info imu.csv --config nav.yaml
     """
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..io.raw_summary import format_raw_summary, raw_kind, raw_summary
     if raw_kind(log) is not None:                  # RINEX observations/navigation, UBX logs
         s = raw_summary(log)
         click.echo(json.dumps(s, indent=2) if as_json else format_raw_summary(s))
         return
-    from ..io.readers import _is_log
+    from ..io.readers import _is_log   # loaded when the command runs, as the rest
     if _is_log(log):
-        from ..io.ros import log_summary
+        from ..io.ros import log_summary   # the ROS back ends: only for a bag or MCAP
         s = log_summary(log, imu_window=imu_window)
     else:
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from ..config import load_config
-        from ..io.imu_summary import csv_summary
+        from ..evaluate.imu_summary import csv_summary
         s = csv_summary(log, load_config(config_path), imu_window=imu_window)
     click.echo(json.dumps(s, indent=2) if as_json else format_summary(s))

@@ -16,6 +16,7 @@ from .base import finish_progress, log, main, progress, quiet_option, summary_li
 
 def _extra_columns(opts):
     """Extra trajectory columns the options add (``--angles``, ``--frame launch-inertial``)."""
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..nav.inertial import COLUMNS as INERTIAL_COLUMNS
     cols = ("k_phi", "k_psi", "k_gamma", "k_xi", "k_set") if opts.angles else ()
     return cols + (INERTIAL_COLUMNS if opts.frame == "launch-inertial" else ())
@@ -129,6 +130,7 @@ def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, s
     elif (init_path is None) == (align_method is None):
         raise SinsError(f"with {'--gnss' if gnss_path is not None else '--gnss-raw'} give exactly one of --init FILE "
                         f"and --align METHOD")
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from .. import config as config_mod
     from ..io.imu_csv import check_static_start
     from ..io.init_state import read_init
@@ -158,11 +160,13 @@ def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, s
                       launch=nav["launch"], krylov_substep_tol=nav["krylov_substep_tol"])
     opts.check()
     if fused:
+        # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from .fusion_run import run_fused
         run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
                   opts, output, quiet, window, odom_path=odom_path, vehicle=vehicle,
                   raw=(raw_path, nav_paths) if raw_path is not None else None)
         return
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from .._numba_cache import set_compile_note
     from ..nav.pipeline import first_run_seconds
     set_compile_note(f"sins: compiling navigation kernels (first run only, about {first_run_seconds(opts)} s)")
@@ -181,6 +185,7 @@ def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, s
         opts.launch = init.extra["launch"]
     if cfg["imu"]["static_start"]:
         check_static_start(first, gravity(math.sin(init.lat), init.height), conv)
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..nav.sanity import mounting_warning
     note = mounting_warning(first, max(t_start, init.time), gravity(math.sin(init.lat), init.height), conv, init.Cbn,
                             cfg["imu"])

@@ -29,16 +29,19 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet, raw_gnss):
     Example:
       sins simulate configs/scenarios/vehicle_drive.yaml -o run1 --seed 7
     """
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..sim.run import prepare, write_sim           # here, not at import: `sins simulate --help` is fast
     from ..sim.run import simulate as run_simulation
 
+    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..io.atomic import prepare_output
     from ..sim.run import SIM_FILES
     for name in SIM_FILES:                             # before any work: a folder, permissions, an input
         prepare_output(outdir / name)
     raw_cfg = None
     if raw_gnss is not None:
-        from ..io.inputs import load_yaml
+        # raw GNSS loads only when asked for (--raw-gnss): the plain simulation does not need it
+        from ..inputs import load_yaml
         from ..sim.raw_gnss import RAW_FILES, check_config
         raw_cfg = check_config(load_yaml(raw_gnss, "raw GNSS settings") or {}, str(raw_gnss))
         for name in RAW_FILES:
@@ -49,7 +52,7 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet, raw_gnss):
         result = run_simulation(prepared, seed=seed, perfect=perfect, progress=bar.update)
     paths = write_sim(result, outdir)
     if raw_cfg is not None:
-        from ..sim.raw_gnss import simulate_from_result, write_raw
+        from ..sim.raw_gnss import simulate_from_result, write_raw   # only with --raw-gnss
         raw = simulate_from_result(result, raw_cfg, seed if seed is not None else result.seed)
         paths += write_raw(raw, outdir)
         if not quiet:

@@ -56,7 +56,7 @@ from ..gnss.signals import N_SYS
 from ..nav.earth import OMEGA_IE, enu_axes, geodetic_to_ecef, gravity, radii
 from ..nav.rotation import (dcm_to_euler, dcm_to_quat, euler_to_dcm, m_mul, m_trans, m_tvec, m_vec, orthonormalize_t,
                             quat_mul_t, quat_normalize_t, quat_to_dcm_t, rotvec_to_dcm_t, rotvec_to_quat_t)
-from .linalg import cholesky
+from ..nav.linalg import cholesky
 from .model import BA, BG, PHI, R, SA, SG, V, add_process_noise, f_blocks, propagate, transition_step
 from .updates import innovation_covariance, kalman_apply, nis_of, skew_into
 
@@ -71,17 +71,18 @@ AX_LOS = 6                                  # axis code of a line-of-sight measu
 
 # a measurement row; the course row (heading from the GNSS course) carries z = (course, v_e, v_n) and
 # s = (course sigma, horizontal speed sigma, 0)
-ROW = Layout("measurement row", [("t", 1), ("kind", 1), ("z", 3), ("s", 3), ("aux", 2)], size=10)
-MW = ROW.size
-RW_T, RW_KIND, RW_Z, RW_S, RW_AUX = ROW.t, ROW.kind, ROW.z, ROW.s, ROW.aux
+ROW = Layout("measurement row", [("RW_T", 1), ("RW_KIND", 1), ("RW_Z", 3), ("RW_S", 3), ("RW_AUX", 2)], total=10)
+MW = ROW.total
+RW_T, RW_KIND, RW_Z, RW_S, RW_AUX = ROW.offsets(*(name for name, _ in ROW.fields))
 
 # the satellite table of the raw rows (one row per satellite and epoch, indexed by a row's aux[0]): position
 # and velocity at transmission (ECEF, m, m/s; :mod:`sinscli.gnss.tc`), system, PRN, elevation (rad)
-SAT = Layout("satellite table", [("pos", 3), ("vel", 3), ("sys", 1), ("prn", 1), ("el", 1)], size=9)
-SW = SAT.size
-SAT_POS, SAT_VEL, SAT_SYS = SAT.pos, SAT.vel, SAT.sys
+SAT = Layout("satellite table", [("SAT_POS", 3), ("SAT_VEL", 3), ("SAT_SYS", 1), ("SAT_PRN", 1), ("SAT_EL", 1)],
+             total=9)
+SW = SAT.total
+SAT_POS, SAT_VEL, SAT_SYS, SAT_PRN, SAT_EL = SAT.offsets(*(name for name, _ in SAT.fields))
 
-# the kinds whose measurement noise is adapted (index into the FS fields rs/ra)
+# the kinds whose measurement noise is adapted (index into the FS fields F_RS, F_RA)
 NK = 4
 K_OF_KIND = (0, 1, -1, -1, 2, 3, -1, -1, -1, -1)   # gnss_pos, gnss_vel, -, -, nhc, odom, -, raw: -
 ADAPT_NAMES = ("gnss_pos", "gnss_vel", "nhc", "odom")
@@ -89,89 +90,79 @@ NX_MAX = 30                                 # 21 + lever arm (3) + time offset (
 
 # configuration vector (read-only in the kernel)
 CV = Layout("fusion config", [
-    ("nx", 1),              # states
-    ("ncore", 1),           # 15 or 21 (scale factors): the states F reaches; then the parameter states
-    ("la", 1),              # first lever-arm state, or -1
-    ("td", 1),              # the GNSS time-offset state, or -1
-    ("method", 1), ("order", 1), ("nsub", 1), ("every", 1), ("conv", 1),
-    ("prop_dt", 1),         # s between covariance propagations (0: every attitude update)
-    ("gate", 3),            # chi-square gate of 1, 2, 3 components
-    ("robust", 3),          # IGG-III full-weight bound (NIS of 1, 2, 3 components; 0: off)
-    ("arw2", 3), ("vrw2", 3), ("qbg", 3), ("qba", 3), ("itg", 3), ("ita", 3),
-    ("sfg", 1), ("sfa", 1),     # sigma^2 tau_c of the unestimated scale factor + misalignment
-    ("sf_tau", 1),              # tau_c, s
-    ("rej_run", 1),
-    ("radapt_n", 1),        # measurements per R-adaptation window (0: off)
-    ("radapt_max", 1),      # largest R variance scale
-    ("radapt_band", 2),     # the window's estimate out of [lo, hi] x the scale (chi-square quantiles) moves it
-    ("rbase", 3 * NK),      # per kind and axis, the R scale a calibration pass found (the online floor)
-    ("qb_max", 1),          # the drift process-noise scale stays at most qb_max times its base (1: off)
-    ("qb_tau", 1),          # s: its decay back to the base
-    ("qb_thr", 1),          # outage-exit ratio (innovation^2 / predicted variance) that raises it
-    ("qb_base", 1),         # the base drift scale (1, or calibrated by a first pass over the log)
-    ("outage_dt", 1),       # s: a gap between GNSS fixes longer than this is an outage
-    ("smooth_dt", 1),       # > 0: store smoother epochs at least this often
-    ("zupt_maxv", 1),
-    ("nhc_ax", 2),
-    ("fwd", 1),             # the body's forward axis (0 x, 1 y): roll/pitch sigma
-    ("clk", 1),             # the receiver clock bias state (m; its drift, m/s, the next), or -1 (raw GNSS)
-    ("isb", N_SYS),         # per system the state of its inter-system bias (m), or -1 (the reference system)
-    ("q_clk", 2),           # clock bias (white frequency noise, m^2/s) and drift (random walk, (m/s)^2/s) densities
-    ("q_isb", 1),           # inter-system bias random walk density, m^2/s
-    ("clk_jump", 1),        # m: an epoch's clock this far from the filter's (and 10 sigma) is a clock jump
-    ("clk_p0", 1),          # m: the clock bias 1-sigma after a jump
-], size=77)
-C_NX, C_NCORE, C_LA, C_TD = CV.nx, CV.ncore, CV.la, CV.td
-C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT = CV.method, CV.order, CV.nsub, CV.every, CV.conv, CV.prop_dt
-C_GATE, C_ROBUST = CV.gate, CV.robust
-C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA = CV.arw2, CV.vrw2, CV.qbg, CV.qba, CV.itg, CV.ita, \
-    CV.sfg, CV.sfa
-C_SF_TAU = CV.sf_tau
-C_REJ_RUN, C_RADAPT_N, C_RADAPT_MAX, C_RBASE = CV.rej_run, CV.radapt_n, CV.radapt_max, CV.rbase
-C_RADAPT_BAND = CV.radapt_band
-C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT = CV.qb_max, CV.qb_tau, CV.qb_thr, CV.qb_base, CV.outage_dt
-C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD = CV.smooth_dt, CV.zupt_maxv, CV.nhc_ax, CV.fwd
-C_CLK, C_ISB, C_QCLK, C_QISB, C_CLK_JUMP, C_CLK_P0 = CV.clk, CV.isb, CV.q_clk, CV.q_isb, CV.clk_jump, CV.clk_p0
-CV_SIZE = CV.size
+    ("C_NX", 1),              # states
+    ("C_NCORE", 1),           # 15 or 21 (scale factors): the states F reaches; then the parameter states
+    ("C_LA", 1),              # first lever-arm state, or -1
+    ("C_TD", 1),              # the GNSS time-offset state, or -1
+    ("C_METHOD", 1), ("C_ORDER", 1), ("C_NSUB", 1), ("C_EVERY", 1), ("C_CONV", 1),
+    ("C_PROP_DT", 1),         # s between covariance propagations (0: every attitude update)
+    ("C_GATE", 3),            # chi-square gate of 1, 2, 3 components
+    ("C_ROBUST", 3),          # IGG-III full-weight bound (NIS of 1, 2, 3 components; 0: off)
+    ("C_ARW2", 3), ("C_VRW2", 3), ("C_QBG", 3), ("C_QBA", 3), ("C_ITG", 3), ("C_ITA", 3),
+    ("C_SFG", 1), ("C_SFA", 1),     # sigma^2 tau_c of the unestimated scale factor + misalignment
+    ("C_SF_TAU", 1),              # tau_c, s
+    ("C_REJ_RUN", 1),
+    ("C_RADAPT_N", 1),        # measurements per R-adaptation window (0: off)
+    ("C_RADAPT_MAX", 1),      # largest R variance scale
+    ("C_RADAPT_BAND", 2),     # the window's estimate out of [lo, hi] x the scale (chi-square quantiles) moves it
+    ("C_RBASE", 3 * NK),      # per kind and axis, the R scale a calibration pass found (the online floor)
+    ("C_QB_MAX", 1),          # the drift process-noise scale stays at most qb_max times its base (1: off)
+    ("C_QB_TAU", 1),          # s: its decay back to the base
+    ("C_QB_THR", 1),          # outage-exit ratio (innovation^2 / predicted variance) that raises it
+    ("C_QB_BASE", 1),         # the base drift scale (1, or calibrated by a first pass over the log)
+    ("C_OUTAGE_DT", 1),       # s: a gap between GNSS fixes longer than this is an outage
+    ("C_SMOOTH_DT", 1),       # > 0: store smoother epochs at least this often
+    ("C_ZUPT_MAXV", 1),
+    ("C_NHC_AX", 2),
+    ("C_FWD", 1),             # the body's forward axis (0 x, 1 y): roll/pitch sigma
+    ("C_CLK", 1),             # the receiver clock bias state (m; its drift, m/s, the next), or -1 (raw GNSS)
+    ("C_ISB", N_SYS),         # per system the state of its inter-system bias (m), or -1 (the reference system)
+    ("C_QCLK", 2),            # clock bias (white frequency noise, m^2/s) and drift (random walk, (m/s)^2/s) densities
+    ("C_QISB", 1),            # inter-system bias random walk density, m^2/s
+    ("C_CLK_JUMP", 1),        # m: an epoch's clock this far from the filter's (and 10 sigma) is a clock jump
+    ("C_CLK_P0", 1),          # m: the clock bias 1-sigma after a jump
+], total=77)
+(C_NX, C_NCORE, C_LA, C_TD, C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT, C_GATE, C_ROBUST,
+ C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA, C_SF_TAU, C_REJ_RUN, C_RADAPT_N,
+ C_RADAPT_MAX, C_RADAPT_BAND, C_RBASE, C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT,
+ C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD, C_CLK, C_ISB, C_QCLK, C_QISB, C_CLK_JUMP,
+ C_CLK_P0) = CV.offsets(*(name for name, _ in CV.fields))
+CV_SIZE = CV.total
 
 # the filter's scalars (read and written by the kernel, carried between blocks)
 FS = Layout("fusion filter scalars", [
-    ("bg", 3), ("ba", 3), ("sg", 3), ("sa", 3),   # sensor estimates (SI): the first NBIAS, as output
-    ("lever", 3),           # antenna lever arm estimate (body, m)
-    ("td", 1),              # GNSS time-offset estimate (s, added to the GNSS stamps)
-    ("qs_drift", 1),        # scale of the drift process noise: bias instability, scale factor, misalignment
-    ("t_qs", 1),            # time of its last decay step
-    ("rs", 3 * NK),         # R variance scale per adapted kind and axis (>= 1)
-    ("rp", 4 * NK * 3),     # per kind and axis, the previous measurement: innovation, H P H^T, stated R, time
-    ("ra", 4 * NK * 3),     # R-adaptation window per kind and axis: sums of dz^2, H P H^T, stated R; count
-    ("acc_t", 1), ("acc_dv", 3), ("acc_dth", 3),  # since the last propagation: time, f^n dt, w^b dt
-    ("w", 3), ("have_w", 1),                      # compensated body rate, low-passed (ANTENNA_TAU)
-    ("lpw", 3), ("lpf", 3),                       # low-passed body rate and f^n - g^n (scale_factor_tau)
-    ("f", 3),               # specific force (ENU, m/s^2), low-passed (ANTENNA_TAU)
-    ("head_known", 1),
-    ("nrej", 1), ("trej0", 1),
-    ("t_fix", 1),           # time of the last GNSS position fix (-inf: none yet)
-    ("t_epoch", 1),
-    ("err", 1), ("err_t", 1),
-    ("reset", 1),
-    ("tprev", 1),
-    ("nsamp_out", 1),
-    ("xacc", NX_MAX),       # correction fed back since the last stored epoch
-    ("clk", 2),             # receiver clock bias (m) and drift (m/s) estimates (raw GNSS)
-    ("isb", N_SYS),         # inter-system bias estimate per system (m)
-    ("ep_t", 1),            # the current raw epoch: its time, pseudoranges accepted and rejected
-    ("ep_acc", 1), ("ep_rej", 1),
-    ("ep_nrej", 1), ("ep_t0", 1),   # consecutive epochs whose pseudoranges were all rejected, and the first
-], size=200)
-F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD = FS.bg, FS.ba, FS.sg, FS.sa, FS.lever, FS.td
-F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA = FS.qs_drift, FS.t_qs, FS.rs, FS.rp, FS.ra
-F_ACC_T, F_ACC_DV, F_ACC_DTH, F_W, F_HAVE_W, F_F = FS.acc_t, FS.acc_dv, FS.acc_dth, FS.w, FS.have_w, FS.f
-F_LPW, F_LPF = FS.lpw, FS.lpf
-F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH = FS.head_known, FS.nrej, FS.trej0, FS.t_fix, FS.t_epoch
-F_ERR, F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC = FS.err, FS.err_t, FS.reset, FS.tprev, FS.nsamp_out, FS.xacc
-F_CLK, F_ISB, F_EP_T, F_EP_ACC, F_EP_REJ, F_EP_NREJ, F_EP_T0 = FS.clk, FS.isb, FS.ep_t, FS.ep_acc, FS.ep_rej, \
-    FS.ep_nrej, FS.ep_t0
-FS_SIZE = FS.size
+    ("F_BG", 3), ("F_BA", 3), ("F_SG", 3), ("F_SA", 3),   # sensor estimates (SI): the first NBIAS, as output
+    ("F_LEVER", 3),           # antenna lever arm estimate (body, m)
+    ("F_TD", 1),              # GNSS time-offset estimate (s, added to the GNSS stamps)
+    ("F_QS_DRIFT", 1),        # scale of the drift process noise: bias instability, scale factor, misalignment
+    ("F_T_QS", 1),            # time of its last decay step
+    ("F_RS", 3 * NK),         # R variance scale per adapted kind and axis (>= 1)
+    ("F_RP", 4 * NK * 3),     # per kind and axis, the previous measurement: innovation, H P H^T, stated R, time
+    ("F_RA", 4 * NK * 3),     # R-adaptation window per kind and axis: sums of dz^2, H P H^T, stated R; count
+    ("F_ACC_T", 1), ("F_ACC_DV", 3), ("F_ACC_DTH", 3),  # since the last propagation: time, f^n dt, w^b dt
+    ("F_W", 3), ("F_HAVE_W", 1),                      # compensated body rate, low-passed (ANTENNA_TAU)
+    ("F_LPW", 3), ("F_LPF", 3),                       # low-passed body rate and f^n - g^n (scale_factor_tau)
+    ("F_F", 3),               # specific force (ENU, m/s^2), low-passed (ANTENNA_TAU)
+    ("F_HEAD_KNOWN", 1),
+    ("F_NREJ", 1), ("F_TREJ0", 1),
+    ("F_T_FIX", 1),           # time of the last GNSS position fix (-inf: none yet)
+    ("F_T_EPOCH", 1),
+    ("F_ERR", 1), ("F_ERR_T", 1),
+    ("F_RESET", 1),
+    ("F_TPREV", 1),
+    ("F_NSAMP_OUT", 1),
+    ("F_XACC", NX_MAX),       # correction fed back since the last stored epoch
+    ("F_CLK", 2),             # receiver clock bias (m) and drift (m/s) estimates (raw GNSS)
+    ("F_ISB", N_SYS),         # inter-system bias estimate per system (m)
+    ("F_EP_T", 1),            # the current raw epoch: its time, pseudoranges accepted and rejected
+    ("F_EP_ACC", 1), ("F_EP_REJ", 1),
+    ("F_EP_NREJ", 1), ("F_EP_T0", 1),   # consecutive epochs whose pseudoranges were all rejected, and the first
+], total=200)
+(F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD, F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA, F_ACC_T, F_ACC_DV,
+ F_ACC_DTH, F_W, F_HAVE_W, F_LPW, F_LPF, F_F, F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH, F_ERR,
+ F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC, F_CLK, F_ISB, F_EP_T, F_EP_ACC, F_EP_REJ, F_EP_NREJ,
+ F_EP_T0) = FS.offsets(*(name for name, _ in FS.fields))
+FS_SIZE = FS.total
 
 ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
 # events: (time, code, a, b)
@@ -181,10 +172,10 @@ EV_NAMES = {1: "rejection_run", 2: "heading_init", 3: "r_scale", 4: "reacquire",
             7: "clock_jump"}
 
 # workspace: matrices (nx, nx) and rows (nx,)
-WM = Layout("fusion workspace matrices", [("F", 1), ("W", 1), ("PM", 1), ("A", 1), ("L", 1), ("PHI", 1)])
-W_F, W_W, W_PM, W_A, W_L, W_PHI = WM.F, WM.W, WM.PM, WM.A, WM.L, WM.PHI
-WV = Layout("fusion workspace rows", [("x", 1), ("H", 3), ("HP", 3), ("KT", 3), ("z", 1), ("r", 1)])
-V_X, V_H, V_HP, V_KT, V_Z, V_R = WV.x, WV.H, WV.HP, WV.KT, WV.z, WV.r
+WM = Layout("fusion workspace matrices", [("W_F", 1), ("W_W", 1), ("W_PM", 1), ("W_A", 1), ("W_L", 1), ("W_PHI", 1)])
+W_F, W_W, W_PM, W_A, W_L, W_PHI = WM.offsets(*(name for name, _ in WM.fields))
+WV = Layout("fusion workspace rows", [("V_X", 1), ("V_H", 3), ("V_HP", 3), ("V_KT", 3), ("V_Z", 1), ("V_R", 1)])
+V_X, V_H, V_HP, V_KT, V_Z, V_R = WV.offsets(*(name for name, _ in WV.fields))
 # per-row variances written with every output row
 NVAR = 9             # pos E N U, vel E N U, roll, pitch, heading (heading < 0: not yet known)
 NREC = 12            # columns of an innovation record (_record)
@@ -193,10 +184,10 @@ NBIAS = 12           # b_g, b_a, s_g, s_a (SI)
 
 
 def workspace(nx):
-    """The kernel's scratch: ``(mats (WM.size, nx, nx), vecs (WV.size, nx), s3 (2, 3, 3))``."""
-    mats = np.zeros((WM.size, nx, nx))
+    """The kernel's scratch: ``(mats (WM.total, nx, nx), vecs (WV.total, nx), s3 (2, 3, 3))``."""
+    mats = np.zeros((WM.total, nx, nx))
     mats[W_PHI] = np.eye(nx)
-    return mats, np.zeros((WV.size, nx)), np.zeros((2, 3, 3))
+    return mats, np.zeros((WV.total, nx)), np.zeros((2, 3, 3))
 
 
 def epoch_width(ncore: int, nx: int, clk: int = -1) -> int:

@@ -4,7 +4,8 @@ innovation records and a summary.  No file I/O: readers and writers are the CLI'
 ``Fusion(init, nav_opts, fopts, gnss, ...)`` prepares the measurement rows, the filter model from one
 sensor description (:func:`filter_model`) and the initial covariance; ``feed(block)`` runs the numba
 kernel (:func:`sinscli.fusion.kernel.fuse`) on a block and returns its output rows;
-``finish()`` runs the smoother when asked (:mod:`sinscli.fusion.smoother`) and the summary.
+``finish()`` checks that the log had a sample after the initial time; ``smoothed()`` runs the smoother
+(:mod:`sinscli.fusion.smoother`) when asked, ``summary(traj)`` the summary.
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import chi2
 
 from ..errors import SinsError
 from ..gnss.signals import SYS_CHARS
@@ -48,11 +50,6 @@ SIGMA_COLUMNS = ["pos_e_std", "pos_n_std", "pos_u_std", "vel_e_std", "vel_n_std"
                  "roll_std", "pitch_std", "heading_std"]
 BIAS_COLUMNS = ["gyro_bias_x", "gyro_bias_y", "gyro_bias_z", "accel_bias_x", "accel_bias_y", "accel_bias_z"]
 SF_COLUMNS = ["gyro_sf_x", "gyro_sf_y", "gyro_sf_z", "accel_sf_x", "accel_sf_y", "accel_sf_z"]
-
-
-def fusion_columns(states: int) -> list[str]:
-    """The extra trajectory columns of a fused trajectory (FORMATS.md aided-trajectory columns)."""
-    return SIGMA_COLUMNS + BIAS_COLUMNS + (SF_COLUMNS if states == 21 else [])
 
 
 @dataclass(frozen=True)
@@ -136,54 +133,9 @@ def _fill_unknown_terms(sens: dict, src: str) -> list:
     return notes
 
 
-def chi2_cdf(x: float, k: int) -> float:
-    """Chi-square CDF with ``k`` degrees of freedom: the regularized lower gamma P(k/2, x/2)."""
-    if x <= 0.0:
-        return 0.0
-    a, z = 0.5 * k, 0.5 * x
-    if z < a + 1.0:                          # series
-        term = total = 1.0 / a
-        n = a
-        while abs(term) > 1e-16 * abs(total):
-            n += 1.0
-            term *= z / n
-            total += term
-        return total * math.exp(-z + a * math.log(z) - math.lgamma(a))
-    # continued fraction for Q (Lentz), P = 1 - Q
-    b = z + 1.0 - a
-    c = 1.0 / 1e-300
-    dd = 1.0 / b
-    h = dd
-    for i in range(1, 1000):
-        an = -i * (i - a)
-        b += 2.0
-        dd = an * dd + b
-        dd = 1.0 / (dd if abs(dd) > 1e-300 else 1e-300)
-        c = b + an / c
-        c = c if abs(c) > 1e-300 else 1e-300
-        delta = dd * c
-        h *= delta
-        if abs(delta - 1.0) < 1e-15:
-            break
-    return 1.0 - math.exp(-z + a * math.log(z) - math.lgamma(a)) * h
-
-
-def chi2_ppf(p: float, k: int) -> float:
-    """The ``p`` quantile of the chi-square distribution with ``k`` degrees of freedom (bisection)."""
-    lo, hi = 0.0, max(10.0, 4.0 * k)
-    while chi2_cdf(hi, k) < p:
-        hi *= 2.0
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if chi2_cdf(mid, k) < p:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
-
-
 def chi2_gate(p: float, m: int) -> float:
-    return chi2_ppf(p, m)
+    """The chi-square gate of an ``m``-dimensional innovation: the ``p`` quantile of chi2(m) (scipy.stats)."""
+    return float(chi2.ppf(p, m))
 
 
 def gnss_rows(gnss: GnssLog, fopts: FusionOptions, t_min: float) -> np.ndarray:
@@ -484,8 +436,8 @@ class Fusion:
         # consecutive differences share a measurement: the window's estimate has about 2/3 of its count's
         # degrees of freedom
         nw = max(int(round(f.adapt_window / 1.5)), 1)
-        cv[kn.C_RADAPT_BAND] = chi2_ppf(1e-4, nw) / nw
-        cv[kn.C_RADAPT_BAND + 1] = chi2_ppf(1.0 - 1e-4, nw) / nw
+        cv[kn.C_RADAPT_BAND] = chi2_gate(1e-4, nw) / nw
+        cv[kn.C_RADAPT_BAND + 1] = chi2_gate(1.0 - 1e-4, nw) / nw
         cv[kn.C_QB_MAX] = f.adapt_max_bias_scale if f.adapt else 1.0
         cv[kn.C_QB_TAU] = f.adapt_decay
         cv[kn.C_QB_THR] = f.adapt_exit_ratio
@@ -918,6 +870,8 @@ class Fusion:
                 f"(give --init with a heading, or --align)")
 
     def finish(self) -> None:
+        """Refuse a log with no IMU sample after the initial time (the smoother and the summary are
+        :meth:`smoothed` and :meth:`summary`)."""
         if self.applied == 0:
             raise SinsError(f"{self._source}: no IMU sample after the initial time {self.init.time!r}: "
                             f"the init time is outside the log")

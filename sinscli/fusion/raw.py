@@ -54,7 +54,7 @@ class RawMeasurements:
 
     def sat_names(self) -> np.ndarray:
         """``G05`` per satellite-table row."""
-        return np.array([sat_name(int(s), int(p)) for s, p in self.sat[:, [kn.SAT.sys, kn.SAT.prn]]]) \
+        return np.array([sat_name(int(s), int(p)) for s, p in self.sat[:, [kn.SAT_SYS, kn.SAT_PRN]]]) \
             if len(self.sat) else np.zeros(0, dtype="U4")
 
 
@@ -147,11 +147,11 @@ def raw_measurements(obs: ObsData, nav: NavData, fopts, offset: float, init: Nav
     idx = np.nonzero(ok)[0]
     m = len(idx)
     sat = np.zeros((m, kn.SW))
-    sat[:, kn.SAT.pos:kn.SAT.pos + 3] = sx[idx, :3]
-    sat[:, kn.SAT.vel:kn.SAT.vel + 3] = sx[idx, 3:]
-    sat[:, kn.SAT.sys] = obs.sys[idx]
-    sat[:, kn.SAT.prn] = obs.prn[idx]
-    sat[:, kn.SAT.el] = el[idx]
+    sat[:, kn.SAT_POS:kn.SAT_POS + 3] = sx[idx, :3]
+    sat[:, kn.SAT_VEL:kn.SAT_VEL + 3] = sx[idx, 3:]
+    sat[:, kn.SAT_SYS] = obs.sys[idx]
+    sat[:, kn.SAT_PRN] = obs.prn[idx]
+    sat[:, kn.SAT_EL] = el[idx]
     te = t_epoch[ep[idx]]
     zeros = np.zeros(m)
     pr_rows = np.column_stack([te, np.full(m, kn.MT_PR), prc[idx], zeros, zeros, np.sqrt(var_pr[idx]), zeros, zeros,

@@ -38,7 +38,7 @@ from numba import njit
 from ..nav.earth import radii
 from ..nav.rotation import m_from_array, m_mul, rotvec_to_dcm_t
 from .kernel import NVAR, row_variances
-from .linalg import gram_add, ldl_psd, rows_times, scaled_solve, times_lower
+from ..nav.linalg import gram_add, ldl_psd, rows_times, scaled_solve, times_lower
 from .model import BA, BG, PHI, R, SA, SG, V
 
 NPS = 12         # smoothed covariance entries kept per epoch: pos, vel diag, phi ee nn uu en
@@ -89,7 +89,7 @@ def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk=-1):
         P^s_k = J P^+_k J^T + C N C^T = (J L1) D1 (J L1)^T + (C L2) D2 (C L2)^T
 
     with ``P^+_k = L1 D1 L1^T`` and ``N = L2 D2 L2^T`` factored with non-negative pivots
-    (:func:`~sinscli.fusion.linalg.ldl_psd`): a sum of Gram matrices, positive semi-definite by
+    (:func:`~sinscli.nav.linalg.ldl_psd`): a sum of Gram matrices, positive semi-definite by
     construction and with a non-negative diagonal exactly, whatever the rounding of the gain ``C``.
     (Algebraically it is the textbook ``P^+ + C (P^s - P^-) C^T``, whose subtraction loses definiteness
     when P^- is large against P^s: a long outage, an ill-conditioned 21-state P.)"""

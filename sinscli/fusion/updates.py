@@ -18,7 +18,7 @@ innovation squared of the whole vector (the kernel gates, weights and adapts on 
 """
 from numba import njit
 
-from .linalg import inv_small, rows_times
+from ..nav.linalg import inv_small, rows_times
 
 
 @njit(cache=True)

@@ -112,3 +112,18 @@ def select_ephemeris(eph, sys, prn, t, max_age, prefer_source):
                 best = k
         k += 1
     return best
+
+
+def merge_nav(navs: list[NavData]) -> NavData:
+    """One navigation table from several (the ionosphere parameters of the first that has them)."""
+    navs = [n for n in navs if n is not None]
+    if len(navs) == 1:
+        return navs[0]
+    out = NavData(eph=finish_table(np.concatenate([n.eph for n in navs])) if navs else np.zeros((0, 31)),
+                  source=", ".join(n.source for n in navs))
+    for key in ("ion_gps", "ion_bds", "ion_gal", "leap_seconds"):
+        for n in navs:
+            if getattr(n, key) is not None:
+                setattr(out, key, getattr(n, key))
+                break
+    return out

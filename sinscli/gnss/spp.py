@@ -14,8 +14,9 @@ import math
 
 import numpy as np
 from numba import njit
+from scipy.stats import chi2
 
-from ..align.fit import cholesky_inverse
+from ..nav.linalg import cholesky_inverse
 from .corrections import klobuchar, mapping_mops, tropo_delay
 from .ephemeris import URA, max_age, select_ephemeris
 from .model import azel, ecef_to_geodetic, geo_range, group_delay, range_rate, transmit_state
@@ -37,9 +38,8 @@ MAX_SAT = 128
 
 
 def chi2_quantile(p: float, dof: int) -> float:
-    """Quantile of the chi-square distribution (the fusion filter's gate function, one implementation)."""
-    from ..fusion.pipeline import chi2_ppf
-    return chi2_ppf(p, dof)
+    """Quantile of the chi-square distribution (scipy.stats, as the fusion filter's gates)."""
+    return float(chi2.ppf(p, dof))
 
 
 def chi2_table(alpha: float, n: int = MAX_SAT) -> np.ndarray:

@@ -17,42 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError, num
+from ..inputs import command_inputs
 
 _NO_SPACE = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS)
-
-
-# The inputs of the running command: its path arguments and options (registered by the CLI,
-# ``sinscli/cli/base.py``) and every file a reader opened (``sinscli/io/inputs.input_file``).  Every output
-# (``prepare_output``, and each file ``staged_dir`` moves into place) is checked against them, so that no
-# ``-o`` ever overwrites a log, a config or a truth it reads (issue 10).
-# Only while a command runs (library code that reads a file and writes it back is not refused).
-_INPUTS: dict[str, Path] = {}
-_ACTIVE = [False]
-
-
-def reset_inputs(paths=()) -> None:
-    """Start a command's record of inputs (the CLI calls it as each command starts) with ``paths``."""
-    _INPUTS.clear()
-    _ACTIVE[0] = True
-    for p in paths:
-        note_input(p)
-
-
-def end_inputs() -> None:
-    """End the record (the command is done): no check until the next :func:`reset_inputs`."""
-    _INPUTS.clear()
-    _ACTIVE[0] = False
-
-
-def note_input(path) -> None:
-    """Remember ``path`` as an input of the running command (its real path: symlinks and ``..`` resolved)."""
-    if path is None or not _ACTIVE[0]:
-        return
-    try:
-        key = os.path.realpath(os.fspath(path))
-    except (TypeError, ValueError, OSError):
-        return
-    _INPUTS.setdefault(key, Path(path))
 
 
 def _same_file(a: str, b: str) -> bool:
@@ -67,13 +34,14 @@ def _same_file(a: str, b: str) -> bool:
 def check_not_input(path) -> None:
     """Refuse an output ``path`` that is one of the command's inputs (the same file by its real path or
     by ``os.path.samefile``), or a file inside an input folder (a ROS 2 bag directory)."""
-    if not _INPUTS:
+    inputs = command_inputs()
+    if not inputs:
         return
     try:
         real = os.path.realpath(os.fspath(path))
     except (TypeError, ValueError, OSError):
         return
-    for key, given in list(_INPUTS.items()):
+    for key, given in list(inputs.items()):
         inside = os.path.isdir(key) and real.startswith(key.rstrip(os.sep) + os.sep) and os.path.exists(real)
         if inside or _same_file(real, key):
             what = f"a file of the input {given}" if inside else f"the input {given}"

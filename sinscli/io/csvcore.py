@@ -18,7 +18,7 @@ import pyarrow.csv as pacsv
 
 from ..errors import SinsError, num, quote
 from .atomic import check_finite
-from .inputs import input_file
+from ..inputs import input_file
 
 
 MAX_LINE_BYTES = 128 * 1024      # a numeric CSV line is far shorter; the header is refused beyond this

@@ -12,7 +12,7 @@ from ..types import GnssLog
 from .atomic import atomic_path
 from . import limits as limits_mod
 from .csvcore import read_mapped_columns, write_table_csv
-from .frames import NED_NAMES, convention, file_name, to_enu
+from ..frames import NED_NAMES, convention, file_name, to_enu
 from .imu_csv import check_time
 from .timebase import diagnose
 
@@ -26,7 +26,7 @@ GROUPS = {"vel_n": ["vel_e", "vel_n", "vel_u"], "std_pos": ["std_e", "std_n", "s
 def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
     """Read ``gnss.csv``: required time, lat, lon (deg), height (m); optional velocity and sigmas.
 
-    ``cfg`` (the config's ``gnss`` section) may say the file is NED or in radians (:mod:`sinscli.io.frames`).
+    ``cfg`` (the config's ``gnss`` section) may say the file is NED or in radians (:mod:`sinscli.frames`).
 
     Values beyond the physical ``limits`` (the config's section; default: the defaults) and sigmas that
     are not positive are refused naming the line and column.

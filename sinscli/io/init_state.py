@@ -11,10 +11,11 @@ import yaml
 from ..errors import SinsError, num, quote
 from ..nav.rotation import dcm_to_euler, euler_to_dcm
 from ..types import NavState, time_tolerance
+from ..units import UG
 from .atomic import atomic_path, check_finite
 from . import limits as limits_mod
-from .frames import convention, file_name, to_enu
-from .inputs import input_file, load_yaml
+from ..frames import convention, file_name, to_enu
+from ..inputs import input_file, load_yaml
 
 INIT_KEYS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading"]
 
@@ -27,7 +28,7 @@ def read_init(path, t_start: float | None = None, conv: int = 0, limits=None, se
     the IMU start ``t_start``: the last row at or before it, its attitude turned
     from the file's body axes (its marker or its angles) into those of ``conv``.  Values beyond the
     physical ``limits`` (the config's section) are refused naming the key or row.  ``section`` (the
-    config's ``init`` section) may say the file is NED or in radians (:mod:`sinscli.io.frames`).
+    config's ``init`` section) may say the file is NED or in radians (:mod:`sinscli.frames`).
     """
     path = input_file(path, "init file")
     lim = limits_mod.resolve(limits)
@@ -130,7 +131,7 @@ def align_estimates(state: NavState, where, limits=None) -> tuple[dict, dict | N
                     all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in v)):
                 raise SinsError(f"{where}: {k}: expected three numbers [x, y, z], got {quote(v, 60)}")
             vals[k] = np.asarray(v, dtype=np.float64)
-        bias = {"gyro": np.radians(vals["gyro_bias"]) / 3600.0, "accel": vals["accel_bias"] * 9.80665e-6}
+        bias = {"gyro": np.radians(vals["gyro_bias"]) / 3600.0, "accel": vals["accel_bias"] * UG}
         limits_mod.check_abs(where, bias["gyro"], lim["rate"], "gyro bias", "rate", " rad/s", "gyro_bias", row="")
         limits_mod.check_abs(where, bias["accel"], lim["specific_force"], "accelerometer bias", "specific_force",
                              " m/s^2", "accel_bias", row="")

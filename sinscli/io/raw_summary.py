@@ -12,8 +12,8 @@ from ..gnss.timesys import epoch_text
 
 def raw_kind(path) -> str | None:
     """``'ubx'``, ``'obs'``, ``'nav'`` or None."""
-    from ..gnss.raw_input import is_ubx
     from .rinex import is_rinex
+    from .ubx import is_ubx
     p = Path(path)
     if not p.is_file():
         return None

@@ -23,7 +23,7 @@ from ..gnss.signals import (SYS_BDS, SYS_CHARS, SYS_GAL, SYS_GLO, SYS_GPS, SYS_Q
                             sys_index)
 from ..gnss.timesys import BDT_OFFSET, DEFAULT_LEAP, SECONDS_PER_WEEK, epoch_text, gps_seconds
 from . import rinex_kernels as K
-from .inputs import input_file
+from ..inputs import input_file
 
 log = logging.getLogger("sins")
 

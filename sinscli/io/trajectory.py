@@ -19,14 +19,14 @@ import pyarrow as pa
 
 from ..conventions import BODY_CONVENTIONS, FLU
 from ..errors import SinsError, quote
-from .inputs import input_file
+from ..inputs import input_file
 from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, euler_to_dcm_many, quat_to_dcm_many
 from ..types import Trajectory
 from . import aided_columns
 from . import limits as limits_mod
 from .atomic import atomic_path, check_finite, prepare_output
 from .csvcore import CsvTableWriter, float64_table, float_column, read_header, read_numeric_columns
-from .frames import cbn_to_enu, file_name, to_enu
+from ..frames import cbn_to_enu, file_name, to_enu
 
 BASE_COLUMNS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", "pitch", "heading",
                 "qw", "qx", "qy", "qz"]
@@ -193,7 +193,7 @@ def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) 
     Rows beyond the physical ``limits`` (the config's section; default: the defaults), Euler angles
     out of range and an attitude that is not a rotation are refused naming the row and column.  A file
     in ``frame`` NED (``vel_d``, attitude body -> NED) or with angles in radians (``to_deg``, the factor to
-    degrees) is read into FORMATS.md's ENU and degrees (:mod:`sinscli.io.frames`, the config's ``init``
+    degrees) is read into FORMATS.md's ENU and degrees (:mod:`sinscli.frames`, the config's ``init``
     and ``truth`` sections).
     """
     lim = limits_mod.resolve(limits)

@@ -24,7 +24,7 @@ from ..nav.rotation import cbn_from_flu, quat_to_dcm_many
 from ..types import Trajectory
 from . import limits as limits_mod
 from .atomic import atomic_path
-from .inputs import input_file
+from ..inputs import input_file
 from .local_frame import trajectory_enu_quat
 
 TUM_COLUMNS = ("time", "tx", "ty", "tz", "qx", "qy", "qz", "qw")

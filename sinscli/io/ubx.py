@@ -23,7 +23,7 @@ from ..gnss.ephemeris import NavData, finish_table
 from ..gnss.observations import ObsData
 from ..gnss.signals import SYS_BDS, SYS_GAL, SYS_GLO, SYS_GPS, SYS_QZS, SYS_SBS, sat_name
 from ..gnss.timesys import SECONDS_PER_WEEK, epoch_text
-from .inputs import input_file
+from ..inputs import input_file
 from .rinex import report_skipped
 
 log = logging.getLogger("sins")
@@ -572,6 +572,29 @@ def _assemble(times, rec, source) -> ObsData:
     return obs
 
 
-def is_ubx_file(path) -> bool:
-    from ..gnss.raw_input import is_ubx
-    return is_ubx(path)
+def is_ubx(path) -> bool:
+    """A UBX log: named ``.ubx``, or a whole UBX frame with a valid checksum starting within its first 64 bytes
+    (a log may begin with the tail of a message or NMEA text)."""
+    p = Path(path)
+    if p.suffix.lower() == ".ubx":
+        return True
+    try:
+        with open(p, "rb") as f:
+            head = f.read(4096)
+    except OSError:
+        return False
+    k = head.find(b"\xb5\x62", 0, 64)
+    while 0 <= k < 64:
+        if k + 6 <= len(head):
+            n = head[k + 4] | (head[k + 5] << 8)
+            frame = head[k + 2:k + 6 + n]
+            if k + 8 + n <= len(head):
+                a = b = 0
+                for x in frame:
+                    a = (a + x) & 0xFF
+                    b = (b + a) & 0xFF
+                if head[k + 6 + n] == a and head[k + 7 + n] == b:
+                    return True
+        k = head.find(b"\xb5\x62", k + 1, 64)
+    return False
+

@@ -27,16 +27,6 @@ def radii_py(sin_lat):
     return rm, rn
 
 
-def local_en(lat_deg, lon_deg, h):
-    """East and north offsets (m) of points (deg, deg, m) from the first one: small-angle, with the
-    radii at the first point (points a few km apart at most), the longitude difference modulo a turn."""
-    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
-    rm, rn = radii_py(np.sin(lat[0]))
-    e = (np.mod(lon - lon[0] + np.pi, 2 * np.pi) - np.pi) * (rn + h[0]) * np.cos(lat[0])
-    n = (lat - lat[0]) * (rm + h[0])
-    return e, n
-
-
 def gravity_py(sin_lat, h):
     """Normal gravity magnitude of FORMATS.md, m/s^2, acting along -Up.
 
@@ -142,6 +132,25 @@ def lla_to_local_enu(lat, lon, h, lat0: float, lon0: float, h0: float) -> np.nda
     """ENU coordinates (N, 3) in metres of geodetic points (radians, metres) about an origin point."""
     d = lla_to_ecef(np.asarray(lat), np.asarray(lon), np.asarray(h)) - lla_to_ecef(lat0, lon0, h0)
     return d @ enu_rotation(lat0, lon0).T
+
+
+def enu_offset(lat, lon, h, lat0, lon0, h0) -> np.ndarray:
+    """Small-angle offset (m, E N U; (..., 3)) of the point ``(lat, lon, h)`` from ``(lat0, lon0, h0)`` (rad, m):
+    ``E = dlon (RN + h) cos lat``, ``N = dlat (RM + h)``, ``U = h - h0``, with the WGS-84 radii at the point
+    and the longitude difference wrapped into (-pi, pi].  Exact to first order in the offset (the error is
+    ~offset^2 / R: 1.6e-7 m at 1 m, 1.6 mm at 100 m); :func:`lla_to_local_enu` is the exact form."""
+    lat = np.asarray(lat, dtype=float)
+    rm, rn = radii_py(np.sin(lat))
+    dlon = np.angle(np.exp(1j * (np.asarray(lon) - lon0)))
+    return np.stack(np.broadcast_arrays(dlon * (rn + h) * np.cos(lat), (lat - lat0) * (rm + h), np.asarray(h) - h0),
+                    axis=-1)
+
+
+def local_en(lat_deg, lon_deg, h):
+    """East and north offsets (m) of points (deg, deg, m) from the first one (:func:`enu_offset`)."""
+    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
+    off = enu_offset(lat, lon, h, lat[0], lon[0], h[0])
+    return off[..., 0], off[..., 1]
 
 
 def local_enu_to_lla(enu, lat0: float, lon0: float, h0: float):

@@ -37,20 +37,23 @@ from .earth import (OMEGA_IE, ecef_to_lla, ecef_to_launch_axes_py, enu_rotation,
                     launch_axes, launch_to_ecef_axes_py, lla_to_ecef)
 from .mechanization import displacement
 from .rotation import m_tvec, m_vec, v_add, v_scale
-from .strapdown import (S_HAVE_MM2, S_NOUT, S_T, S_TMM2, S_TMM3, S_TSTART,
-                        S_VEL, S_VLO, S_VMM2, S_VMM3, STATE_SIZE, _acc, _attitude_update, _cbn, _set_vec, _vec,
-                        close_interval, fast_sample, load_fast, save_fast)
+from .strapdown import (S_HAVE_MM2, S_NOUT, S_TMM2, S_TMM3, S_TSTART,
+                        S_VEL, S_VMM2, S_VMM3, STATE, STATE_SIZE, _acc, _attitude_update, _cbn, _vec,
+                        close_interval, fast_sample, load_fast, save_fast, store_interval)
 from .strapdown import new_state as _enu_new_state
 
 # Extra trajectory columns of the launch-inertial frame (m, m/s).
 COLUMNS = ("x_i", "y_i", "z_i", "vx_i", "vy_i", "vz_i")
 
 # --- state vector: the ENU loop's layout plus these slots ------------------
-S_R = STATE_SIZE            # 3: r^i, position from the launch point, m
-S_RLO = STATE_SIZE + 3      # 3: compensated-summation residues of r^i
-S_CEI = STATE_SIZE + 6      # 9: C_e^i at launch (row-major), constant
-S_R0E = STATE_SIZE + 15     # 3: launch point in ECEF, m, constant
-I_STATE_SIZE = STATE_SIZE + 18
+I_STATE = STATE.extend("launch-inertial state", [
+    ("S_R", 3),                # r^i, position from the launch point, m
+    ("S_RLO", 3),              # compensated-summation residues of r^i
+    ("S_CEI", 9),              # C_e^i at launch (row-major), constant
+    ("S_R0E", 3),              # launch point in ECEF, m, constant
+], total=STATE_SIZE + 18)
+S_R, S_RLO, S_CEI, S_R0E = I_STATE.offsets("S_R", "S_RLO", "S_CEI", "S_R0E")
+I_STATE_SIZE = I_STATE.total
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
@@ -203,17 +206,9 @@ def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, out_t, out_r, ou
         dR = displacement(_vec(st, S_VMM3), _vec(st, S_VMM2), vel, v_new,
                           st[S_TMM2] - st[S_TMM3], st[S_TSTART] - st[S_TMM2], T, nhist)
         _attitude_update(st, method, phi, _ZERO3)
-        # ---- store (compensated accumulation) ----
-        _set_vec(st, S_VMM3, _vec(st, S_VMM2))
-        st[S_TMM3] = st[S_TMM2]
-        _set_vec(st, S_VMM2, vel)
-        st[S_TMM2] = st[S_TSTART]
-        st[S_HAVE_MM2] = min(nhist + 1, 2)
+        store_interval(st, vel, dvel, nhist, t_end)         # the strapdown store step, then r^i
         for i in range(3):
-            _acc(st, S_VEL + i, S_VLO + i, dvel[i])
             _acc(st, S_R + i, S_RLO + i, dR[i])
-        st[S_T] = t_end
-        st[S_TSTART] = t_end
         sums = (_ZERO3, _ZERO3, _ZERO3, _ZERO3)
         nsub_now = 0
         st[S_NOUT] += 1.0

@@ -29,7 +29,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .rotation import m_from_array, m_mul, m_to_array, m_trans
+from .rotation import m_from_array, m_to_array
 
 SET_A, SET_B = 0, 1
 GAMMA_S = 0.25 * math.pi            # transfer threshold gamma_s = 45 deg (sec. 3.1)
@@ -594,33 +594,3 @@ def euler3_propagate(Cbn0, dtheta_b, dt, w_in_n, integrator):
             angs[k + 1, j] = ang[j]
         prev = cur
     return cbn, angs, cmin
-
-
-# ---------------------------------------------------------------- checks
-
-
-@njit(cache=True, error_model="numpy")
-def check_orthonormal(C):
-    """Orthonormality error of a would-be rotation (3x3 array): ``max(max|C^T C - I|, |det C - 1|)``.
-
-    Raises nothing; the caller compares with 1e-6 and raises SinsError
-    ``initial attitude DCM is not orthonormal (error X > 1e-6)``.  A
-    reflection (det = -1) gives an error of 2, a NaN entry infinity.
-    """
-    c = m_from_array(C)
-    e = m_mul(m_trans(c), c)
-    err = 0.0
-    for i in range(3):
-        for j in range(3):
-            d = abs(e[i][j] - (1.0 if i == j else 0.0))
-            if d > err or d != d:
-                err = d
-    det = (c[0][0] * (c[1][1] * c[2][2] - c[1][2] * c[2][1])
-           - c[0][1] * (c[1][0] * c[2][2] - c[1][2] * c[2][0])
-           + c[0][2] * (c[1][0] * c[2][1] - c[1][1] * c[2][0]))
-    d = abs(det - 1.0)
-    if d > err:
-        err = d
-    if err != err:            # NaN in C
-        err = math.inf
-    return err

@@ -16,7 +16,9 @@ import numpy as np
 from ..errors import SinsError
 from ..types import ImuLog, NavState, Trajectory, time_tolerance
 from . import strapdown as sd
+from .inertial import LaunchInertial
 from .krylov import SUBSTEP_TOL
+from .rotation import conv_to_flu
 
 log = logging.getLogger("sins")
 
@@ -87,7 +89,6 @@ class Navigator:
         self.state = sd.new_state(init.time, init.lat, init.lon, init.height,
                                   np.asarray(init.vel_n, dtype=float), c, self.method, opts.conv,
                                   opts.krylov_substep_tol)
-        from .rotation import conv_to_flu
         self._cflu = conv_to_flu(opts.conv)
         self._integrator = 0 if opts.euler_integrator == "euler" else 1
         self._cos_stop = opts.singularity_threshold if opts.on_singularity == "stop" else 0.0
@@ -100,7 +101,6 @@ class Navigator:
         self._source = "<memory>"
         self.inertial = None
         if opts.frame == "launch-inertial":      # the launch-inertial kernel (sinscli.nav.inertial)
-            from .inertial import LaunchInertial
             self.inertial = LaunchInertial(init, opts.launch, self.method, opts.coning, opts.subsamples,
                                            opts.every)
 

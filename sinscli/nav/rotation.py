@@ -53,11 +53,6 @@ def v_scale(a, s):
 
 
 @njit(cache=True, inline="always")
-def v_dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-@njit(cache=True, inline="always")
 def v_cross(a, b):
     """Cross product ``a x b``."""
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
@@ -254,18 +249,6 @@ def cross(a, b):
 def rotvec_to_dcm(phi):
     """Array form of :func:`rotvec_to_dcm_t` (Savage eq 26)."""
     return m_to_array(rotvec_to_dcm_t((phi[0], phi[1], phi[2])))
-
-
-@njit(cache=True)
-def rotvec_to_quat(phi):
-    """Array form of :func:`rotvec_to_quat_t` (Savage eq 60)."""
-    return np.array(rotvec_to_quat_t((phi[0], phi[1], phi[2])))
-
-
-@njit(cache=True)
-def quat_mul(p, q):
-    """Array form of :func:`quat_mul_t`."""
-    return np.array(quat_mul_t((p[0], p[1], p[2], p[3]), (q[0], q[1], q[2], q[3])))
 
 
 @njit(cache=True)

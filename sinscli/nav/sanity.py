@@ -14,9 +14,10 @@ import math
 
 import numpy as np
 
-from ..align.coarse import block_means
-from ..config import mounting_angles
+from ..config import mounting_angles, mounting_matrix
 from ..conventions import FRD
+from ..types import time_tolerance
+from .imu_stats import block_means
 from .rotation import rotvec_to_dcm
 
 REST_RATE = 0.2            # rad/s: largest mean angular rate of a second taken as "at rest"
@@ -132,8 +133,6 @@ def check_mounting(time, dtheta_b, dvel_b, t0: float, g: float, conv: int, cbn0=
 def mounting_warning(imu, t0: float, g: float, conv: int, cbn0, imu_cfg: dict) -> str | None:
     """:func:`check_mounting` on an :class:`~sinscli.types.ImuLog` (block) with the config's ``imu`` section,
     over the samples after ``t0`` (the epoch of ``cbn0``: the init's time, when it is inside the log)."""
-    from ..config import mounting_matrix
-    from ..types import time_tolerance
     k = int(np.searchsorted(imu.time, t0 + time_tolerance(t0), side="right"))
     return check_mounting(imu.time[k:], imu.dtheta_b[k:], imu.dvel_b[k:], t0, g, conv, cbn0,
                           mounting_matrix(imu_cfg.get("mounting")), str(imu.source or "IMU log"))

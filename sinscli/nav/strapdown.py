@@ -21,54 +21,88 @@ Attitude methods (``ATT_*``):
 import numpy as np
 from numba import njit
 
-from .coning import CONING_COEFFS, body_increments, fast_step, load_memory, push_sample, save_memory
-from .krylov import (SUBSTEP_TOL, euler3_dcm_t, euler3_init, euler3_step_t, krylov_init, krylov_update_t,
-                     substep_angle)
-from .mechanization import (displacement, first_guess_displacement, frame_rotation, midpoint,
-                            position_update, velocity_update)
-from .rotation import (m_mul, m_trans, m_vec, quat_mul_t, quat_to_dcm_t,
-                       rotvec_to_dcm_delta_t, rotvec_to_quat_delta_t, v_add, v_scale)
+from ..layout import Layout
+from .coning import (
+    CONING_COEFFS,
+    body_increments,
+    fast_step,
+    load_memory,
+    push_sample,
+    save_memory,
+)
+from .krylov import (
+    SUBSTEP_TOL,
+    euler3_dcm_t,
+    euler3_init,
+    euler3_step_t,
+    krylov_init,
+    krylov_update_t,
+    substep_angle,
+)
+from .mechanization import (
+    displacement,
+    first_guess_displacement,
+    frame_rotation,
+    midpoint,
+    position_update,
+    velocity_update,
+)
+from .rotation import (
+    conv_to_flu,
+    dcm_to_quat,
+    m_mul,
+    m_trans,
+    m_vec,
+    quat_mul_t,
+    quat_to_dcm_t,
+    rotvec_to_dcm_delta_t,
+    rotvec_to_quat_delta_t,
+    v_add,
+    v_scale,
+)
 
 ATT_DCM, ATT_DCM_SEED000, ATT_QUAT, ATT_KRYLOV, ATT_EULER = 0, 1, 2, 3, 4
 
-# --- state vector layout -----------------------------------------------------
-S_T, S_LAT, S_LON, S_H = 0, 1, 2, 3
-S_VEL = 4              # 3
-S_CBN = 7              # 9, row-major
-S_Q = 16               # 4
-S_PDTH = 20            # MAX_ORDER-1 previous dtheta, 3 each
-S_PDV = 29             # MAX_ORDER-1 previous dvel, 3 each
-S_NPREV = 38
-S_VMM2 = 39            # velocity at t_{m-2}
-S_TMM2 = 42
-S_HAVE_MM2 = 43        # older velocities available (0, 1, 2)
-S_ALPHA = 44
-S_UPS = 47
-S_BETA = 50
-S_SCUL = 53
-S_NSUB = 56            # fast samples in the current interval
-S_TSTART = 57          # start time of the current interval
-S_NOUT = 58            # attitude updates since the last output
-S_ANG = 59             # 4 angles (krylov / 3-angle methods)
-S_KSET = 63
-S_PHIB = 64
-S_COSMIN = 68          # smallest |cos| of the 3-angle method so far
-S_TCOSMIN = 69
-S_QLO = 72             # 4: compensated-summation residues (see _acc)
-S_CLO = 76             # 9
-S_VLO = 85             # 3
-S_PLO = 88             # 3: lat, lon, h
-S_PALPHA = 91          # 3: previous interval's alpha (rate model of the velocity increment)
-S_PUPS = 94            # 3: previous interval's upsilon
-S_HAVE_PREV = 97
-S_VMM3 = 98            # 3: velocity at t_{m-3}
-S_TMM3 = 101
-S_STOPPED = 104        # 1 when the 3-angle method stopped at its singularity
-S_KSUB_ANGLE = 106     # krylov: largest rotation (rad) of one RK4 sub-step (krylov.substep_angle)
-S_KSUB_MAX = 107       # krylov: most sub-steps in one interval, since the counters were reset
-S_KSUB_SUM = 108       # krylov: sub-steps summed over the intervals counted in S_KSUB_N
-S_KSUB_N = 109         # krylov: intervals counted
-STATE_SIZE = 110
+# --- state vector layout (sinscli/layout.py: offsets generated from the fields, tests/test_layout.py) ---
+STATE = Layout("strapdown state", [
+    ("S_T", 1), ("S_LAT", 1), ("S_LON", 1), ("S_H", 1),   # s, rad, rad, m
+    ("S_VEL", 3),              # m/s, ENU
+    ("S_CBN", 9),              # Cbn, row-major
+    ("S_Q", 4),                # q_b^n, scalar first
+    ("S_PDTH", 9),             # MAX_ORDER-1 previous dtheta, 3 each
+    ("S_PDV", 9),              # MAX_ORDER-1 previous dvel, 3 each
+    ("S_NPREV", 1),            # previous samples held
+    ("S_VMM2", 3),             # velocity at t_{m-2}
+    ("S_TMM2", 1),
+    ("S_HAVE_MM2", 1),         # older velocities available (0, 1, 2)
+    ("S_ALPHA", 3), ("S_UPS", 3), ("S_BETA", 3), ("S_SCUL", 3),   # the interval's sums (rad, m/s)
+    ("S_NSUB", 1),             # fast samples in the current interval
+    ("S_TSTART", 1),           # start time of the current interval
+    ("S_NOUT", 1),             # attitude updates since the last output
+    ("S_ANG", 4),              # 4 angles (krylov / 3-angle methods)
+    ("S_KSET", 1), ("S_PHIB", 1),   # krylov: angle set (0 A, 1 B) and its transfer reference
+    ("S_COSMIN", 1),           # smallest |cos| of the 3-angle method so far
+    ("S_TCOSMIN", 1),          # and its time
+    ("S_QLO", 4),              # compensated-summation residues (see _acc) of q,
+    ("S_CLO", 9),              # Cbn,
+    ("S_VLO", 3),              # velocity,
+    ("S_PLO", 3),              # lat, lon, h
+    ("S_PALPHA", 3),           # previous interval's alpha (rate model of the velocity increment)
+    ("S_PUPS", 3),             # previous interval's upsilon
+    ("S_HAVE_PREV", 1),
+    ("S_VMM3", 3),             # velocity at t_{m-3}
+    ("S_TMM3", 1),
+    ("S_STOPPED", 1),          # 1 when the 3-angle method stopped at its singularity
+    ("S_KSUB_ANGLE", 1),       # krylov: largest rotation (rad) of one RK4 sub-step (krylov.substep_angle)
+    ("S_KSUB_MAX", 1),         # krylov: most sub-steps in one interval, since the counters were reset
+    ("S_KSUB_SUM", 1),         # krylov: sub-steps summed over the intervals counted in S_KSUB_N
+    ("S_KSUB_N", 1),           # krylov: intervals counted
+], total=102)
+(S_T, S_LAT, S_LON, S_H, S_VEL, S_CBN, S_Q, S_PDTH, S_PDV, S_NPREV, S_VMM2, S_TMM2, S_HAVE_MM2, S_ALPHA, S_UPS,
+ S_BETA, S_SCUL, S_NSUB, S_TSTART, S_NOUT, S_ANG, S_KSET, S_PHIB, S_COSMIN, S_TCOSMIN, S_QLO, S_CLO, S_VLO, S_PLO,
+ S_PALPHA, S_PUPS, S_HAVE_PREV, S_VMM3, S_TMM3, S_STOPPED, S_KSUB_ANGLE, S_KSUB_MAX, S_KSUB_SUM,
+ S_KSUB_N) = STATE.offsets(*(name for name, _ in STATE.fields))
+STATE_SIZE = STATE.total
 
 N_EVENT = 10           # transfer events: time, old 4 angles, new 4 angles, new set
 
@@ -84,13 +118,11 @@ def new_state(time, lat, lon, h, vel_n, cbn, method=ATT_QUAT, conv=0, krylov_sub
     st[S_T], st[S_LAT], st[S_LON], st[S_H] = time, lat, lon, h
     st[S_VEL:S_VEL + 3] = vel_n
     st[S_CBN:S_CBN + 9] = np.asarray(cbn, dtype=np.float64).ravel()
-    from .rotation import dcm_to_quat
     st[S_Q:S_Q + 4] = dcm_to_quat(np.ascontiguousarray(cbn, dtype=np.float64))
     st[S_TSTART] = time
     st[S_COSMIN] = 1.0
     st[S_KSUB_ANGLE] = substep_angle(krylov_substep_tol)
     if method in (ATT_KRYLOV, ATT_EULER):
-        from .rotation import conv_to_flu
         c_flu = np.asarray(cbn, dtype=np.float64) @ conv_to_flu(conv).T
         if method == ATT_KRYLOV:
             ang, kset, phib = krylov_init(np.ascontiguousarray(c_flu))
@@ -376,7 +408,7 @@ def interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_
     cbn = _cbn(st)
     dv_n0 = m_vec(cbn, dv_b)
     vel = _vec(st, S_VEL)
-    lat, lon, h = st[S_LAT], st[S_LON], st[S_H]
+    lat, h = st[S_LAT], st[S_H]
     v_mm2 = _vec(st, S_VMM2)
     v_mm3 = _vec(st, S_VMM3)
     nhist = int(st[S_HAVE_MM2])
@@ -396,20 +428,30 @@ def interval_update(st, sums, order, method, t_end, cflu, integrator, events, n_
     else:
         _attitude_update(st, method, phi, zeta)
     dlat, dlon, dh = position_update(lat, h, dR)
-    # ---- store (compensated accumulation of every integrated state) ----
-    _set_vec(st, S_VMM3, v_mm2)
+    store_interval(st, vel, dvel, nhist, t_end)
+    _acc(st, S_LAT, S_PLO, dlat)
+    _acc(st, S_LON, S_PLO + 1, dlon)
+    _acc(st, S_H, S_PLO + 2, dh)
+    return n_ev
+
+
+@njit(cache=True)
+def store_interval(st, vel, dvel, nhist, t_end):
+    """The store step of an attitude interval, shared by both frames (:func:`interval_update` and the
+    launch-inertial loop, :mod:`sinscli.nav.inertial`): the velocity history moves one interval back
+    (``v_{m-3} <- v_{m-2} <- v_{m-1} = vel``, for the Adams-Moulton displacement), ``dvel`` is added to the
+    velocity with its compensated residue (:func:`_acc`), and the interval closes at ``t_end``
+    (``S_T = S_TSTART = t_end``).  The caller adds its own position increment.
+    """
+    _set_vec(st, S_VMM3, _vec(st, S_VMM2))
     st[S_TMM3] = st[S_TMM2]
     _set_vec(st, S_VMM2, vel)
     st[S_TMM2] = st[S_TSTART]
     st[S_HAVE_MM2] = min(nhist + 1, 2)
     for i in range(3):
         _acc(st, S_VEL + i, S_VLO + i, dvel[i])
-    _acc(st, S_LAT, S_PLO, dlat)
-    _acc(st, S_LON, S_PLO + 1, dlon)
-    _acc(st, S_H, S_PLO + 2, dh)
     st[S_T] = t_end
     st[S_TSTART] = t_end
-    return n_ev
 
 
 def run(time, dtheta_b, dvel_b, st, method, order, nsub, every, cflu_arr, integrator, cos_stop,

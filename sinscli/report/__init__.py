@@ -1,1 +1,1 @@
-"""report package of sins."""
+"""Rendering: tables, PNG figures, the HTML pages and their script; every number comes from evaluate/ or batch/."""

@@ -2,8 +2,8 @@
 
 It draws what the report's other files hold (:class:`~.digest.SeriesDigest` lines, the
 :class:`~.errors.ErrorTable`), so the single ``sins compare`` and a batch's per-run pages are the
-same page.  Rendering only: every number comes from :mod:`sinscli.report.errors`,
-:mod:`sinscli.report.stats` and :mod:`sinscli.report.metrics`.
+same page.  Rendering only: every number comes from :mod:`sinscli.evaluate.errors`,
+:mod:`sinscli.evaluate.stats` and :mod:`sinscli.evaluate.metrics`.
 """
 from __future__ import annotations
 
@@ -11,7 +11,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import CONSISTENCY_UNITS, HEADLINE, ROW_UNITS, ConsistencyTable, ErrorTable
+from ..evaluate.errors import (
+    CONSISTENCY_UNITS,
+    HEADLINE,
+    ROW_UNITS,
+    ConsistencyTable,
+    ErrorTable,
+)
+from ..nav.earth import lla_to_local_enu
 from .figures import ATTITUDE_FIGURES, _angle_unit, envelope
 from .tables import CONSISTENCY_LABELS, ROW_LABELS
 from .webpage import Page, esc, table
@@ -78,9 +85,9 @@ class GnssOverlay:
 
 def gnss_overlay(gnss, truth, name: str) -> GnssOverlay:
     """:class:`GnssOverlay` of a :class:`~sinscli.types.GnssLog` (degrees) about the truth's first point."""
+    # the fusion stage (scipy.stats, its kernels' modules) loads only for a report with GNSS fixes
     from ..fusion.options import FusionOptions
     from ..fusion.pipeline import outages
-    from ..nav.earth import lla_to_local_enu
     enu = lla_to_local_enu(np.radians(gnss.lat), np.radians(gnss.lon), gnss.height,
                            float(truth.lat[0]), float(truth.lon[0]), float(truth.height[0]))
     return GnssOverlay(name, gnss.time, enu[:, 0], enu[:, 1], outages(gnss.time, FusionOptions().outage))
@@ -90,6 +97,7 @@ def overlay_from_arrays(arrays, name: str) -> GnssOverlay | None:
     """The :class:`GnssOverlay` a batch job stored (``gnss.*`` arrays), or None."""
     if "gnss.time" not in arrays:
         return None
+    # the fusion stage loads only for a report with GNSS fixes (tests/test_cli_startup.py)
     from ..fusion.options import FusionOptions
     from ..fusion.pipeline import outages
     t = np.asarray(arrays["gnss.time"])
@@ -222,7 +230,7 @@ def plan_view(page: Page, lines: dict, legend: dict[str, str], gnss: GnssOverlay
 def add_box_plots(page: Page, stats, group: str, quantities: list[str], labels: dict, units: dict,
                   prefix: str) -> None:
     """One box plot per quantity, a box per ``group`` value (method, variant): p25-p75 box, median line,
-    p5-p95 whiskers, min and max as points (from :func:`sinscli.report.stats.row_statistics`)."""
+    p5-p95 whiskers, min and max as points (from :func:`sinscli.evaluate.stats.row_statistics`)."""
     for q in quantities:
         sub = stats[stats["quantity"] == q]
         if sub.empty:

@@ -3,11 +3,11 @@
 A navigation run has one epoch per attitude update (113,000 for seed 000's
 flight, 20 MB of :class:`ErrorSeries`).  The report needs far less:
 
-- :class:`TailTable`: the error-table column (:func:`sinscli.report.errors.error_column`,
+- :class:`TailTable`: the error-table column (:func:`sinscli.evaluate.errors.error_column`,
   rows 1-22) at the run's first epoch, at the epoch nearest the requested
   table epoch, and at its last :data:`TAIL_EPOCHS` epochs.  The client picks
   the table epoch among these (:func:`table_from_tails`), exactly as
-  :func:`sinscli.report.errors.build_table` does on whole series whenever the
+  :func:`sinscli.evaluate.errors.build_table` does on whole series whenever the
   last epoch common to every run lies within each run's last
   :data:`TAIL_EPOCHS` epochs (methods with different attitude-update rates on
   one dataset); otherwise it asks for an explicit ``epoch:``.
@@ -16,7 +16,7 @@ flight, 20 MB of :class:`ErrorSeries`).  The report needs far less:
   per line), the rows of ``timeseries.csv``
   (:func:`sinscli.report.tables.timeseries_columns`) and, for a run with the
   navigator's 1-sigma columns, its consistency column
-  (:func:`sinscli.report.errors.consistency_column`).
+  (:func:`sinscli.evaluate.errors.consistency_column`).
 
 The single-file ``sins compare`` draws its report from the same digests, so
 both paths give identical files.
@@ -28,9 +28,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SinsError
-from .errors import ErrorSeries, ErrorTable, common_epoch, consistency_column, error_column, headline_errors
-from .figures import series_lines
-from .tables import timeseries_columns
+from ..evaluate.errors import (
+    ErrorSeries,
+    ErrorTable,
+    common_epoch,
+    consistency_column,
+    error_column,
+    headline_errors,
+)
+from .figures import LINE_NAMES, series_lines
+from .tables import TIMESERIES_QUANTITIES, TIMESERIES_SIGMAS, timeseries_columns
 
 TAIL_EPOCHS = 64
 
@@ -42,7 +49,7 @@ class SeriesDigest:
     lines: dict
     timeseries: tuple
     consistency: np.ndarray | None = None
-    headline: np.ndarray | None = None      # :func:`sinscli.report.errors.headline_errors`
+    headline: np.ndarray | None = None      # :func:`sinscli.evaluate.errors.headline_errors`
 
     def arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         """Flat named arrays (for a job file)."""
@@ -63,8 +70,6 @@ class SeriesDigest:
                    if k.startswith(f"{prefix}ts.") and k != f"{prefix}ts.time"}
         names = [k[len(prefix) + 5:-2] for k in arrays if k.startswith(f"{prefix}line.") and k.endswith(".t")]
         lines = {n: (arrays[f"{prefix}line.{n}.t"], arrays[f"{prefix}line.{n}.y"]) for n in names}
-        from .figures import LINE_NAMES
-        from .tables import TIMESERIES_QUANTITIES, TIMESERIES_SIGMAS
         ts_order = [q[0] for q in TIMESERIES_QUANTITIES + TIMESERIES_SIGMAS]
         return cls(lines={n: lines[n] for n in LINE_NAMES if n in lines},
                    timeseries=(arrays[f"{prefix}ts.time"], {k: ts_cols[k] for k in ts_order if k in ts_cols}),
@@ -103,7 +108,7 @@ def tail_table(s: ErrorSeries, epoch: float | None = None, tail: int = TAIL_EPOC
 
 def table_from_tails(tails: dict[str, TailTable], epoch: float | None = None) -> ErrorTable:
     """The error table of several runs (label -> :class:`TailTable`), as
-    :func:`sinscli.report.errors.build_table` gives it from the whole series."""
+    :func:`sinscli.evaluate.errors.build_table` gives it from the whole series."""
     try:
         t = common_epoch(tails if epoch is not None else {k: tt.tail for k, tt in tails.items()}, epoch)
     except SinsError as exc:

@@ -11,12 +11,14 @@ envelope per pixel column, so every peak stays visible.
 """
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ..evaluate.errors import ErrorSeries
 from ..io.atomic import atomic_path
-from .errors import ErrorSeries
 
 MAX_POINTS = 4000          # envelope bins per line
 _DEG = float(np.degrees(1.0))
@@ -115,7 +117,6 @@ _STYLES = ["-", "--", "-.", ":"]
 
 def wrap_title(text: str, width: int = 90) -> str:
     """A long title broken into lines of at most ``width`` characters (never cut)."""
-    import textwrap
     return "\n".join(textwrap.wrap(text, width, break_long_words=True, break_on_hyphens=False)) or text
 
 

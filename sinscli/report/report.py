@@ -8,11 +8,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..evaluate.compare_metrics import summary_lines, with_metric_rows
+from ..evaluate.errors import ErrorSeries, ErrorTable, build_table, consistency_table
 from ..io.atomic import staged_dir  # noqa: F401  (re-exported: the batch runner writes reports through it)
+from .compare_page import compare_page, files_section
 from .digest import SeriesDigest, digest
-from .errors import ErrorSeries, ErrorTable, build_table, consistency_table
 from .figures import plot_all, plot_metrics
-from .tables import write_errors_csv, write_errors_md, write_metric_series_csv, write_timeseries_csv
+from .tables import (
+    write_errors_csv,
+    write_errors_md,
+    write_metric_series_csv,
+    write_timeseries_csv,
+)
 
 
 def write_report_files(outdir: Path, digests: dict[str, SeriesDigest], table: ErrorTable, title: str,
@@ -32,7 +39,6 @@ def write_report_files(outdir: Path, digests: dict[str, SeriesDigest], table: Er
     outages to the time plots; ``page_hook(page)`` may add sections (a batch's
     statistics) before the file list.
     """
-    from .compare_page import compare_page
     outdir = Path(outdir)
     legend = dict(legend or {})
     consistency = consistency_table({n: d.consistency for n, d in digests.items()}) if digests else None
@@ -53,7 +59,6 @@ def write_report_files(outdir: Path, digests: dict[str, SeriesDigest], table: Er
                         consistency=consistency, metrics=metrics, gnss=gnss, extra_html=extra_html)
     if page_hook is not None:
         page_hook(page)
-    from .compare_page import files_section
     files_section(page, files, figures)
     page.write(outdir / "index.html")
     return files + figures + ["index.html"]
@@ -71,7 +76,6 @@ def write_report(outdir, series: dict[str, ErrorSeries], title: str, epoch: floa
     table = build_table(series, epoch) if series else None
     summary = []
     if metrics:
-        from .compare_metrics import summary_lines, with_metric_rows
         table = with_metric_rows(table, metrics, metric_options)
         summary = summary_lines(metrics, metric_options)
     with staged_dir(outdir) as tmp:

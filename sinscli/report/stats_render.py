@@ -1,4 +1,4 @@
-"""Rendering of the statistics of many runs (:mod:`sinscli.report.stats`): CSV, Markdown, HTML, box plots.
+"""Rendering of the statistics of many runs (:mod:`sinscli.evaluate.stats`): CSV, Markdown, HTML, box plots.
 
 Kept apart from the numbers so that another front end (an interactive HTML
 report) can replace it; every writer goes through ``atomic_path``.
@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 
 from ..io.atomic import atomic_path
 from .figures import wrap_title
-from .stats import PERCENTILES, STATISTICS
+from ..evaluate.stats import PERCENTILES, STATISTICS
 
 _LOW, _HIGH = PERCENTILES[0], PERCENTILES[-1]
 
@@ -28,7 +28,7 @@ def _cell(v) -> str:
 
 
 def write_stats_csv(path, stats) -> None:
-    """The long table of :func:`sinscli.report.stats.row_statistics`; floats in shortest round-trip form."""
+    """The long table of :func:`sinscli.evaluate.stats.row_statistics`; floats in shortest round-trip form."""
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(list(stats.columns))

@@ -7,11 +7,19 @@ the identical float64; the Markdown table uses the paper's ``%.5E`` style.
 from __future__ import annotations
 
 import csv
+from pathlib import Path
 
 import numpy as np
 
+from ..evaluate.errors import (
+    CONSISTENCY_UNITS,
+    METRIC_STATISTICS,
+    ROW_UNITS,
+    ConsistencyTable,
+    ErrorSeries,
+    ErrorTable,
+)
 from ..io.atomic import atomic_path, check_finite
-from .errors import CONSISTENCY_UNITS, METRIC_STATISTICS, ROW_UNITS, ConsistencyTable, ErrorSeries, ErrorTable
 
 #: How Tables 1-2 of seed 000 name each row (subscript g = truth, n = navigation).
 ROW_LABELS = dict(
@@ -150,7 +158,7 @@ def timeseries_columns(s: ErrorSeries, every: int = 1) -> tuple[np.ndarray, dict
 def timeseries_frame(columns: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]):
     """Wide table on the union of epochs: ``time``, then ``<method>.<quantity>`` (empty where absent);
     ``columns``: method -> :func:`timeseries_columns`."""
-    import pandas as pd
+    import pandas as pd   # 0.3 s, only for the wide timeseries table (tests/test_cli_startup.py)
 
     cols = {}
     for name, (time, values) in columns.items():
@@ -173,7 +181,6 @@ def write_timeseries_csv(path, columns: dict[str, tuple[np.ndarray, dict[str, np
 
 def write_metric_series_csv(outdir, results) -> list[str]:
     """``ate.csv`` (method, time, ate_m) and ``rpe.csv`` (method, time_start, time_end, trans_m, rot_deg)."""
-    from pathlib import Path
     outdir = Path(outdir)
     written = []
     for m, r in results.items():

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError
-from ..io.inputs import load_yaml
+from ..inputs import load_yaml
 from ..nav.rotation import BODY_CONVENTIONS
 from .imu_synth import GRAVITY_MODELS
 from .segments import AXES

@@ -37,10 +37,11 @@ import numpy as np
 
 from ..errors import SinsError
 from ..nav.rotation import FLU, RFU, conv_to_flu, euler_to_dcm
+from ..units import G0
 from .jets import Jet, axis_rotation, polynomial, stack
 
 HEADING, PITCH, ROLL, SPEED = 0, 1, 2, 3
-G_BANK = 9.80665          # m/s^2, only shapes the coordinated-bank profile
+G_BANK = G0               # m/s^2, only shapes the coordinated-bank profile
 
 # Septic smooth step S and its integral S1 = int_0^u S, as polynomials in s = 2u - 1 in [-1, 1]
 # (coefficients in increasing powers of s).  The symmetric form keeps the terms small (no

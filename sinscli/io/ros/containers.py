@@ -26,7 +26,7 @@ from typing import Callable, Iterator
 import numpy as np
 
 from ...errors import SinsError
-from ..inputs import input_file, load_yaml
+from ...inputs import input_file, load_yaml
 from . import decode
 from .decode import ImuBlock
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..imu_summary import time_stats
+from ...nav.imu_stats import time_stats
 from .containers import open_log
 from .decode import ACCEL, GYRO, IMU_TYPE, imu_from_message, stamp_seconds
 

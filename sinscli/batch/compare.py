@@ -28,13 +28,12 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 from .. import __version__
+from ..config import DEFAULTS, validate
 from ..errors import SinsError
-from ..io.inputs import load_yaml
-from .batch_job import JobOptions, describe, run_group
-from .batch_report import PER_RUN_MAX, BatchResult, JobRef, write_batch_reports
+from ..inputs import load_yaml
+from .compare_job import JobOptions, describe, run_group
+from .compare_report import PER_RUN_MAX, BatchResult, JobRef, write_batch_reports
 from .jobs import JobStore, file_digest, file_stamp, run_study
 
 TOP_KEYS = {"title", "datasets", "methods", "seeds", "epoch", "interpolate", "timeseries_every",
@@ -115,7 +114,6 @@ def default_method_name(nav: dict) -> str:
 
 
 def _load_method(src: Path, k: int, item) -> MethodSpec:
-    from ..config import DEFAULTS, validate
     where = f"methods[{k}]"
     if not isinstance(item, dict):
         _fail(src, where, "expected a mapping of navigation settings (attitude, coning, subsamples, frame, ...)")
@@ -288,7 +286,7 @@ def run_batch(spec: BatchSpec, outdir, jobs: int | None = None, on_progress=None
               verbose: bool = False, backend=None) -> BatchResult:
     """Run every job of ``spec`` on the chosen back end; write the reports and the summary into ``outdir``.
 
-    Raises :class:`~sinscli.report.jobs.StudyInterrupted` on SIGINT, SIGTERM or SIGHUP, after
+    Raises :class:`~sinscli.batch.jobs.StudyInterrupted` on SIGINT, SIGTERM or SIGHUP, after
     stopping the workers and removing everything the run wrote but the finished jobs' results.
     """
     if figures not in FIGURES:

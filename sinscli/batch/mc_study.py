@@ -35,14 +35,24 @@ import pyarrow as pa
 from .. import __version__
 from ..align import montecarlo as mcmod
 from ..errors import SinsError
+from ..evaluate.stats import row_statistics
 from ..io.atomic import atomic_path
 from ..io.csvcore import write_table_csv
-from .batch_job import describe
+from ..report.align_figures import ANGLES as ANG
+from ..report.align_figures import plot_monte_carlo, robust_range
+from ..report.compare_page import add_box_plots, files_section
+from ..report.figures import envelope
+from ..report.stats_render import (
+    plot_boxes,
+    stats_html,
+    write_stats_csv,
+    write_stats_md,
+)
+from ..report.webpage import Page, table
+from .compare_job import describe
 from .exec import where
 from .jobs import JobStore, file_digest, run_study
 from .results import ResultsWriter
-from .stats import row_statistics
-from .stats_render import plot_boxes, stats_html, write_stats_csv, write_stats_md
 
 PER_RUN_MAX = 20          # runs drawn one by one (and series kept whole) up to this count
 SERIES_EPOCHS = 100       # epochs of each run's series kept in a larger study
@@ -169,7 +179,6 @@ def _end_frame(mc) -> pd.DataFrame:
 
 def write_mc_report(outdir: Path, plan, store: JobStore, failed: dict, keep: int | None) -> McStudy:
     """Every file of the study from the finished runs under ``store`` (read in seed order)."""
-    from ..align.figures import plot_monte_carlo
 
     acc = mcmod.McAccumulator(plan, keep)
     timing = []
@@ -266,10 +275,6 @@ MC_LINE_BINS = 300         # min/max bins per run line on the page
 def mc_page(mc, summary, cols, sigma_rows, stats, labels, units, quantities, notes, files, figs):
     """The study's interactive, self-contained ``index.html``: summary in words, each run's error against
     time (seed 001 Figs. 1-3) with a robust y-range, box plots of the end errors, the tables."""
-    from ..align.figures import ANGLES as ANG, robust_range
-    from .compare_page import add_box_plots, files_section
-    from .figures import envelope
-    from .webpage import Page, table
     page = Page(f"Alignment Monte Carlo: {mc.scenario}, {mc.runs} runs")
     lines = [f"{mc.runs} seeded runs of scenario {mc.scenario} (seeds {mc.seeds[0]}..{mc.seeds[-1]}), "
              f"variants: {', '.join(mc.variants)}. Errors are estimate minus truth, in degrees."]

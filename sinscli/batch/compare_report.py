@@ -29,15 +29,27 @@ import pandas as pd
 import pyarrow as pa
 
 from ..errors import SinsError
+from ..evaluate.errors import ROW_UNITS, ROWS, ErrorTable
+from ..evaluate.stats import pivot, row_statistics
 from ..io.atomic import atomic_path
-from .digest import SeriesDigest, TailTable, table_from_tails
-from .errors import ROW_UNITS, ROWS, ErrorTable
-from .compare_page import overlay_from_arrays
-from .report import write_report_files
+from ..report.compare_page import (
+    add_box_plots,
+    compare_page,
+    error_table,
+    files_section,
+    overlay_from_arrays,
+)
+from ..report.digest import SeriesDigest, TailTable, table_from_tails
+from ..report.report import write_report_files
+from ..report.stats_render import (
+    plot_boxes,
+    stats_html,
+    write_stats_csv,
+    write_stats_md,
+)
+from ..report.tables import ROW_LABELS, write_errors_csv, write_errors_md
+from ..report.webpage import Page, table
 from .results import ResultsWriter
-from .stats import pivot, row_statistics
-from .stats_render import plot_boxes, stats_html, write_stats_csv, write_stats_md
-from .tables import ROW_LABELS, write_errors_csv, write_errors_md
 
 PER_RUN_MAX = 20          # seeds up to which a dataset's report has a column and figure lines per run
 SUMMARY_ROWS = 500        # jobs listed one by one in summary.md / index.html (all are in summary.csv)
@@ -111,7 +123,6 @@ BOX_QUANTITIES = ["pos_E", "pos_N", "pos_U", *MAX_ROWS]     # the interactive bo
 def _stats_section(stage_ds: Path, frame: pd.DataFrame, title: str, epoch: float):
     """``errors_stats.*``, ``errors_mc.*`` and the box plots; returns (files, a function adding the
     section to a :class:`~.webpage.Page`)."""
-    from .compare_page import add_box_plots, error_table
     stats = row_statistics(frame, "method", ROWS, ROW_UNITS)
     write_stats_csv(stage_ds / "errors_stats.csv", stats)
     n = int(frame.groupby("method", sort=False).size().max())
@@ -148,7 +159,6 @@ def _job_pages(stage_ds: Path, ok: list[JobRef], digests: dict, table: ErrorTabl
                ds, gnss_of: dict) -> dict[str, str]:
     """One self-contained page per run (its plan view, errors against time, table column), written into
     ``stage_ds/runs/``; returns label -> path relative to the dataset's directory."""
-    from .compare_page import compare_page
     pages = {}
     (stage_ds / "runs").mkdir(exist_ok=True)
     for k, r in enumerate(ok):
@@ -204,8 +214,6 @@ def _dataset_report(stage_ds: Path, ds, spec, refs: list[JobRef], loaded: dict, 
         if job_pages is not None:
             job_pages.update({(r.dataset, r.seed, r.method): f"{ds.name}/{pages[r.label]}" for r in ok})
         return table
-    from .compare_page import files_section
-    from .webpage import Page
     page = Page(title)
     page.h("Summary")
     page.items([f"{len(ok)} runs of {len({r.method for r in ok})} method(s) over {len(seeds)} seeds; errors truth "
@@ -339,8 +347,6 @@ def write_summary(outdir: Path, spec, result: BatchResult) -> None:
 def _summary_page(outdir: Path, spec, result: BatchResult, rows, listed, failed_flags, head: str, note: str) -> None:
     """The batch's ``index.html``: summary in words, box plots of each run's maxima by dataset and method,
     links to every dataset's report, and the sortable table of jobs (each linked to its report)."""
-    from .compare_page import add_box_plots
-    from .webpage import Page, table
     page = Page(spec.title)
     ok = [j for j in result.jobs if j.ok]
     page.h("Summary")

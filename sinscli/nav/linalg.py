@@ -1,5 +1,5 @@
-"""Small dense linear algebra for the filter kernels without BLAS (numba's ``@`` and ``np.linalg``
-need SciPy, which the project does not depend on)."""
+"""Small dense linear algebra for the kernels (fusion filter and smoother, alignment fit, SPP) without
+BLAS: plain loops over a few dozen states, no LAPACK threads waking up on a loaded machine."""
 import numpy as np
 from numba import njit
 
@@ -182,3 +182,35 @@ def scaled_solve(A, n, X, M, L, s):
         for c in range(m):
             X[i, c] *= s[i]
     return ridge
+
+
+@njit(cache=True)
+def cholesky_inverse(S):
+    """``(L^-1, log det S)`` with ``S = L L^T`` (Cholesky-Banachiewicz, then forward substitution).
+
+    A plain kernel for the few-hundred-epoch covariances here: LAPACK's threaded routines can take
+    hundreds of times longer on a loaded 2-core machine (threads waking up), this does not."""
+    n = S.shape[0]
+    L = np.zeros((n, n))
+    logdet = 0.0
+    for i in range(n):
+        for j in range(i + 1):
+            acc = S[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            if i == j:
+                if acc <= 0.0:
+                    acc = 1e-300
+                L[i, i] = np.sqrt(acc)
+                logdet += 2.0 * np.log(L[i, i])
+            else:
+                L[i, j] = acc / L[j, j]
+    Li = np.zeros((n, n))
+    for c in range(n):
+        Li[c, c] = 1.0 / L[c, c]
+        for i in range(c + 1, n):
+            acc = 0.0
+            for k in range(c, i):
+                acc -= L[i, k] * Li[k, c]
+            Li[i, c] = acc / L[i, i]
+    return Li, logdet

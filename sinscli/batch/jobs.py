@@ -11,7 +11,7 @@
   :meth:`OutputGuard.cleanup` removes every other file or folder the run
   created in ``DIR``, every temporary ``.part`` and every sidecar without its
   job file.
-- :func:`run_tasks`: the loop over a :class:`~sinscli.report.exec.Backend`'s
+- :func:`run_tasks`: the loop over a :class:`~sinscli.batch.exec.Backend`'s
   results that writes each job file and reports failures.
 """
 from __future__ import annotations
@@ -53,10 +53,6 @@ def file_stamp(path) -> list:
     except OSError:
         return [str(path), None, None]
     return [str(path), st.st_size, st.st_mtime_ns]
-
-
-def key_name(key: tuple) -> str:
-    return "/".join(str(k) for k in key)
 
 
 class StudyInterrupted(Interrupted):
@@ -286,7 +282,7 @@ def run_study(outdir, store: JobStore, keys: list[tuple], make_tasks: Callable[[
     ``backend.capacity`` and ``backend.share``);
     ``finish(stage, counts)`` writes the report into ``stage`` (a folder inside ``outdir``, moved into
     place when complete) and returns the result.  ``backend``: a factory of the back end, instead of
-    the one of ``jobs`` / ``scheduler`` (:func:`~sinscli.report.exec.open_backend`).  Any error or signal stops the workers at once and
+    the one of ``jobs`` / ``scheduler`` (:func:`~sinscli.batch.exec.open_backend`).  Any error or signal stops the workers at once and
     removes everything the run wrote but the finished jobs; a signal becomes :class:`StudyInterrupted`.
     Returns ``(result, counts)``.
     """

@@ -10,6 +10,7 @@ one that is not is that job's error, naming the path and the host.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 import traceback
 from dataclasses import dataclass
@@ -17,9 +18,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config import load_config
 from ..errors import SinsError
-from .digest import digest, tail_table
-from .errors import compare_trajectories
+from ..evaluate.errors import compare_trajectories
+from ..io.imu_csv import read_imu_csv
+from ..io.init_state import read_init
+from ..io.trajectory import read_trajectory, write_trajectory
+from ..nav.pipeline import NavOptions, navigate
+from ..report.compare_page import gnss_overlay
+from ..report.digest import digest, tail_table
+from ..sim import simulate
 from .exec import where
 
 BODY_CODES = {"flu": 0, "rfu": 1, "frd": 2}
@@ -64,14 +72,9 @@ def _visible(path: Path) -> Path:
 def prepare_data(ds, seed: int | None) -> Prepared:
     """Simulate the scenario with ``seed``, or read the dataset's files (on this worker)."""
     if ds.scenario is not None:
-        from ..sim import simulate
         result = simulate(_visible(ds.scenario), seed=seed, perfect=ds.perfect)
         return Prepared(imu=result.imu, init=result.init, truth=result.truth, conv=int(result.conv),
                         launch=dict(result.launch) or None, gnss=result.gnss)
-    from ..config import load_config
-    from ..io.imu_csv import read_imu_csv
-    from ..io.init_state import read_init
-    from ..io.trajectory import read_trajectory
     for p in (ds.imu, ds.truth, ds.init, ds.config):
         if p is not None:
             _visible(p)
@@ -87,7 +90,6 @@ def prepare_data(ds, seed: int | None) -> Prepared:
 def gnss_arrays(gnss, truth) -> dict[str, np.ndarray]:
     """A run's GNSS fixes for the plan view (``gnss.time``, ``gnss.east``, ``gnss.north``: local ENU at the
     truth's first point; see :func:`sinscli.report.compare_page.gnss_overlay`)."""
-    from .compare_page import gnss_overlay
     g = gnss_overlay(gnss, truth, "")
     return {"gnss.time": g.time, "gnss.east": g.east, "gnss.north": g.north}
 
@@ -95,9 +97,7 @@ def gnss_arrays(gnss, truth) -> dict[str, np.ndarray]:
 def nav_options(navigation: dict, conv: int, launch: dict | None = None):
     """``NavOptions`` from a validated ``navigation`` config section, the body convention and the
     dataset's launch point (used when the method has no ``launch`` of its own)."""
-    import dataclasses
 
-    from ..nav.pipeline import NavOptions
     names = {f.name for f in dataclasses.fields(NavOptions)}
     kwargs = {k: v for k, v in navigation.items() if k in names and v is not None}
     if "conv" in names:
@@ -109,12 +109,10 @@ def nav_options(navigation: dict, conv: int, launch: dict | None = None):
 
 def navigate_job(prep: Prepared, method, interpolate: bool, traj_path: Path | None):
     """Navigate one method on prepared data; return ``(ErrorSeries, seconds)``."""
-    from ..nav.pipeline import navigate
     t0 = time.perf_counter()
     traj = navigate(prep.imu, prep.init, nav_options(method.navigation, prep.conv, prep.launch))
     seconds = time.perf_counter() - t0
     if traj_path is not None:
-        from ..io.trajectory import write_trajectory
         write_trajectory(traj_path, traj, prep.conv)
     series = compare_trajectories(prep.truth, traj, conv=prep.conv, interpolate=interpolate,
                                   truth_name=str(getattr(prep.truth, "source", "truth")), nav_name=method.name)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..nav.earth import radii_py
+from ..nav.earth import enu_offset
 from ..types import Trajectory
 
 
@@ -19,10 +19,7 @@ def errors(traj: Trajectory, truth: Trajectory):
     k = np.clip(k, 0, len(truth) - 1)
     if not np.allclose(truth.time[k], traj.time, rtol=0, atol=1e-6):
         raise ValueError("truth does not hold the trajectory's times")
-    rm, rn = radii_py(np.sin(truth.lat[k]))
-    h = truth.height[k]
-    dr = np.column_stack([(traj.lon - truth.lon[k]) * (rn + h) * np.cos(truth.lat[k]),
-                          (traj.lat - truth.lat[k]) * (rm + h), traj.height - h])
+    dr = -enu_offset(truth.lat[k], truth.lon[k], truth.height[k], traj.lat, traj.lon, traj.height)  # radii at truth
     dv = traj.vel_n - truth.vel_n[k]
     # (I - [phi x]) = Cbn_est Cbn_true^T  ->  [phi x] = I - C_est C_true^T (antisymmetric part)
     E = np.einsum("nij,nkj->nik", traj.Cbn, truth.Cbn[k])

@@ -7,6 +7,9 @@ or socket, an unreadable file.
 :func:`load_yaml` is the one YAML reader of the package (init, config, scenario, batch, sensor, bag
 metadata): strict UTF-8, bounded size, nesting depth and alias expansion, integers that fit int64 and
 no NaN or infinite float anywhere, each refusal naming the file, line and column.
+
+The record of the running command's inputs (:func:`reset_inputs`, :func:`note_input`) lives here too, so
+that every layer (the config, the sensor description) can read files without importing ``io/``.
 """
 from __future__ import annotations
 
@@ -16,7 +19,7 @@ from pathlib import Path
 
 import yaml
 
-from ..errors import SinsError, quote
+from .errors import SinsError, quote
 
 MAX_YAML_BYTES = 4 << 20          # a config, scenario or batch file is a few kB
 MAX_YAML_DEPTH = 64               # nesting of mappings and lists
@@ -25,6 +28,45 @@ MAX_YAML_INT = 2 ** 63 - 1
 
 _KIND = {stat.S_IFIFO: "a FIFO", stat.S_IFCHR: "a character device", stat.S_IFBLK: "a block device",
          stat.S_IFSOCK: "a socket"}
+
+
+# The inputs of the running command: its path arguments and options (registered by the CLI,
+# ``sinscli/cli/base.py``) and every file a reader opened (:func:`input_file`).  Every output (``io/atomic.py``:
+# ``prepare_output``, and each file ``staged_dir`` moves into place) is checked against them, so that no ``-o``
+# ever overwrites a log, a config or a truth it reads (issue 10).
+# Only while a command runs (library code that reads a file and writes it back is not refused).
+_INPUTS: dict[str, Path] = {}
+_ACTIVE = [False]
+
+
+def reset_inputs(paths=()) -> None:
+    """Start a command's record of inputs (the CLI calls it as each command starts) with ``paths``."""
+    _INPUTS.clear()
+    _ACTIVE[0] = True
+    for p in paths:
+        note_input(p)
+
+
+def end_inputs() -> None:
+    """End the record (the command is done): no check until the next :func:`reset_inputs`."""
+    _INPUTS.clear()
+    _ACTIVE[0] = False
+
+
+def note_input(path) -> None:
+    """Remember ``path`` as an input of the running command (its real path: symlinks and ``..`` resolved)."""
+    if path is None or not _ACTIVE[0]:
+        return
+    try:
+        key = os.path.realpath(os.fspath(path))
+    except (TypeError, ValueError, OSError):
+        return
+    _INPUTS.setdefault(key, Path(path))
+
+
+def command_inputs() -> dict[str, Path]:
+    """The inputs recorded for the running command: real path -> the path as given (empty when none runs)."""
+    return _INPUTS
 
 
 def input_file(path, what: str = "file", allow_dir: bool = False) -> Path:
@@ -38,7 +80,6 @@ def input_file(path, what: str = "file", allow_dir: bool = False) -> Path:
         raise SinsError(f"{p}: cannot read the {what} ({exc.strerror or type(exc).__name__})") from None
     if stat.S_ISDIR(st.st_mode):
         if allow_dir:
-            from .atomic import note_input
             note_input(p)
             return p
         raise SinsError(f"{p}: is a directory, expected a {what}")
@@ -47,8 +88,7 @@ def input_file(path, what: str = "file", allow_dir: bool = False) -> Path:
         raise SinsError(f"{p}: is {kind}, expected a regular {what} (a FIFO or device is not read)")
     if not os.access(p, os.R_OK):
         raise SinsError(f"{p}: cannot read the {what} (permission denied)")
-    from .atomic import note_input
-    note_input(p)                    # no output of this command may overwrite it (atomic.check_not_input)
+    note_input(p)                    # no output of this command may overwrite it (io/atomic.check_not_input)
     return p
 
 

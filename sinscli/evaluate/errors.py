@@ -6,7 +6,7 @@ Pure numerical code (numpy, one numba kernel), no I/O.  Every error is
 - ``dC = Cbn_true - Cbn_nav`` (the nine ``C11 ... C33`` rows);
 - position in metres east, north, up: ``(lon_t - lon_n)(RN + h_t) cos L_t``,
   ``(lat_t - lat_n)(RM + h_t)``, ``h_t - h_n`` with the WGS-84 radii at the
-  truth point (:func:`sinscli.nav.earth.radii_py`);
+  truth point (:func:`sinscli.nav.earth.enu_offset`);
 - velocity east, north, up in m/s;
 - attitude from the DCM difference, never from Euler differences: the
   small-angle vector ``phi_n`` with ``Cbn_true = exp([phi_n x]) Cbn_nav``
@@ -31,7 +31,7 @@ from numba import njit
 from ..errors import SinsError
 from ..io import aided_columns
 from ..io.timebase import describe as describe_time_base
-from ..nav.earth import lla_to_local_enu, radii_py
+from ..nav.earth import enu_offset, lla_to_local_enu
 from ..nav.rotation import (attitude_error_many, dcm_to_euler_many, dcm_to_rotvec, level_heading_frame, mm3,
                             rotvec_to_dcm)
 from ..types import Trajectory
@@ -185,9 +185,7 @@ def _subset(traj: Trajectory, idx: np.ndarray) -> Trajectory:
 
 def position_error_enu(lat_t, lon_t, h_t, lat_n, lon_n, h_n) -> np.ndarray:
     """Truth minus navigation position in metres E, N, U, with the radii at the truth point (rad, m)."""
-    rm, rn = radii_py(np.sin(lat_t))
-    dlon = np.angle(np.exp(1j * (lon_t - lon_n)))
-    return np.stack([dlon * (rn + h_t) * np.cos(lat_t), (lat_t - lat_n) * (rm + h_t), h_t - h_n], axis=-1)
+    return enu_offset(lat_t, lon_t, h_t, lat_n, lon_n, h_n)
 
 
 def level_components(cbn_true: np.ndarray, att_n: np.ndarray, conv: int = 0) -> np.ndarray:

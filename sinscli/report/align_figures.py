@@ -9,7 +9,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..io.atomic import atomic_path
-from ..report.figures import wrap_title
+from .figures import wrap_title
 
 ANGLES = ("roll", "pitch", "heading")
 

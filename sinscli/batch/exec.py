@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import ctypes
+import importlib.util
 import itertools
 import logging
 import multiprocessing
@@ -43,6 +45,7 @@ import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator
 
+from .. import __version__
 from ..errors import SinsError
 
 log = logging.getLogger("sins")
@@ -151,12 +154,11 @@ def pool_worker_init() -> None:
     client even when it is killed (SIGKILL cannot be handled; Linux ``PR_SET_PDEATHSIG``)."""
     ignore_terminal_signals()
     with contextlib.suppress(Exception):
-        import ctypes
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)      # PR_SET_PDEATHSIG = 1
 
 
 def dask_setup(worker=None) -> None:
-    """Preload hook of the LocalCluster's workers (``preload=['sinscli.report.exec']``)."""
+    """Preload hook of the LocalCluster's workers (``preload=['sinscli.batch.exec']``)."""
     ignore_terminal_signals()
 
 
@@ -164,7 +166,7 @@ def where() -> str:
     """``host NAME`` of this process, with the Dask worker address when running on one."""
     host = socket.gethostname()
     try:
-        from distributed import get_worker
+        from distributed import get_worker   # optional extra (sinscli[distributed]); not in a pool process
         return f"host {host} (Dask worker {get_worker().address})"
     except (ImportError, ValueError):
         return f"host {host}"
@@ -172,8 +174,7 @@ def where() -> str:
 
 def worker_info() -> dict:
     """What the client checks on every Dask worker before sending jobs."""
-    import sinscli
-    return {"host": socket.gethostname(), "sinscli": sinscli.__version__, "pid": os.getpid()}
+    return {"host": socket.gethostname(), "sinscli": __version__, "pid": os.getpid()}
 
 
 # --------------------------------------------------------------------------- back ends
@@ -291,7 +292,7 @@ def parse_scheduler(text: str) -> tuple[str, object]:
 
 def _import_distributed():
     try:
-        import distributed
+        import distributed   # optional extra (sinscli[distributed]), loaded only for --scheduler
     except ImportError:
         raise SinsError(f"--scheduler needs Dask distributed, which is not installed: {INSTALL_HINT}") from None
     return distributed
@@ -315,7 +316,7 @@ class DaskBackend(Backend):
                     self.cluster = distributed.LocalCluster(
                         n_workers=value, threads_per_worker=1, processes=True, host="127.0.0.1",
                         dashboard_address="127.0.0.1:8787", silence_logs=logging.WARNING if verbose else logging.ERROR,
-                        preload=["sinscli.report.exec"])
+                        preload=["sinscli.batch.exec"])
                     self.client = distributed.Client(self.cluster, set_as_default=False)
                 link = self.cluster.dashboard_link if self._has_dashboard() else "none (install bokeh)"
                 self.description = (f"a Dask LocalCluster of {value} worker processes at "
@@ -345,12 +346,10 @@ class DaskBackend(Backend):
             on_info(f"running on {self.description}")
 
     def _has_dashboard(self) -> bool:
-        import importlib.util
         return importlib.util.find_spec("bokeh") is not None
 
     def _check_workers(self, scheduler):
         """Every worker must import the same sinscli (its functions are sent by reference)."""
-        import sinscli
         try:
             infos = self.client.run(worker_info)
         except Exception as exc:  # noqa: BLE001 - e.g. ModuleNotFoundError raised on a worker
@@ -358,9 +357,9 @@ class DaskBackend(Backend):
                             "install the same sinscli on every worker") from None
         self._worker_pids = [info["pid"] for info in infos.values()]
         for addr, info in infos.items():
-            if info["sinscli"] != sinscli.__version__:
+            if info["sinscli"] != __version__:
                 raise SinsError(f"--scheduler {scheduler}: worker {addr} on host {info['host']} runs sinscli "
-                                f"{info['sinscli']}, this client {sinscli.__version__}: install the same version")
+                                f"{info['sinscli']}, this client {__version__}: install the same version")
 
     def run(self, tasks):
         it = iter(tasks)
@@ -426,7 +425,7 @@ class DaskBackend(Backend):
 def _kill_workers(pids: list[int]) -> None:
     """Kill the LocalCluster's worker processes (children of this process) still alive after it closed."""
     try:
-        import psutil
+        import psutil   # comes with the optional distributed extra
     except ImportError:
         return
     mine = {p.pid: p for p in psutil.Process().children(recursive=True)}
