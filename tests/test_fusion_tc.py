@@ -110,7 +110,7 @@ def _kernel_state(kind):
     sat = np.zeros((1, kn.SW))
     sat[0, :3] = lla_to_ecef(lat, lon, h) + 2.0e7 * (0.8 * rot[2] + 0.6 * rot[0])
     sat[0, 3:6] = [1200.0, -2500.0, 1800.0]
-    sat[0, kn.SAT.sys] = 2
+    sat[0, kn.SAT_SYS] = 2
     row = np.zeros(kn.MW)
     row[kn.RW_KIND] = kind
     row[kn.RW_S] = 0.5
@@ -262,6 +262,7 @@ MC_SENSOR = {"gyro": {"bias_sigma": 360, "bias_instability": 10, "bias_tau": 100
                        "scale_factor_sigma": 0, "misalignment_sigma": 0}}
 
 
+@pytest.mark.slow
 def test_tc_monte_carlo_nees():
     """50 seeded runs of 150 s (the MEMS description without scale-factor and misalignment errors, as the loosely
     coupled filter's Monte Carlo test; the receiver clock a TCXO in the simulation and in the filter, the clock

@@ -299,12 +299,8 @@ def epoch_satellites(eph, opts, sys_on, t, a0, nsat, rsys, rprn, p1, p2, b1, f1,
             continue
         kk[i] = k
         t_tx, xs, ys, zs, vxs, vys, vzs, dt_s, ddt_s = transmit_state(eph, k, t, p1[r])
-        sx[i, 0] = xs
-        sx[i, 1] = ys
-        sx[i, 2] = zs
-        sx[i, 3] = vxs
-        sx[i, 4] = vys
-        sx[i, 5] = vzs
+        sx[i, 0], sx[i, 1], sx[i, 2] = xs, ys, zs
+        sx[i, 3], sx[i, 4], sx[i, 5] = vxs, vys, vzs
         dts[i] = dt_s
         ddts[i] = ddt_s
         use[i] = True
