@@ -3,6 +3,7 @@ numbers are written into messages."""
 from __future__ import annotations
 
 import numbers
+import os
 import re
 
 MAX_MESSAGE = 480        # characters of a message; longer ones are cut (a giant header, a huge value)
@@ -21,15 +22,38 @@ class SinsError(Exception):
 
     def __init__(self, message: str):
         text = _NUMPY_REPR.sub(r"\1", " ".join(str(message).split()))
-        if len(text) > MAX_MESSAGE:
-            text = text[:MAX_MESSAGE - 3] + "..."
-        super().__init__(text)
+        super().__init__(shorten(text))
+
+
+def shorten(text: str, limit: int = MAX_MESSAGE) -> str:
+    """``text`` cut to ``limit`` characters in its middle, at spaces: the start (the file, the line) and the
+    end (what to do) are kept, and no word is cut."""
+    if len(text) <= limit:
+        return text
+    keep = limit - 5
+    head, tail = text[:keep * 2 // 3], text[len(text) - keep // 3:]
+    if " " in head[len(head) // 2:]:
+        head = head[:head.rindex(" ")]
+    if " " in tail[:len(tail) // 2]:
+        tail = tail[tail.index(" ") + 1:]
+    return f"{head} ... {tail}"
 
 
 def quote(text, limit: int = 60) -> str:
     """``'text'`` for a message, cut to ``limit`` characters and with unprintable characters escaped."""
     s = repr(str(text))
     return s if len(s) <= limit else s[:limit - 4] + "...'"
+
+
+def printable(text) -> str:
+    """A path (or text) as it is shown in a message or written into a file: a byte of the name that is
+    not UTF-8 (Linux allows any) as ``\\xNN``, so that every text output stays valid UTF-8."""
+    s = os.fspath(text) if isinstance(text, os.PathLike) else str(text)
+    try:
+        s.encode("utf-8")
+        return s
+    except UnicodeEncodeError:
+        return os.fsencode(s).decode("utf-8", "backslashreplace")
 
 
 def num(x) -> str:

@@ -1,7 +1,7 @@
 """Navigation frame and angle units of the init, GNSS and truth files (config ``init``, ``gnss``, ``truth``
 sections: ``frame: enu | ned``, ``units: {angle: deg | rad}``; configs/navigation.yaml).
 
-FORMATS.md files are ENU with angles in degrees.  A NED file names its vertical velocity ``vel_d`` (and its
+docs/formats.md files are ENU with angles in degrees.  A NED file names its vertical velocity ``vel_d`` (and its
 sigmas ``std_d``, ``std_vel_d``) in place of ``vel_u`` (``std_u``, ``std_vel_u``), positive down, and its
 attitude (``c11..c33``, the quaternion) is body -> NED; the readers turn it into ENU.  With ``rad``,
 ``lat``, ``lon``, ``roll``, ``pitch`` and ``heading`` are radians.  The physical Euler angles are the same in
@@ -29,12 +29,12 @@ def convention(section: dict | None) -> tuple[str, float]:
 
 
 def file_name(name: str, frame: str) -> str:
-    """The column or key name a file of ``frame`` uses for the FORMATS.md (ENU) ``name``."""
+    """The column or key name a file of ``frame`` uses for the docs/formats.md (ENU) ``name``."""
     return NED_NAMES.get(name, name) if frame == "ned" else name
 
 
 def to_enu(data: dict, frame: str, to_deg: float) -> dict:
-    """FORMATS.md values (ENU, degrees) from a file's columns or keys (names already the ENU ones; the NED
+    """docs/formats.md values (ENU, degrees) from a file's columns or keys (names already the ENU ones; the NED
     vertical velocity negated); non-numeric values are left alone."""
     out = dict(data)
     if to_deg != 1.0:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import stat
 from pathlib import Path
+from urllib.parse import quote as url_quote
 
 import yaml
 
@@ -90,6 +91,32 @@ def input_file(path, what: str = "file", allow_dir: bool = False) -> Path:
         raise SinsError(f"{p}: cannot read the {what} (permission denied)")
     note_input(p)                    # no output of this command may overwrite it (io/atomic.check_not_input)
     return p
+
+
+def native_path(path, mode: str = "rb"):
+    """``path`` as pyarrow takes it: the text, or, for a name that is not valid UTF-8 (Linux allows any
+    bytes but NUL and '/'; Python holds the others as surrogates), a pyarrow file opened on the name's
+    bytes in ``mode``, since pyarrow encodes every path text as UTF-8.  The caller closes a file it gets
+    (:func:`closing_native`)."""
+    text = os.fspath(path)
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        import pyarrow as pa   # only for a name that is not UTF-8: pyarrow is not for --help
+        return pa.OSFile(os.fsencode(text), mode)
+
+
+def closing_native(source) -> None:
+    """Close what :func:`native_path` opened (a path text needs nothing)."""
+    if not isinstance(source, str):
+        source.close()
+
+
+def sqlite_uri(path, mode: str = "ro") -> str:
+    """A SQLite ``file:`` URI of any path: its bytes percent-encoded (a '?', '#' or '%' in a name, or a
+    byte that is not UTF-8, would otherwise end or garble the URI)."""
+    return f"file:{url_quote(os.fsencode(os.path.abspath(path)))}?mode={mode}"
 
 
 def _where(src, mark) -> str:

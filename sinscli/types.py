@@ -16,7 +16,7 @@ class ImuLog:
 
     ``time[k]`` is the end of interval k; interval 0 starts at ``t0`` (the time
     of the first rate sample for rate logs, or the initial state's time for
-    increment logs, FORMATS.md).  ``t0`` is None when not yet known.
+    increment logs, docs/formats.md).  ``t0`` is None when not yet known.
     """
     time: np.ndarray            # (N,) s
     dtheta_b: np.ndarray        # (N, 3) rad, integral of w_ib^b over the interval
@@ -80,7 +80,7 @@ class NavState:
 
 @dataclass
 class Trajectory:
-    """A trajectory as arrays (FORMATS.md trajectory CSV columns)."""
+    """A trajectory as arrays (docs/formats.md trajectory CSV columns)."""
     time: np.ndarray       # (N,)
     lat: np.ndarray        # (N,) rad
     lon: np.ndarray        # (N,) rad

@@ -2,7 +2,7 @@
 
 A value in the named unit times the factor is SI (rad, rad/s, m/s^2, dimensionless); divide to go back.
 Standard gravity here is a unit (the g of "mg", "micro-g"), not the navigation's gravity model
-(:func:`sinscli.nav.earth.gravity`, FORMATS.md normal gravity).  No imports beyond :mod:`math`, so that every
+(:func:`sinscli.nav.earth.gravity`, docs/formats.md normal gravity).  No imports beyond :mod:`math`, so that every
 layer (and the command line's option lists) can use it.
 """
 import math

@@ -235,7 +235,7 @@ def test_moving_short_and_out_of_range_logs_are_refused(tmp_path):
     r = run([tmp_path / "moving.csv", "-o", tmp_path / "out"])
     assert r.exit_code == 2 and "not a static log" in r.output
     # a turn of up to 5 deg/s (with its ramps) in the last 20 s of 80: 1 s means depart from the mean by most of it
-    assert 3.0 < float(re.search(r"rate departs from the interval's mean by up to ([0-9.]+) deg/s", r.output)[1]) <= 5
+    assert 3.0 < float(re.search(r"means off the interval's mean by up to ([0-9.]+) deg/s", r.output)[1]) <= 5
     assert "--start/--end" in r.output and not (tmp_path / "out").exists()
     # the rest before the turn is static, but too short for the bias terms: still accepted above 60 s
     r = run([tmp_path / "moving.csv", "--end", 60.0, "-o", tmp_path / "out", "-q"])

@@ -49,7 +49,7 @@ def test_markers_written_and_read(d):
     import pyarrow.parquet as pq
     rows = list(csv.reader((d / "frd.csv").open()))
     assert rows[0][-1] == "body" and {r[-1] for r in rows[1:]} == {"frd"}          # the csv module reads it
-    assert "body" not in (d / "flu.csv").read_text().splitlines()[0].split(",")    # FLU: FORMATS.md as it was
+    assert "body" not in (d / "flu.csv").read_text().splitlines()[0].split(",")    # FLU: docs/formats.md as it was
     assert pq.read_schema(d / "frd.parquet").metadata[b"sins.body"] == b"frd"
     for name, body, how in (("frd.csv", FRD, "marker"), ("frd.parquet", FRD, "marker"), ("flu.csv", FLU, "angles")):
         t = read_trajectory(d / name)

@@ -781,3 +781,345 @@ def test_fuzz_contract(seeds, tmp_path):
     assert not failures, f"{sum(map(len, failures.values()))} of {N_CASES} cases broke the contract " \
                          f"({dict(counts)}):\n{text}"
     assert counts["ok"] > N_CASES // 10 and counts["refused"] > N_CASES // 3     # both outcomes exercised
+
+
+# --------------------------------------------------------------------------- faults and edges (issue 22)
+#
+# Two more classes of cases, each run through the commands that write:
+#
+# * faults: a full disk (a 2 MB tmpfs filled to leave 0 .. 1 MB, where one can be mounted), ENOSPC, EDQUOT,
+#   EFBIG and EIO injected through the writers' own file objects after a random number of bytes or at the
+#   flush before the rename, write-protected targets and read-only file systems, and odd path bytes (a
+#   non-UTF-8 byte, URI characters, spaces, a leading dash, a newline, names near 255 bytes) on inputs and
+#   outputs.  A run ends in exit 0 with complete outputs, or in one line naming the target (never a
+#   temporary) with the earlier outputs at the target left byte for byte;
+# * edge geometry: initial states, GNSS fixes and simulated drives at the poles (within and beyond 0.01 deg
+#   of them), across the antimeridian (longitudes of +-180, 360, 540 deg) and at the height limits
+#   (-20 km, 1e8 m, and past them).  Besides the contract, every output of a successful run holds
+#   longitudes in [-180, 180) and latitudes within +-90.
+#
+# ``SINS_FUZZ_FAULT_CASES`` sets the number of cases (default 240).
+
+N_FAULT_CASES = int(os.environ.get("SINS_FUZZ_FAULT_CASES", "240"))
+ODD_NAMES = ["\udcff\udcfe", "sp ace", "q?u#e%ry", "-lead", "\u00e9t\u00e9", "nl\nname", "n" * 230]
+FAULTS = [(28, "No space left on device"), (122, "Disk quota exceeded"), (27, "File too large"),
+          (5, "Input/output error")]
+EDGE_LAT = [89.99, 89.9899, -89.99, 89.995, 90.0, -90.0, 90.5, 0.0, 45.0, -89.5]
+EDGE_LON = [179.9999999, -180.0, 180.0, 359.9, 360.0, -360.0, 540.0, 0.0, -179.99]
+EDGE_H = [-20000.0, -20000.5, 0.0, 1.0e5, 1.0e7, 1.0e8, 1.0e8 + 1.0, 50.0]
+
+
+class _Failing:
+    """A writer's file object whose writes fail with errno ``code`` past ``limit`` bytes (or characters)."""
+
+    def __init__(self, real, code, limit):
+        self.real, self.code, self.limit, self.n = real, code, limit, 0
+
+    def write(self, b):
+        self.n += len(b)
+        if self.n > self.limit:
+            raise OSError(self.code, os.strerror(self.code))
+        return self.real.write(b)
+
+    def writelines(self, lines):
+        for line in lines:
+            self.write(line)
+
+    def __getattr__(self, name):
+        return getattr(self.real, name)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.real.close()
+
+
+@contextlib.contextmanager
+def _injected(code: int, limit: int | None, at_flush: bool):
+    """Writes to staged temporaries fail with ``code`` past ``limit`` bytes, or the flush before the rename."""
+    import builtins
+    import io as io_mod
+    from sinscli.io import atomic
+    real_open, real_fsync = builtins.open, atomic._fsync
+
+    def fake_open(file, mode="r", *a, **k):
+        f = real_open(file, mode, *a, **k)
+        if limit is not None and any(c in mode for c in "wax") and ".part" in os.fsdecode(os.fspath(file)):
+            return _Failing(f, code, limit)
+        return f
+
+    def fake_fsync(path):
+        raise OSError(code, os.strerror(code))
+    builtins.open = io_mod.open = fake_open
+    if at_flush:
+        atomic._fsync = fake_fsync
+    try:
+        yield
+    finally:
+        builtins.open = io_mod.open = real_open
+        atomic._fsync = real_fsync
+
+
+def _tree(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else b"<dir>")
+            for p in sorted(folder.rglob("*")) if p.name != "filler"}
+
+
+def _geometry(path: Path) -> str | None:
+    """Where an output holds a longitude outside [-180, 180) or a latitude beyond 90 (None: nowhere)."""
+    lat = lon = None
+    try:
+        if path.suffix in (".csv", ".parquet") and path.name.startswith("out"):
+            from sinscli.config import DEFAULTS
+            from sinscli.io.trajectory import read_trajectory
+            wide = dict(DEFAULTS["limits"], speed=1e300, height_min=-1e300, height_max=1e300)   # a diverged run
+            t = read_trajectory(path, limits=wide)                 # (from a height of 1e8 m) is written as is
+            lat, lon = np.degrees(t.lat), np.degrees(t.lon)
+        elif path.suffix == ".geojson":
+            from sinscli.io.geo import read_geojson
+            _, lat, lon, _ = read_geojson(path)
+        elif path.suffix == ".kml":
+            from sinscli.io.geo import read_kml
+            lat, lon, _ = read_kml(path)
+        elif path.suffix == ".mcap":
+            from sinscli.io.foxglove import read_trajectory_mcap
+            t = read_trajectory_mcap(path)
+            lat, lon = np.degrees(t.lat), np.degrees(t.lon)
+        elif path.is_dir() and (path / "gnss.csv").is_file():            # a simulated set
+            g = np.genfromtxt(path / "gnss.csv", delimiter=",", names=True)
+            lat, lon = np.atleast_1d(g["lat"]), np.atleast_1d(g["lon"])
+    except Exception as exc:  # noqa: BLE001 - an output sins itself cannot read back is a break
+        return f"{path.name}: cannot be read back ({type(exc).__name__}: {exc})"
+    if lat is None:
+        return None
+    if not (np.all(np.abs(lat) <= 90.0) and np.all((lon >= -180.0) & (lon < 180.0))):
+        return f"{path.name}: latitude {float(np.max(np.abs(lat)))} / longitude {float(np.min(lon))} .. " \
+               f"{float(np.max(lon))}"
+    return None
+
+
+def _edge_scenario(rng, path: Path) -> str:
+    lat = float(rng.choice([89.5, 89.85, 89.899, 89.9, -89.85, 0.0, 45.0]))
+    lon = float(rng.choice([179.999, -179.999, 180.0, -180.0, 359.9, 0.0]))
+    h = float(rng.choice([-20000.0, -19000.0, 50.0, 1.0e5, 1.0e7, 1.0e8]))
+    heading = float(rng.choice([0.0, 90.0, 180.0, 270.0, 45.0]))
+    sc = {"name": "edge", "start": {"lat": lat, "lon": lon, "height": h, "heading": heading},
+          "imu": {"rate": 20, "sensor": "mems"}, "gnss": {"rate": 1, "pos_noise": [1.5, 1.5, 3.0]},
+          "segments": [{"type": "rest", "duration": 3}, {"type": "accelerate", "speed": 20, "duration": 4},
+                       {"type": "cruise", "duration": 8}]}
+    path.write_text(yaml.safe_dump(sc))
+    return f"scenario at {lat}, {lon}, {h} m heading {heading}"
+
+
+def make_fault_case(rng, seeds: dict, case_dir: Path, disk: Path | None):
+    """(description, args, outputs relative to the output folder, output folder, names for a refusal,
+    kind, setup) of one fault or edge case; ``setup`` is a context manager around the run."""
+    from sinscli.errors import printable
+    S = {k: str(v) for k, v in seeds.items()}
+    kinds = ["inject", "flush", "readonly", "oddpath", "edge-init", "edge-gnss", "edge-sim"]
+    weights = [3, 1, 1, 3, 3, 2, 2]
+    if disk is not None:
+        kinds.append("enospc")
+        weights.append(4)
+    weights = np.array(weights, float)
+    kind = kinds[int(rng.choice(len(kinds), p=weights / weights.sum()))]
+    ext = OUT_EXT[int(rng.integers(len(OUT_EXT)))]
+    pick = int(rng.integers(8))
+    writers = [
+        (["navigate", S["imu"], "--init", S["init"], "-q", "-o", "out" + ext], ["out" + ext]),
+        (["navigate", S["imu"], "--gnss", S["gnss"], "--init", S["init"], "-q", "--innovations", "innov.csv",
+          "-o", "out" + ext], ["out" + ext, "innov.csv"]),
+        (["compare", "--truth", S["truth"], S["nav"], "-q", "-o", "rep"], ["rep"]),
+        (["convert", S["bag"], "-q", "-o", "conv"], ["conv"]),
+        (["align", S["imu"], "--method", "inertial", *ALIGN[:-1], "--series", "series.csv", "--plot",
+          "align.png", "-q", "-o", "out.yaml"], ["out.yaml", "series.csv", "align.png"]),
+        (["simulate", str(ROOT / "configs/scenarios/vehicle_drive.yaml"), "--duration", "4", "-q", "-o", "sim"],
+         ["sim"]),
+        (["allan", S["static"], "-q", "-o", "al"], ["al"]),
+        (["navigate", S["imu"], "--init", S["init"], "-q", "--every", "3", "-o", "out.csv"], ["out.csv"]),
+    ]
+    args, outputs = writers[pick]
+    args, outputs = list(args), list(outputs)
+    out_dir = case_dir
+    setup = contextlib.nullcontext()
+    names: tuple = ()
+    if kind in ("enospc", "inject", "flush", "readonly"):
+        earlier = bool(rng.random() < 0.5)
+        if kind == "enospc":
+            out_dir = disk
+            for p in list(disk.iterdir()):
+                if p.name != "filler":
+                    shutil.rmtree(p) if p.is_dir() else p.unlink()
+        for o in outputs if earlier else []:          # an earlier output at the target, to be kept on failure
+            target = out_dir / o
+            if "." in o and not o.startswith("sim"):
+                target.write_bytes(b"earlier complete output\n")
+            else:
+                target.mkdir()
+                (target / "earlier.txt").write_text("earlier\n")
+        if kind == "enospc":
+            room = int(rng.choice([0, 4096, 16384, 65536, 262144, 1048576]))
+            (disk / "filler").unlink(missing_ok=True)
+            size = max(shutil.disk_usage(disk).free - room - 16384, 0)      # (tmpfs counts whole pages)
+            (disk / "filler").write_bytes(b"\0" * size)
+            label = f"disk full, {room} bytes free"
+        elif kind in ("inject", "flush"):
+            code, text = FAULTS[int(rng.integers(len(FAULTS)))]
+            limit = None if kind == "flush" else int(rng.choice([0, 100, 4096, 65536, 1 << 20]))
+            setup = _injected(code, limit, kind == "flush")
+            label = f"{text} " + ("at the flush before the rename" if kind == "flush" else f"after {limit} bytes")
+        else:
+            o = outputs[0]
+            target = out_dir / o
+            if "." in o and not target.exists():
+                target.write_bytes(b"earlier complete output\n")
+            if target.is_file():
+                target.chmod(0o444)
+                label = "write-protected target"
+            else:
+                target.mkdir(exist_ok=True)
+                target.chmod(0o555)
+                label = "read-only target folder"
+        if kind == "enospc":
+            args = [str(disk / a) if a in outputs else a for a in args]
+        names = tuple(outputs) + ("cannot write",)
+        return f"{kind}: {label}: sins {' '.join(args)}", args, outputs, out_dir, names, kind, setup
+    if kind == "oddpath":
+        stem = ODD_NAMES[int(rng.integers(len(ODD_NAMES)))]
+        which = int(rng.integers(3))
+        new = []
+        for a in args:
+            if a in S.values() and which in (0, 2):      # inputs renamed
+                src = Path(a)
+                dst = case_dir / f"{stem}.{src.name}"
+                shutil.copy(src, dst)
+                a = str(dst)
+            new.append(a)
+        args = new
+        if which in (1, 2):                               # outputs renamed
+            ren = {o: f"{stem}.{o}" for o in outputs}
+            args = [ren.get(a, a) for a in args]
+            outputs = [ren[o] for o in outputs]
+        names = (printable(stem)[:40],)
+        return f"oddpath: {stem!r} ({which}): sins {' '.join(args)}", args, outputs, out_dir, names, kind, setup
+    lat, lon, h = (float(rng.choice(EDGE_LAT)), float(rng.choice(EDGE_LON)), float(rng.choice(EDGE_H)))
+    if kind == "edge-init":
+        init = yaml.safe_load(Path(S["init"]).read_text())
+        init.update(lat=lat, lon=lon, height=h, heading=float(rng.choice([0.0, 90.0, 270.0])))
+        (case_dir / "init.yaml").write_text(yaml.safe_dump(init))
+        if pick < 5:
+            args = ["navigate", S["imu"], "--init", "init.yaml", "-q", "-o", "out" + ext]
+        else:
+            args = ["navigate", S["imu"], "--gnss", S["gnss"], "--init", "init.yaml", "-q", "-o", "out" + ext]
+        # refused naming the init, or (a height where the normal gravity no longer holds, the vertical
+        # velocity running away) by the writers' range guard naming the output, row and epoch
+        return f"edge-init: {lat}, {lon}, {h}: sins {' '.join(args)}", args, ["out" + ext], case_dir, \
+            ("init.yaml", f"out{ext}: internal consistency check"), kind, setup
+    if kind == "edge-gnss":
+        lines = Path(S["gnss"]).read_text().splitlines()
+        for r in sorted(set(rng.integers(1, len(lines), 3).tolist())):
+            cells = lines[r].split(",")
+            cells[1], cells[2], cells[3] = repr(lat), repr(lon), repr(h)
+            lines[r] = ",".join(cells)
+        (case_dir / "gnss.csv").write_text("\n".join(lines) + "\n")
+        args = ["navigate", S["imu"], "--gnss", "gnss.csv", "--init", S["init"], "-q", "-o", "out" + ext]
+        return f"edge-gnss: {lat}, {lon}, {h}: sins {' '.join(args)}", args, ["out" + ext], case_dir, \
+            ("gnss.csv", f"out{ext}: internal consistency check"), kind, setup
+    label = _edge_scenario(rng, case_dir / "edge.yaml")
+    args = ["simulate", "edge.yaml", "-q", "-o", "sim"]
+    return f"edge-sim: {label}", args, ["sim"], case_dir, ("edge.yaml", "start."), kind, setup
+
+
+def classify_fault(rc, stderr, exc, kind, out_dir: Path, outputs, before: dict, names, caught):
+    """The class of a fault or edge run (the contract of :func:`classify`, plus: a refusal leaves the
+    output folder as it was; a success holds complete outputs whose positions are in range)."""
+    if exc is not None and not isinstance(exc, SystemExit):
+        return "traceback", f"{type(exc).__name__}: {exc}"
+    if rc == 1 and "internal error" in stderr:
+        return "internal", stderr.strip()[-300:]
+    parts = [str(p) for p in out_dir.rglob("*") if ".part" in p.name]
+    if parts:
+        return "leftover", f"temporaries left: {parts[:3]}"
+    lines = [ln for ln in stderr.splitlines() if ln.strip()]
+    if rc == 0:
+        for o in outputs:
+            p = out_dir / o
+            if not p.exists():
+                return "missing-output", o
+            bad = nonfinite_in(p) or _geometry(p)
+            if bad:
+                return "nonfinite" if "is not" not in bad and "latitude" not in bad else "geometry", bad
+        return "ok", ""
+    errors = [ln for ln in lines if ln.startswith("sins: error:")]
+    if rc != 2 or len(errors) != 1 or lines[-1] != errors[0]:
+        return f"exit{rc}", " | ".join(lines)[-300:]
+    msg = errors[0]
+    if ".part" in msg or ".py:" in msg or NUMPY_REPR.search(msg):
+        return "unnamed", msg[:300]
+    if names and not any(n in msg for n in names):
+        return "unnamed", msg[:300]
+    if kind in ("enospc", "inject", "flush", "readonly"):
+        after = {k: v for k, v in _tree(out_dir).items() if k in before or any(k.startswith(o) for o in outputs)}
+        if after != {k: v for k, v in before.items() if k in after or any(k.startswith(o) for o in outputs)}:
+            return "changed", f"the output folder changed on a refusal: {sorted(set(after) ^ set(before))[:4]}"
+    leaked = [w for w in caught if issubclass(w.category, RuntimeWarning)]
+    if leaked:
+        return "warning", str(leaked[0].message)
+    return "refused", msg
+
+
+@pytest.fixture(scope="module")
+def small_disk(tmp_path_factory):
+    """A 2 MB tmpfs for the disk-full cases, or None where one cannot be mounted (the injected faults run)."""
+    mnt = tmp_path_factory.mktemp("fuzz_disk")
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True)
+    yield mnt if r.returncode == 0 else None
+    if r.returncode == 0:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+def test_fuzz_faults_and_edges(seeds, tmp_path, small_disk):
+    rng = np.random.default_rng(SEED + 22)
+    import faulthandler
+    stacks = open(os.environ["SINS_FUZZ_TRACE"] + ".stacks", "w") if os.environ.get("SINS_FUZZ_TRACE") else None
+    counts = collections.Counter()
+    by_kind = collections.defaultdict(collections.Counter)
+    failures = collections.defaultdict(list)
+    t_start = time.perf_counter()
+    for k in range(N_FAULT_CASES):
+        case_dir = tmp_path / f"f{k:04d}"
+        case_dir.mkdir()
+        desc, args, outputs, out_dir, names, kind, setup = make_fault_case(rng, seeds, case_dir, small_disk)
+        if stacks is not None:                  # the case running now, and every thread's stack on a hang
+            Path(os.environ["SINS_FUZZ_TRACE"]).write_text(f"#{k} {desc}\n", errors="backslashreplace")
+            faulthandler.dump_traceback_later(4 * HANG_S, file=stacks)
+        before = _tree(out_dir)
+        try:
+            with setup:
+                rc, err, exc, caught = run_inprocess(args, case_dir)
+            cls, detail = classify_fault(rc, err, exc, kind, out_dir, outputs, before, names, caught)
+        except Hang:
+            cls, detail = "hang", f"no answer within {HANG_S:g} s"
+        counts[cls] += 1
+        by_kind[kind][cls] += 1
+        if cls not in ("ok", "refused"):
+            failures[cls].append(f"#{k} {desc}: {detail}")
+        for p in case_dir.rglob("*"):
+            with contextlib.suppress(OSError):
+                p.chmod(0o755 if p.is_dir() else 0o644)
+        shutil.rmtree(case_dir, ignore_errors=True)
+    if stacks is not None:
+        faulthandler.cancel_dump_traceback_later()
+        stacks.close()
+    elapsed = time.perf_counter() - t_start
+    summary = {"cases": N_FAULT_CASES, "seconds": round(elapsed, 1), "disk_full_cases": small_disk is not None,
+               "classes": dict(counts), "by_kind": {k: dict(v) for k, v in sorted(by_kind.items())}}
+    print(f"\nfuzz faults and edges: {json.dumps(summary)}")
+    if os.environ.get("SINS_FUZZ_REPORT"):
+        report = Path(os.environ["SINS_FUZZ_REPORT"]).with_suffix(".faults.json")
+        report.write_text(json.dumps({**summary, "failures": {c: v[:50] for c, v in failures.items()}}, indent=1))
+    text = "\n".join(f"[{c}] {m}" for c, v in failures.items() for m in v[:12])
+    assert not failures, f"{sum(map(len, failures.values()))} of {N_FAULT_CASES} cases broke the contract " \
+                         f"({dict(counts)}):\n{text}"
+    assert counts["ok"] > N_FAULT_CASES // 10 and counts["refused"] > N_FAULT_CASES // 10

@@ -248,6 +248,6 @@ def test_installed_sins_refuses_a_zero_sigma_in_compare(tmp_path):
                          cwd=tmp_path, capture_output=True, text=True)
     assert res.returncode == 2
     assert res.stderr.strip().splitlines() == [
-        "sins: error: nav.csv: line 4, column 'roll_std': 0.0 is not a positive finite 1-sigma (FORMATS.md: a "
+        "sins: error: nav.csv: line 4, column 'roll_std': 0.0 is not a positive finite 1-sigma (docs/formats.md: a "
         "sigma column holds a positive finite number on every row)"]
     assert not (tmp_path / "rep").exists()

@@ -1,5 +1,5 @@
 """The CSV writer (sinscli.io.csvcore.CsvTableWriter): every float reads back to the identical float64
-(FORMATS.md), in the shortest form, through the threaded, streamed path; the pandas-free column view."""
+(docs/formats.md), in the shortest form, through the threaded, streamed path; the pandas-free column view."""
 import math
 import sys
 

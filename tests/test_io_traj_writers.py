@@ -188,7 +188,8 @@ def test_bad_trajectory_leaves_no_file(tmp_path, suffix):
 @pytest.mark.parametrize("failing_call", [1, 3])
 def test_parquet_row_group_failing_on_the_writer_thread_leaves_no_file(tmp_path, monkeypatch, failing_call):
     """Parquet row groups are written on a thread; a failure there (here the disk filling up on the 1st
-    or the last row group) surfaces in the caller, and no output or temporary file is left."""
+    or the last row group) surfaces in the caller as the one-line write error naming the target (issue 22),
+    and no output or temporary file is left."""
     import pyarrow.parquet as pq
     from sinscli.io.trajectory import TrajectoryWriter, read_trajectory
     calls = []
@@ -205,7 +206,7 @@ def test_parquet_row_group_failing_on_the_writer_thread_leaves_no_file(tmp_path,
     parts = [Trajectory(tr.time[a:a + 10], tr.lat[a:a + 10], tr.lon[a:a + 10], tr.height[a:a + 10],
                         tr.vel_n[a:a + 10], tr.Cbn[a:a + 10], source="test") for a in (0, 10, 20)]
     path = tmp_path / "out.parquet"
-    with pytest.raises(OSError, match="No space"):
+    with pytest.raises(SinsError, match=r"^\S*out\.parquet: cannot write the output \(No space left on device\)$"):
         with TrajectoryWriter(path) as w:
             for p in parts:
                 w.write(p)

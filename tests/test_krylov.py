@@ -1,4 +1,4 @@
-"""Extended Krylov angles (seed 003, KRYLOV.md) and the classic 3-angle baseline.
+"""Extended Krylov angles (seed 003, docs/krylov.md) and the classic 3-angle baseline.
 
 Independent truth: closed-form attitude histories ``Cbn(t) = Rz(a) Ry(b) Rx(c) Rz(e)``
 (FLU body, ENU nav) whose angles are sinusoids plus tanh ramps of whole turns, with the
@@ -23,7 +23,7 @@ NAV_RATE = np.array([2e-3, 3e-3, 4e-3])          # rad/s, |w_in^n| = 0.31 deg/s
 # ----------------------------------------------------------------- independent truth
 
 def _rot(axis, ang):
-    """Active elementary rotations (KRYLOV.md 1.2) for an array of angles -> (..., 3, 3)."""
+    """Active elementary rotations (docs/krylov.md 1.2) for an array of angles -> (..., 3, 3)."""
     c, s = np.cos(ang), np.sin(ang)
     m = np.zeros(np.shape(ang) + (3, 3))
     i, j = [(1, 2), (2, 0), (0, 1)][axis]
@@ -130,7 +130,7 @@ def margins_deg(angs, sets):
                     90.0 - np.degrees(np.abs(angs[:, 2] - math.pi / 2)))
 
 
-# The deterministic manoeuvre (KRYLOV.md 5.1 in short): a background motion throughout,
+# The deterministic manoeuvre (docs/krylov.md, "Measured accuracy" in short): a background motion throughout,
 # 3 barrel rolls around t = 40 s (peak 84 deg/s), 3 loops around t = 110 s passing within
 # 0.15 deg of pitch +-90 deg, then tumbling about all axes from t = 220 s.
 MANOEUVRE = Motion([
@@ -182,7 +182,7 @@ def test_patent_example_transfer():
     after = np.array([phib, psi, gam, xi])
     assert np.abs(np.degrees(after) - [0.0, 135.0, 90.0, -103.15]).max() < 1e-12
     assert np.abs(K.krylov_dcm(before, K.SET_A, 0.0) - K.krylov_dcm(after, K.SET_B, phib)).max() < 1e-12
-    # Through the step: past the 45 deg threshold (as in the replay of KRYLOV.md 3.5, gamma
+    # Through the step: past the 45 deg threshold (as in the replay of docs/krylov.md, "The patent's example", gamma
     # = -45.015 deg) with zero increments the step only transfers.
     before[2] = -45.015 * D2R
     zero = np.zeros(3)
@@ -280,7 +280,7 @@ def test_step_dcm_matches_the_angles_and_array_forms():
 
 
 def test_patent_replay_roll_about_the_south_axis():
-    """KRYLOV.md 3.5: one transfer near gamma = -45 deg, then 3 full rolls purely in psi."""
+    """docs/krylov.md, "The patent's example": one transfer near gamma = -45 deg, then 3 full rolls purely in psi."""
     xi0 = -13.15 * D2R
     rate = -30.0 * D2R                                  # rad/s about Q (horizontal, South)
     dt, n = 0.01, 3800                                   # 38 s: 5 deg + 3 turns + a bit
@@ -375,7 +375,7 @@ def test_euler3_reports_the_singularity_and_does_not_crash():
         assert cmin[first] < thr
         # X' reaches 1 deg from the vertical at b = 89 deg, t = 89/40 s
         assert abs(t[first + 1] - 89.0 / 40.0) < 0.03
-    # the four angles go through the same loop in set A without a transfer (KRYLOV.md 1.5)
+    # the four angles go through the same loop in set A without a transfer (docs/krylov.md, "The four angles")
     cbn, angs, sets, transfers = K.krylov_propagate(ct[0], dth, dt, np.zeros(3))
     assert transfers == 0 and np.all(sets == K.SET_A) and err_deg(ct, cbn).max() < 1e-9
     # exactly at the singularity with a rate that drives phi: finite result
@@ -393,7 +393,7 @@ def test_cs_shift_angle_addition():
 
 
 def test_rate_model_is_exact_for_a_linear_rate():
-    """KRYLOV.md 4.4: for w(t) = a + b t the model gives w T at t_k, t_k + T/2, t_k + T."""
+    """docs/krylov.md 4.4: for w(t) = a + b t the model gives w T at t_k, t_k + T/2, t_k + T."""
     a, b, T, tk = np.array([0.3, -1.1, 0.7]), np.array([2.0, 0.5, -4.0]), 0.01, 3.0
     inc = lambda t0: a * T + b * (t0 * T + 0.5 * T * T)          # integral over [t0, t0 + T]
     w0, wh, w1 = (np.array(v) for v in K.rate_model(inc(tk - T), inc(tk)))

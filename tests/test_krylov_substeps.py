@@ -109,7 +109,7 @@ def test_rising_spin_uses_the_linear_rate_model_inside_the_interval():
 
 
 def test_slow_motion_takes_the_single_step_bit_for_bit():
-    """Below the sub-step angle (here ~86 deg/s at 200 Hz) the update is the one RK4 step of KRYLOV.md 4.11."""
+    """Below the sub-step angle (here ~86 deg/s at 200 Hz) the update is the one RK4 step of docs/krylov.md 4.6."""
     from test_krylov import MANOEUVRE, run_case
     t, ct, dth, dt = run_case(MANOEUVRE, 60.0, 200, np.zeros(3))
     assert K.substep_counts(dth, K.SUBSTEP_ANGLE).max() == 1

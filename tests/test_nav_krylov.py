@@ -1,7 +1,7 @@
 """`--attitude krylov|euler` through the navigation loop (seed 003), against exact truth.
 
 The 1000 s manoeuvre uses the analytic attitude truth of ``test_krylov.py``
-(KRYLOV.md 5.1); the navigation-level cases use the simulator's full-attitude
+(docs/krylov.md, "Measured accuracy"); the navigation-level cases use the simulator's full-attitude
 flight, with position and velocity.
 """
 import logging
@@ -21,7 +21,7 @@ from sinscli.sim import motions, write_sim
 from sinscli.types import ImuLog, NavState
 from test_krylov import Motion, err_deg, quat_run, run_case
 
-# KRYLOV.md 5.1 over 1000 s: background motion, barrel rolls (peak ~86 deg/s), loops within 0.2 deg of
+# docs/krylov.md, "Measured accuracy" over 1000 s: background motion, barrel rolls (peak ~86 deg/s), loops within 0.2 deg of
 # pitch +-90 deg, tumbling about all axes, repeated through the run.
 M1000 = Motion([
     ([(0.3, 0.05, 0.0), (0.1, 0.31, 1.0)], [(250.0, 8.0, 2), (600.0, 8.0, -2), (900.0, 8.0, 1)]),

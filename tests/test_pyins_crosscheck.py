@@ -4,7 +4,7 @@ frame, FRD body, Savage's algorithm with trapezoidal position) free-inertial on 
 Both integrate the same increments (FLU -> FRD for pyins) from the same initial state.  The sample drive
 carries MEMS sensor errors, so both drift ~10 km from the truth in 180 s; the two implementations must
 agree far below that.  The gravity models differ: pyins's normal gravity is 6.3e-7 m/s^2 below the
-FORMATS.md gravity here, which alone lifts pyins's height by 0.5 dg t^2 (1.0 cm at 180 s); that
+docs/formats.md gravity here, which alone lifts pyins's height by 0.5 dg t^2 (1.0 cm at 180 s); that
 term is predicted and removed before the vertical comparison.
 """
 from pathlib import Path

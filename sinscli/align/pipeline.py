@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SinsError
-from ..nav.earth import gravity, radii
+from ..nav.earth import dlon, gravity, radii
 from ..nav.pipeline import NavOptions
 from ..nav import imu_stats
 from ..nav.rotation import conv_to_flu, dcm_to_euler, dcm_to_euler_many, euler_to_dcm, rotvec_to_dcm
@@ -83,7 +83,7 @@ class AlignResult:
     dropped: dict = field(default_factory=dict)     # outliers rejected: gnss_velocity, course, kf_updates
 
     def yaml_extra(self, conv_name: str) -> dict:
-        """The keys ``sins align`` adds to the FORMATS.md initial state."""
+        """The keys ``sins align`` adds to the docs/formats.md initial state."""
         d = math.degrees
         out = {"method": self.method, "duration": float(self.duration), "alignment_start": float(self.t0),
                "body": conv_name,
@@ -210,7 +210,7 @@ def gnss_velocity(gnss: GnssLog):
         lon = np.radians(gnss.lon)
         rm, rn = radii(np.sin(lat[0]))
         h0 = float(gnss.height[0])
-        p = np.stack([(lon - lon[0]) * (rn + h0) * np.cos(lat[0]), (lat - lat[0]) * (rm + h0),
+        p = np.stack([dlon(lon, lon[0]) * (rn + h0) * np.cos(lat[0]), (lat - lat[0]) * (rm + h0),
                       gnss.height - h0], axis=-1)
         v = np.stack([np.gradient(p[:, i], t) for i in range(3)], axis=-1)
     if gnss.std_vel is not None and np.isfinite(gnss.std_vel).all():

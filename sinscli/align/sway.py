@@ -14,7 +14,7 @@ any other motion.
     pitch(t)   = P0 + A_p sin(2 pi f_p t + p_p)
     roll(t)    = R0 + A_r sin(2 pi f_r t + p_r)
     up(t)      =      A_z sin(2 pi f_z t + p_z)            (heave, m)
-    Cbn = Rz(-heading) Rx(pitch) Ry(roll) C_FLU^RFU         (the FORMATS.md Euler chain)
+    Cbn = Rz(-heading) Rx(pitch) Ry(roll) C_FLU^RFU         (the docs/formats.md Euler chain)
 
 Scenario YAML for ``sins align --monte-carlo``: a simulator scenario plus two
 optional top-level sections that this module takes off before the simulator

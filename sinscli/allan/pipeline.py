@@ -70,11 +70,10 @@ def check_static(imu: ImuLog, rate_limit: float, accel_limit: float, block: floa
         k = int(np.argmax(bad_w | bad_f))
         kw, kf = int(np.argmax(dw)), int(np.argmax(df))
         raise SinsError(
-            f"{imu.source}: not a static log: the {block:g} s mean angular rate departs from the interval's mean by "
-            f"up to {math.degrees(dw[kw]):.3g} deg/s (limit {math.degrees(rate_limit):.3g}; worst {kw * block:.1f} s "
-            f"into the interval) and the specific force by up to {df[kf]:.3g} m/s^2 (limit {accel_limit:.3g}; worst "
-            f"{kf * block:.1f} s in), first over a limit {k * block:.1f} s after the interval start t = {t0!r} s; "
-            "the Allan deviation needs the IMU at rest: choose a static stretch with --start/--end "
+            f"{imu.source}: not a static log: {block:g} s means off the interval's mean by up to "
+            f"{math.degrees(dw[kw]):.3g} deg/s (limit {math.degrees(rate_limit):.3g}, at {kw * block:.1f} s) and "
+            f"{df[kf]:.3g} m/s^2 (limit {accel_limit:.3g}, at {kf * block:.1f} s), first {k * block:.1f} s after "
+            f"t = {t0!r} s; the Allan deviation needs the IMU at rest: choose a static stretch with --start/--end "
             "(limits: align.static_check in --config)")
 
 

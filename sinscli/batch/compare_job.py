@@ -11,6 +11,7 @@ one that is not is that job's error, naming the path and the host.
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 import traceback
 from dataclasses import dataclass
@@ -21,6 +22,7 @@ import numpy as np
 from ..config import load_config
 from ..errors import SinsError
 from ..evaluate.errors import compare_trajectories
+from ..io.atomic import is_fault, os_errno, target_of
 from ..io.imu_csv import read_imu_csv
 from ..io.init_state import read_init
 from ..io.trajectory import read_trajectory, write_trajectory
@@ -57,6 +59,9 @@ def describe(exc: BaseException) -> str:
     """One line for a job's failure: the SinsError text, else the exception and where it was raised."""
     if isinstance(exc, SinsError):
         return str(exc)
+    if is_fault(exc):            # the file system (a full disk): the file and the reason, not a source line
+        name = f"{target_of(Path(exc.filename))}: " if getattr(exc, "filename", None) else ""
+        return f"{name}{os.strerror(os_errno(exc))}"
     tb = traceback.extract_tb(exc.__traceback__)
     where_ = f" at {Path(tb[-1].filename).name}:{tb[-1].lineno}" if tb else ""
     return " ".join(f"{type(exc).__name__}: {exc}{where_}".split())

@@ -220,9 +220,11 @@ class InlineBackend(Backend):
     description = "this process (--jobs 1)"
 
     def run(self, tasks):
+        from ..io.atomic import immediate_outputs   # numpy: not for the back ends' workers and --help
         for key, fn, args in tasks:
             try:
-                out = fn(*args)
+                with immediate_outputs():        # a job's files are in place when it ends, as in a worker
+                    out = fn(*args)
             except Exception as exc:  # noqa: BLE001 - the task's failure, reported by the caller
                 out = exc
             yield key, out

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SinsError
-from ..io.atomic import atomic_path
+from ..io.atomic import atomic_path, immediate_outputs
 from .exec import Interrupted, hold_signals, interrupt_signals, open_backend
 
 FINGERPRINT = "fingerprint.json"
@@ -108,7 +108,7 @@ class JobStore:
             self.replaced = sum(1 for _ in self.dir.rglob("*.npz"))
             shutil.rmtree(self.dir)
         self.dir.mkdir(parents=True, exist_ok=True)
-        with atomic_path(self.dir / FINGERPRINT) as tmp:
+        with atomic_path(self.dir / FINGERPRINT, now=True) as tmp:
             tmp.write_text(json.dumps(self.fingerprint, indent=1, sort_keys=True) + "\n", encoding="utf-8")
 
     def path(self, key: tuple) -> Path:
@@ -125,7 +125,7 @@ class JobStore:
     def write(self, key: tuple, meta: dict, arrays: dict[str, np.ndarray]) -> None:
         buf = io.BytesIO()
         np.savez(buf, meta=np.array(json.dumps(meta, sort_keys=True)), **arrays)
-        with atomic_path(self.path(key), suffix=".part") as tmp:
+        with atomic_path(self.path(key), suffix=".part", now=True) as tmp:   # kept for --resume
             tmp.write_bytes(buf.getbuffer())
 
     def read(self, key: tuple) -> tuple[dict, dict[str, np.ndarray]]:
@@ -303,7 +303,8 @@ def run_study(outdir, store: JobStore, keys: list[tuple], make_tasks: Callable[[
                     on_resumed(counts.resumed)
                 run_tasks(runner, store, make_tasks(runner), describe, on_job, counts)
             stage = Path(tempfile.mkdtemp(prefix=".report.", suffix=".part", dir=outdir))
-            result = finish(stage, counts)
+            with immediate_outputs():         # the report's files complete in the stage before publish moves them
+                result = finish(stage, counts)
             publish(stage, outdir)
             stage.rmdir()
             return result, counts

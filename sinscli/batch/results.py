@@ -9,13 +9,12 @@ built beside the target and renamed into place when complete.
 from __future__ import annotations
 
 import contextlib
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from ..io.atomic import staged_dir
 
 ROW_GROUP = 4096
 
@@ -30,8 +29,8 @@ class ResultsWriter:
         self.path = Path(path)
         self.schema = schema
         self.partition = partition
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", suffix=".part", dir=self.path.parent))
+        self._stage = staged_dir(self.path, replace=True)    # the one staged mechanism (sinscli/io/atomic.py)
+        self._tmp = self._stage.__enter__()
         self._writers: dict = {}
         self._buffers: dict = {}
         self.rows = 0
@@ -57,25 +56,24 @@ class ResultsWriter:
 
     def close(self) -> None:
         """Flush, close and move the dataset into place (replacing an earlier one)."""
-        for key in list(self._buffers):
-            self._flush(key)
-        for w in self._writers.values():
-            w.close()
+        try:
+            for key in list(self._buffers):
+                self._flush(key)
+            for w in self._writers.values():
+                w.close()
+        except BaseException as exc:
+            self.abort(exc)
+            raise
         self._writers = {}
-        old = None
-        if self.path.exists():
-            old = self.path.with_name(f".{self.path.name}.old.{os.getpid()}")
-            os.replace(self.path, old)
-        os.replace(self._tmp, self.path)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
+        self._stage.__exit__(None, None, None)
 
-    def abort(self) -> None:
+    def abort(self, exc: BaseException | None = None) -> None:
         for w in self._writers.values():
             with contextlib.suppress(Exception):
                 w.close()
         self._writers = {}
-        shutil.rmtree(self._tmp, ignore_errors=True)
+        exc = exc or RuntimeError("aborted")
+        self._stage.__exit__(type(exc), exc, exc.__traceback__)
 
     def __enter__(self):
         return self
@@ -84,5 +82,5 @@ class ResultsWriter:
         if exc_type is None:
             self.close()
         else:
-            self.abort()
+            self.abort(exc)
         return False

@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from ..errors import SinsError
-from ..io.atomic import atomic_path, prepare_output
+from ..io.atomic import atomic_path, commit_outputs, prepare_output
 from ..io.init_state import write_init_yaml
 from ..nav.rotation import BODY_CONVENTIONS, dcm_to_euler_many
 from .base import log, main, progress, quiet_option
@@ -59,10 +59,12 @@ def _parse_heading(value):
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="--monte-carlo: worker processes of the local pool (default: all cores).")
 @scheduler_options
+@click.option("--force", is_flag=True,
+              help="Align data that the gyro-unit check refuses (rates impossible in their declared unit).")
 @quiet_option
 def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, heading, epoch, config_path, body,
               imu_topic, gnss_topic, vel_topic, series, plot, mc_runs, scenario, seed, output, jobs, scheduler, resume,
-              figures, quiet):
+              figures, force, quiet):
     """Initial alignment: the attitude (and state) where navigation starts, with its 1-sigma.
 
     \b
@@ -117,6 +119,18 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
         from ..io.gnss_csv import check_gnss_against_imu
         check_gnss_against_imu(gnss, imu_log.t0 if imu_log.t0 is not None else float(imu_log.time[0]),
                                float(imu_log.time[-1]))
+    lat = opts.position[0] if opts.position is not None else (
+        float(np.radians(gnss.lat[0])) if gnss is not None and len(gnss) else None)
+    if lat is not None:                       # gyros in deg/s read as rad/s (nav/sanity.py)
+        # the readers (pyarrow, rosbags) and the checks: only when the gyro-unit check runs
+        from ..io.readers import _is_log
+        from ..nav.earth import gravity
+        from ..nav.sanity import gyro_unit_check
+        t_first = imu_log.t0 if imu_log.t0 is not None else float(imu_log.time[0])
+        spec = opts.sensor
+        sensor = {"gyro": {"bias_sigma": spec.gyro_bias}} if spec is not None and spec.gyro_bias else None
+        gyro_unit_check(imu_log, t_first, gravity(np.sin(lat), 0.0), lat, cfg["imu"], sensor, force,
+                        ros=_is_log(imu))
     res = align(imu_log, opts, gnss)          # well under a second for minutes of data: no progress bar
     for note in res.notes:
         click.echo(f"sins: note: {note}", err=True)
@@ -134,6 +148,7 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
         plot_series(plot, res.series.time - res.t0, eul,
                     title=f"Alignment of {Path(imu).name} (--method {res.method}), heading from {res.heading_source}",
                     sigma_deg=np.degrees(res.sigma), final_deg=final, heading_supplied=res.heading_source == "user")
+    commit_outputs()                          # every output in place before the line that names them
     r, p, h = np.degrees(dcm_to_euler_many(res.state.Cbn[None], conv)[0])
     s = np.degrees(res.sigma)
     hs = f"{s[2]:.3g}" if np.isfinite(s[2]) else "unknown"
@@ -167,6 +182,7 @@ def _monte_carlo(scenario, runs, seed, outdir, quiet, jobs, scheduler, resume, f
                              figures=figures, on_progress=bar.update, on_error=on_error, on_info=info_echo(quiet),
                              verbose=log.getEffectiveLevel() <= logging.INFO)
     mc = study.mc
+    commit_outputs()
     if not quiet:
         resumed = f" ({study.resumed} resumed from {outdir}/jobs, {study.ran} run)" if study.resumed else ""
         failed = f", {len(study.failed)} failed" if study.failed else ""

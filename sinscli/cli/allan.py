@@ -67,6 +67,8 @@ def allan_cmd(log, imu_topic, start, end, config_path, name, per_decade, outdir,
         write_fit_csv(tmp / "fit.csv", res)
         plot_allan(tmp / "allan.png", res, f"sins allan: {Path(log).name}, {res.duration / 3600.0:.3g} h at "
                                            f"{1.0 / res.tau0:.4g} Hz")
+    from ..io.atomic import commit_outputs  # numpy: the atomic writers load when outputs are written, not for --help (tests/test_cli_startup.py)
+    commit_outputs()
     if not quiet:
         # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         import numpy as np

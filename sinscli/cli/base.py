@@ -1,6 +1,8 @@
 """The ``sins`` command group: error handling, logging and progress shared by all commands."""
 from __future__ import annotations
 
+import atexit
+import codecs
 import contextlib
 import importlib
 import logging
@@ -8,6 +10,7 @@ import os
 import signal
 import sys
 import threading
+from pathlib import Path
 
 import click
 
@@ -35,7 +38,7 @@ SHORT_HELP = {
     "allan": "Allan deviation of a static IMU log: noise terms and a sensor.yaml in the presets' schema.",
     "align": "Initial alignment: the attitude (and state) where navigation starts, with its 1-sigma.",
     "compare": "Compare navigation results with a truth: error tables, time series, figures, index.html.",
-    "convert": "Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into FORMATS.md CSV files: "
+    "convert": "Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into docs/formats.md CSV files: "
                "DIR/imu.csv (increments, axes as in the messages) and DIR/gnss.csv (when the log has a "
                "NavSatFix topic).",
     "info": "Show the topics, message types, counts, rates, time span and gaps of a ROS 1 bag, ROS 2 bag "
@@ -50,6 +53,24 @@ SHORT_HELP = {
 _NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())    # click >= 8.2
 
 
+def _exit_now(code) -> None:
+    """End the process with ``code`` once its work is done: stdio flushed, the ``atexit`` handlers run
+    (logging, Dask clients, temporary folders), then ``os._exit``.  The interpreter's own teardown (freeing
+    every object and module: numba, llvmlite, pyarrow, matplotlib) is skipped: it held the process 2-9 s
+    after its last line on a loaded machine (issue 22), and there is nothing left in it to keep."""
+    status = code if isinstance(code, int) else (0 if code is None else 1)
+    if code is not None and not isinstance(code, int):
+        with contextlib.suppress(Exception):
+            print(code, file=sys.stderr)
+    try:
+        atexit._run_exitfuncs()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(status)
+
+
 class Interrupted(KeyboardInterrupt):
     """SIGINT, SIGTERM or SIGHUP: raised in the main thread, so every ``atomic_path`` removes its
     temporary file on the way out, as for Ctrl-C."""
@@ -57,6 +78,28 @@ class Interrupted(KeyboardInterrupt):
     def __init__(self, signum: int = signal.SIGINT):
         super().__init__(signum)
         self.signum = int(signum)
+
+
+def _bytes_as_escapes(exc):
+    """Codec error handler: a path byte that is not UTF-8 (held by Python as a surrogate) printed as ``\\xNN``,
+    as :func:`sinscli.errors.printable` writes it into files."""
+    if isinstance(exc, UnicodeEncodeError):
+        bad = exc.object[exc.start:exc.end]
+        return "".join(f"\\x{ord(c) - 0xDC00:02x}" if 0xDC80 <= ord(c) <= 0xDCFF else f"\\u{ord(c):04x}"
+                       for c in bad), exc.end
+    raise exc
+
+
+def _printable_stderr() -> None:
+    """stdout and stderr write a name's non-UTF-8 bytes as ``\\xNN`` (not Python's ``\\udcNN``, and never a
+    UnicodeEncodeError: `sins info` prints file names on stdout)."""
+    try:
+        codecs.lookup_error("sins-bytes")
+    except LookupError:
+        codecs.register_error("sins-bytes", _bytes_as_escapes)
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(AttributeError, ValueError, OSError):
+            stream.reconfigure(errors="sins-bytes")
 
 
 def _raise_interrupted(signum, frame):
@@ -98,6 +141,7 @@ class _Command(click.Command):
 
     def invoke(self, ctx):
         from ..inputs import end_inputs, reset_inputs   # PyYAML: not for --help (tests/test_cli_startup.py)
+        from ..io.atomic import output_set              # numpy: not for --help either
         paths = []
         for param in self.params:
             if param.name in OUTPUT_PARAMS or not isinstance(param.type, click.Path):
@@ -106,12 +150,13 @@ class _Command(click.Command):
             paths.extend(value if isinstance(value, (tuple, list)) else [value])
         reset_inputs(p for p in paths if p is not None)
         try:
-            if self.name not in COMPILING_COMMANDS or ctx.params.get("quiet"):
-                return super().invoke(ctx)
-            path = ctx.command_path.split(" ", 1)[1] if " " in ctx.command_path else self.name   # "gnss spp"
-            note = f"sins: compiling the kernels of sins {path} (first run only; later runs load them)"
-            with announce_compiles(lambda text: click.echo(text, err=True), note):
-                return super().invoke(ctx)
+            with output_set():          # every output of the command appears at its end, or none
+                if self.name not in COMPILING_COMMANDS or ctx.params.get("quiet"):
+                    return super().invoke(ctx)
+                path = ctx.command_path.split(" ", 1)[1] if " " in ctx.command_path else self.name   # "gnss spp"
+                note = f"sins: compiling the kernels of sins {path} (first run only; later runs load them)"
+                with announce_compiles(lambda text: click.echo(text, err=True), note):
+                    return super().invoke(ctx)
         finally:
             end_inputs()
 
@@ -133,6 +178,15 @@ class _Group(click.Group):
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        if args is None:                # the `sins` program (arguments from sys.argv): end as soon as it is done
+            try:
+                self._main(args, prog_name, complete_var, **extra)
+            except SystemExit as exc:
+                _exit_now(exc.code)
+            raise AssertionError("unreachable")      # _main always ends in SystemExit
+        self._main(args, prog_name, complete_var, **extra)
+
+    def _main(self, args, prog_name, complete_var, **extra):
         with _signals_as_interrupt():
             try:
                 rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
@@ -177,6 +231,12 @@ class _Group(click.Group):
         except Exception as exc:  # an internal bug: still one line, traceback with --debug
             if ctx.obj and ctx.obj.get("debug"):
                 raise
+            from ..io.atomic import is_fault, os_errno, target_of   # numpy: only on an internal failure
+            if is_fault(exc):     # the file system (a device error reading an input, a folder removed): not a bug
+                name = getattr(exc, "filename", None)
+                where = f"{target_of(Path(name))}: " if name else ""
+                click.echo(f"sins: error: {where}{os.strerror(os_errno(exc))}", err=True)
+                sys.exit(SinsError.exit_code)
             click.echo(f"sins: internal error: {type(exc).__name__}: {exc} (rerun with --debug for a traceback)",
                        err=True)
             sys.exit(1)
@@ -191,6 +251,7 @@ def main(ctx, debug, verbose):
     """sins: strapdown inertial navigation of IMU/GNSS logs."""
     ctx.ensure_object(dict)
     ctx.obj["debug"] = debug
+    _printable_stderr()
     level = logging.DEBUG if debug else logging.INFO if verbose else logging.WARNING
     # the root logger stays at WARNING: --debug is for sins, not for numba's compiler dumps
     logging.basicConfig(level=logging.WARNING, format="sins: %(levelname)s: %(message)s", stream=sys.stderr)
@@ -199,10 +260,18 @@ def main(ctx, debug, verbose):
         log.warning(NUMBA_CACHE_NOTE)
 
 
+def stderr_is_terminal() -> bool:
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
 def progress(length: int, label: str, quiet: bool):
-    """A click progress bar on stderr (silent with ``--quiet`` or when ``length`` is small)."""
+    """A click progress bar on stderr: drawn on a terminal only (click would print its label as a bare line
+    into a log file or pipe); silent with ``--quiet``."""
     return click.progressbar(length=max(int(length), 1), label=label, file=sys.stderr,
-                             hidden=quiet, show_eta=True, show_percent=True)
+                             hidden=quiet or not stderr_is_terminal(), show_eta=True, show_percent=True)
 
 
 def finish_progress(bar) -> None:
@@ -214,7 +283,10 @@ def finish_progress(bar) -> None:
 
 
 def summary_line(imu, rows: int, t0: float, t1: float, output) -> None:
-    """The last line of a successful ``sins navigate``: what was read, the rows written, their span, where."""
+    """The last line of a successful ``sins navigate``: what was read, the rows written, their span, where
+    (after the outputs are in place)."""
+    from ..io.atomic import commit_outputs  # numpy: the atomic writers load when outputs are written, not for --help (tests/test_cli_startup.py)
+    commit_outputs()
     click.echo(f"sins: navigated {os.fspath(imu)}: wrote {rows:,} rows, t = {t0:.3f} .. {t1:.3f} s "
                f"({t1 - t0:.3f} s), to {os.fspath(output)}", err=True)
 

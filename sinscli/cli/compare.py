@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from ..errors import SinsError
+from ..errors import SinsError, printable
 from .base import main, progress, quiet_option
 from .batch_options import info_echo, interrupted_exit, scheduler_options, verbose
 
@@ -23,9 +23,9 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
         return list(given)
     out = []
     for p in navs:
-        name = p.stem
+        name = printable(p.stem)
         if name in out:
-            name = f"{p.parent.name}/{p.stem}"
+            name = f"{printable(p.parent.name)}/{name}"
         k = 2
         base = name
         while name in out:
@@ -38,7 +38,7 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
 @main.command("compare")
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("--truth", type=click.Path(path_type=Path),
-              help="Truth trajectory (CSV or Parquet, FORMATS.md). Without it, INPUTS is one BATCH.yaml.")
+              help="Truth trajectory (CSV or Parquet, docs/formats.md). Without it, INPUTS is one BATCH.yaml.")
 @click.option("-o", "--output", "outdir", required=True, type=click.Path(path_type=Path, file_okay=False),
               help="Report directory (created; report files in it are replaced).")
 @click.option("--label", multiple=True, help="Column name of each NAV file, in order (default: file stems).")
@@ -48,13 +48,13 @@ def _labels(navs: list[Path], given: tuple[str, ...]) -> list[str]:
               help="Interpolate the truth at the navigation epochs (default: exact time match only).")
 @click.option("--body", type=click.Choice(sorted(BODY)), default=None,
               help="Body axes of a file that does not tell them (no 'body' column or Parquet metadata, and "
-                   "attitude columns that do not match its roll/pitch/heading); default flu (FORMATS.md). "
+                   "attitude columns that do not match its roll/pitch/heading); default flu (docs/formats.md). "
                    "Each file's own axes are used otherwise, so files of different conventions compare.")
 @click.option("--timeseries-every", type=click.IntRange(min=1), default=1, show_default=True,
               help="Write every N-th epoch to timeseries.csv (tables and figures use all).")
 @click.option("--title", default=None, help="Report title (default: the files compared, by name).")
 @click.option("--gnss", "gnss_path", type=click.Path(path_type=Path), default=None,
-              help="GNSS fixes (CSV, FORMATS.md) drawn in the plan view, their outages shaded on the time plots.")
+              help="GNSS fixes (CSV, docs/formats.md) drawn in the plan view, their outages shaded on the time plots.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="Batch: worker processes of the local pool (default: all cores).")
 @click.option("--metrics", "metrics", default=None, metavar="ate,rpe",
@@ -161,14 +161,14 @@ def _legend(navs: list[Path], names: list[str], given: tuple[str, ...]) -> dict[
         return dict(zip(names, names))
     out = {}
     for name, p in zip(names, navs):
-        text = str(p) if len(str(p)) <= 60 else p.name
+        text = printable(p) if len(str(p)) <= 60 else printable(p.name)
         out[name] = text if text not in out.values() else name
     return out
 
 
 def default_title(truth_path: Path, legend: dict[str, str]) -> str:
     """The report title naming the files: ``a.csv, b.csv against the truth truth.csv``."""
-    return f"{', '.join(legend.values())} against the truth {Path(truth_path).name}"
+    return f"{', '.join(legend.values())} against the truth {printable(Path(truth_path).name)}"
 
 
 def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, title, quiet, mopts, gnss_path=None,
@@ -198,7 +198,7 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from ..io.gnss_csv import read_gnss_csv
         from ..report.compare_page import gnss_overlay
-        gnss = gnss_overlay(read_gnss_csv(gnss_path), truth, gnss_path.name)
+        gnss = gnss_overlay(read_gnss_csv(gnss_path), truth, printable(gnss_path.name))
     full = all(isinstance(x, Trajectory) for x in (truth, *trajs))    # the seed-000 table needs lat/lon, velocity
     series, results, frame = {}, {}, ""
     with progress(len(navs) + 1, "compare", quiet) as bar:
@@ -209,11 +209,11 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
         for k, (name, path, nav) in enumerate(zip(names, navs, trajs)):
             if full:
                 series[name] = compare_trajectories(truth, nav, conv=conv, interpolate=interpolate,
-                                                     truth_name=str(truth_path), nav_name=str(path))
+                                                     truth_name=printable(truth_path), nav_name=printable(path))
             if mopts is not None:
-                results[name] = compute_metrics(ref, poses[k], mopts, interpolate, str(truth_path), str(path))
+                results[name] = compute_metrics(ref, poses[k], mopts, interpolate, printable(truth_path), printable(path))
             bar.update(1)
-        notes = [f"{legend[n]}: {p}" for n, p in zip(names, navs) if legend[n] != str(p)] + window_note
+        notes = [f"{legend[n]}: {printable(p)}" for n, p in zip(names, navs) if legend[n] != printable(p)] + window_note
         if interpolate:
             notes.append("The truth was interpolated at the navigation epochs.")
         if mopts is not None:
@@ -225,9 +225,11 @@ def _single(truth_path, navs, outdir, label, epoch, interpolate, conv, every, ti
                          "ENU position and velocity errors) are omitted; the table holds the trajectory metrics.")
         table = write_report(outdir, series, title or default_title(truth_path, legend), epoch, every,
                              notes, metrics=results or None, metric_options=mopts, frame=frame, legend=legend,
-                             truth_name=str(truth_path), gnss=gnss)
+                             truth_name=printable(truth_path), gnss=gnss)
         bar.update(1)
     at = "" if table.epoch is None else f" at t = {float(table.epoch)!r} s"
+    from ..io.atomic import commit_outputs  # numpy: the atomic writers load when outputs are written, not for --help (tests/test_cli_startup.py)
+    commit_outputs()                          # the report in place before the line that points to it
     click.echo(f"sins: compare: {len(navs)} method(s){at} -> {outdir}/index.html", err=True)
     if results:
         # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
@@ -249,8 +251,8 @@ def _to_flu(tracks, paths, default: int) -> list[str]:
         if not isinstance(tr, Trajectory):
             continue                              # TUM attitudes are FLU
         code = tr.body if tr.body is not None else default
-        how = {"marker": "its marker", "angles": "its attitude columns"}.get(tr.body_from, "--body or FORMATS.md")
-        said.append(f"{Path(path).name} {BODY_NAMES[code].upper()} ({how})")
+        how = {"marker": "its marker", "angles": "its attitude columns"}.get(tr.body_from, "--body or docs/formats.md")
+        said.append(f"{printable(Path(path).name)} {BODY_NAMES[code].upper()} ({how})")
         if code != 0:
             tr.Cbn = body_flu_in_enu(tr.Cbn, code)
         tr.body, tr.body_from = 0, "converted"
@@ -297,6 +299,8 @@ def _batch(batch_path, outdir, jobs, scheduler, resume, figures, quiet, ctx):
                            scheduler=scheduler, resume=resume, figures=figures, on_info=info_echo(quiet),
                            verbose=verbose(ctx))
     n_fail = len(result.failed) + len(result.report_errors)
+    from ..io.atomic import commit_outputs  # numpy: the atomic writers load when outputs are written, not for --help (tests/test_cli_startup.py)
+    commit_outputs()
     resumed = f" ({result.resumed} resumed from {outdir}/jobs, {result.ran} run)" if result.resumed else ""
     click.echo(f"sins: compare: {len(result.jobs)} jobs{resumed}, {len(result.failed)} failed; "
                f"{len(result.reports)} report(s) -> {outdir}/index.html", err=True)

@@ -7,7 +7,7 @@ import click
 import numpy as np
 
 from ..errors import SinsError
-from ..io.atomic import prepare_output, staged_dir
+from ..io.atomic import commit_outputs, prepare_output, staged_dir
 from ..io.body_vel_csv import write_body_velocity_csv
 from ..io.gnss_csv import write_gnss_csv
 from ..io.imu_csv import write_imu_csv
@@ -30,9 +30,13 @@ from .base import log, main, progress, quiet_option
               show_default=True, help="Sample times from the message header stamps or the log (receive) times.")
 @click.option("--start", type=float, default=None, help="Keep IMU samples from this time (s).")
 @click.option("--end", type=float, default=None, help="Keep IMU samples up to this time (s).")
+@click.option("--allow-gaps", is_flag=True,
+              help="Bridge IMU gaps longer than 5 sample intervals with one increment each (as sins navigate "
+                   "--allow-gaps; without it such a gap is refused, naming it).")
 @quiet_option
-def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, time_source, start, end, quiet):
-    """Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into FORMATS.md CSV files:
+def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, time_source, start, end, allow_gaps,
+                quiet):
+    """Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into docs/formats.md CSV files:
     DIR/imu.csv (increments, axes as in the messages), DIR/gnss.csv (when the log has a NavSatFix
     topic) and DIR/odom.csv (body velocity, when it has one nav_msgs/Odometry topic or --odom-topic;
     docs/io_formats.md).  Everything is read and checked before anything is written.
@@ -63,7 +67,8 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
     imu = gnss = odom = None
     with progress(steps * 2, "convert", quiet) as bar:
         if want_imu:
-            imu = ros.read_imu(log_path, topic=imu_topic, time_source=time_source, start=start, end=end)
+            imu = ros.read_imu(log_path, topic=imu_topic, time_source=time_source, start=start, end=end,
+                               allow_gaps=allow_gaps)
             bar.update(1)
         if want_gnss:
             gnss = ros.read_gnss(log_path, topic=gnss_topic, vel_topic=vel_topic, time_source=time_source)
@@ -86,6 +91,9 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
             if odom is not None:
                 write_body_velocity_csv(tmp / "odom.csv", odom)
                 bar.update(1)
+    commit_outputs()
+    if quiet:
+        return
     if imu is not None:
         log.info("%s: %d IMU increments from %s (first interval starts at %.9f s)",
                  outdir / "imu.csv", len(imu), imu.source, imu.t0)

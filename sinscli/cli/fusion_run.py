@@ -28,7 +28,7 @@ def _span(t) -> str:
 
 
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-              opts, output, quiet, window=None, odom_path=None, vehicle=None, raw=None):
+              opts, output, quiet, window=None, odom_path=None, vehicle=None, force=False, raw=None):
     """``raw = (OBS, NAV paths)``: tightly coupled on the raw observations (:mod:`sinscli.fusion.raw`), their
     single-point fixes standing in for the GNSS log where the filter needs fixes (heading from motion,
     standstill test, ``--align``); else ``gnss_path`` the fixes (loosely coupled)."""
@@ -80,6 +80,26 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         what = f"--align {align_method}" if align_method is not None else "imu.mounting: auto"
         raise SinsError(f"{raw[0]}: no epoch has a single-point fix (4 satellites or more): {what} needs fixes; "
                         f"give --init with the initial state and the mounting")
+    if not force and len(gnss) > 0:            # a constant offset the spans cannot show (nav/timesync.py)
+        from ..nav.timesync import estimate_offset, offset_refusal
+        est = estimate_offset(imu.time, imu.dtheta_b, imu.dvel_b, t0, gnss.time, gnss.lat, gnss.lon, gnss.height,
+                              gnss.vel_n)
+        text = offset_refusal(est, str(gnss.source), float(cfg["gnss"]["time_offset"]))
+        if text:
+            raise SinsError(text)
+    from ..io.readers import _is_log
+    from ..nav.earth import gravity
+    from ..nav.sanity import gyro_unit_check
+    from ..sensors import load_sensor
+
+    def gyro_units(lat_g, height):
+        """Before anything runs on the increments (the mounting too): at the first fix, or (raw observations
+        without any fix: no mounting or alignment runs before) at the initial state."""
+        gyro_unit_check(imu, t0, gravity(np.sin(lat_g), height), lat_g, cfg["imu"],
+                        load_sensor(fopts.sensor or "mems", None, src, fopts.base_dir or base), force,
+                        ros=_is_log(imu_path))
+    if len(gnss) > 0:
+        gyro_units(float(np.radians(gnss.lat[0])), float(gnss.height[0]))
     mounting = None
     if cfg["imu"].get("mounting") == "auto":
         imu, mounting = _auto_mounting(imu, gnss, opts.conv, fopts, output)
@@ -89,7 +109,6 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         if len(body_vel.time) == 0 or body_vel.time[-1] < t0 or body_vel.time[0] > imu.time[-1]:
             raise SinsError(f"{body_vel.source}: the body velocity ({_span(body_vel.time)}) does not overlap the "
                             f"IMU log ({t0!r} to {float(imu.time[-1])!r} s)")
-    from ..nav.earth import gravity
     from ..nav.sanity import mounting_warning
     init_bias = None
     if align_method is not None:             # the attitude comes from the log: check its up axis
@@ -102,6 +121,8 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         init = read_init(init_path, t0 if window.start is None else window.start, opts.conv, cfg["limits"],
                          cfg["init"])
         check_init(init.time, window, str(init_path))
+        if len(gnss) == 0:
+            gyro_units(float(init.lat), float(init.height))
         init_sigma, init_bias = align_estimates(init, init_path, cfg["limits"])
         note = mounting_warning(imu, max(t0, init.time), gravity(np.sin(init.lat), init.height), opts.conv,
                                 init.Cbn, cfg["imu"])
@@ -145,17 +166,12 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         log.debug("rejected %s %s at %.6f s: innovation %.4g, sigma %.4g, NIS %.3g", r["type"], r["axis"],
                   r["time"], r["innovation"], r["sigma"], r["nis"])
     guard_trajectory(output, traj)               # both outputs or neither: the guard before either is written
-    if innovations_path is not None:
-        write_innovations(innovations_path, records)
-    try:
-        write_trajectory(output, traj, opts.conv)
-        if mounting is not None:
-            with atomic_path(mounting_snippet_path(output), suffix=".yaml") as tmp:
-                Path(tmp).write_text(mounting.snippet(), encoding="utf-8")
-    except BaseException:
-        if innovations_path is not None:
-            Path(innovations_path).unlink(missing_ok=True)
-        raise
+    if innovations_path is not None:               # both staged in the command's output set (io/atomic.py):
+        write_innovations(innovations_path, records)   # in place together, or neither (an earlier pair kept)
+    write_trajectory(output, traj, opts.conv)
+    if mounting is not None:
+        with atomic_path(mounting_snippet_path(output), suffix=".yaml") as tmp:
+            Path(tmp).write_text(mounting.snippet(), encoding="utf-8")
     for line in summary.lines():
         click.echo(f"sins: {line}", err=True)
     for w in summary.warnings:

@@ -19,7 +19,7 @@ def gnss_group():
 @click.option("--nav", "nav_paths", multiple=True, type=click.Path(path_type=Path),
               help="RINEX navigation file(s) (repeat for several); optional for a UBX log (its RXM-SFRBX).")
 @click.option("-o", "--output", required=True, type=click.Path(path_type=Path, dir_okay=False),
-              help="GNSS CSV (FORMATS.md columns, 1-sigma, nsat, pdop, excluded).")
+              help="GNSS CSV (docs/formats.md columns, 1-sigma, nsat, pdop, excluded).")
 @click.option("--systems", default=None, help="Systems to use, letters of GECJ (default: every one observed).")
 @click.option("--elev-mask", type=click.FloatRange(0.0, 90.0), default=15.0, show_default=True,
               help="Elevation mask (deg).")
@@ -46,7 +46,7 @@ def spp_cmd(obs_path, nav_paths, output, systems, elev_mask, iono, no_tropo, no_
             doppler_sigma, smooth_code, time_offset, time_base, quiet):
     """Single-point positions and Doppler velocities of every epoch of OBS (RINEX 2.11/3.x observations,
     gzip or Hatanaka compressed, or a u-blox UBX log) with the broadcast ephemerides of NAV, written as a
-    FORMATS.md GNSS CSV that `sins navigate --gnss` fuses as it is.
+    docs/formats.md GNSS CSV that `sins navigate --gnss` fuses as it is.
 
     \b
     Example:

@@ -96,10 +96,13 @@ def _count_rows(path: Path) -> int:
               help="With --gnss: seconds added to every GNSS time (config gnss.time_offset).")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("trajectory.csv"),
               show_default=True, help="Trajectory output: .csv, .parquet, .mcap, .tum, .geojson, .kml.")
+@click.option("--force", is_flag=True,
+              help="Navigate data that a plausibility check refuses (gyro rates impossible in their declared unit, "
+                   "a GNSS time offset found by cross-correlation): for the rare real case.")
 @quiet_option
 def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, smooth, innovations_path, odom_path, vehicle, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
-                 frame, imu_topic, start, end, duration, time_offset, output, quiet):
+                 frame, imu_topic, start, end, duration, time_offset, output, force, quiet):
     """Navigate IMU increments from an initial state and write the trajectory.
 
     \b
@@ -163,7 +166,7 @@ def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, s
         # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from .fusion_run import run_fused
         run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-                  opts, output, quiet, window, odom_path=odom_path, vehicle=vehicle,
+                  opts, output, quiet, window, odom_path=odom_path, vehicle=vehicle, force=force,
                   raw=(raw_path, nav_paths) if raw_path is not None else None)
         return
     # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
@@ -191,6 +194,11 @@ def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, s
                             cfg["imu"])
     if note:
         log.warning(note)
+    # the readers (pyarrow, rosbags) and the checks load when the command runs: --help stays light
+    from ..io.readers import _is_log
+    from ..nav.sanity import gyro_unit_check
+    gyro_unit_check(first, max(t_start, init.time), gravity(math.sin(init.lat), init.height), init.lat, cfg["imu"],
+                    _sensor_description(cfg, config_path), force, ros=_is_log(imu))
 
     def all_blocks():
         yield first
@@ -217,6 +225,16 @@ def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, s
     if quiet:
         return
     summary_line(imu, written[0], written[1] or 0.0, written[2] or 0.0, output)
+
+
+def _sensor_description(cfg: dict, config_path) -> dict | None:
+    """The IMU's error description of the config (``fusion.sensor``), SI units, or None."""
+    spec = (cfg.get("fusion") or {}).get("sensor")
+    if spec is None:
+        return None
+    from ..sensors import load_sensor   # PyYAML: only with a sensor description
+    base = Path(config_path).parent if config_path else Path.cwd()
+    return load_sensor(spec, None, str(config_path or "config"), base, key="fusion.sensor")
 
 
 def _count(written: list, chunk) -> None:

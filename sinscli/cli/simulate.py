@@ -32,9 +32,7 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet, raw_gnss):
     # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from ..sim.run import prepare, write_sim           # here, not at import: `sins simulate --help` is fast
     from ..sim.run import simulate as run_simulation
-
-    # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
-    from ..io.atomic import prepare_output
+    from ..io.atomic import commit_outputs, prepare_output
     from ..sim.run import SIM_FILES
     for name in SIM_FILES:                             # before any work: a folder, permissions, an input
         prepare_output(outdir / name)
@@ -59,6 +57,7 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet, raw_gnss):
             click.echo(f"raw GNSS: {len(raw.obs)} epochs in {outdir / 'obs.rnx'} at GPS time = scenario time + "
                        f"{raw.gps_offset:.0f} s (sins gnss spp ... --time-offset {-raw.gps_offset:.0f} gives the "
                        f"scenario's time base)", err=True)
+    commit_outputs()
     log.info("wrote %s", ", ".join(str(p) for p in paths))
     if not quiet:
         click.echo(f"simulated {sc.name}: {len(result.imu)} IMU samples at {sc.imu_rate:g} Hz, "

@@ -31,7 +31,7 @@ from numba import njit
 from ..errors import SinsError
 from ..io import aided_columns
 from ..io.timebase import describe as describe_time_base
-from ..nav.earth import enu_offset, lla_to_local_enu
+from ..nav.earth import dlon as earth_dlon, enu_offset, lla_to_local_enu
 from ..nav.rotation import (attitude_error_many, dcm_to_euler_many, dcm_to_rotvec, level_heading_frame, mm3,
                             rotvec_to_dcm)
 from ..types import Trajectory
@@ -168,7 +168,7 @@ def interpolate_truth(truth: Trajectory, t: np.ndarray, truth_name: str = "truth
         sw = s.reshape((-1,) + (1,) * (x.ndim - 1))
         return x[j] + sw * (x[j1] - x[j])
 
-    dlon = np.angle(np.exp(1j * (truth.lon[j1] - truth.lon[j])))   # across the antimeridian
+    dlon = earth_dlon(truth.lon[j1], truth.lon[j])                  # across the antimeridian
     out = Trajectory(time=tq, lat=lin(truth.lat), lon=truth.lon[j] + s * dlon, height=lin(truth.height),
                      vel_n=lin(truth.vel_n), Cbn=interp_dcm_many(truth.Cbn[j], truth.Cbn[j1], s),
                      source=truth.source)
@@ -201,7 +201,7 @@ def level_components(cbn_true: np.ndarray, att_n: np.ndarray, conv: int = 0) -> 
 
 def error_series(truth: Trajectory, nav: Trajectory, conv: int = 0) -> ErrorSeries:
     """Errors of ``nav`` against ``truth`` given at the same epochs (already matched), with the navigator's
-    1-sigma columns (FORMATS.md aided trajectory) when ``nav`` has them."""
+    1-sigma columns (docs/formats.md aided trajectory) when ``nav`` has them."""
     att_n = attitude_error_many(np.ascontiguousarray(truth.Cbn), np.ascontiguousarray(nav.Cbn))
     att_std = aided_columns.group(nav.extra, aided_columns.ATT_STD)
     return ErrorSeries(

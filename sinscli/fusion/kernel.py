@@ -53,7 +53,7 @@ from ..nav import strapdown as sd
 from ..gnss.model import geo_range, range_rate
 from ..gnss.orbits import earth_rate
 from ..gnss.signals import N_SYS
-from ..nav.earth import OMEGA_IE, enu_axes, geodetic_to_ecef, gravity, radii
+from ..nav.earth import OMEGA_IE, dlon_nb, enu_axes, geodetic_to_ecef, gravity, radii
 from ..nav.rotation import (dcm_to_euler, dcm_to_quat, euler_to_dcm, m_mul, m_trans, m_tvec, m_vec, orthonormalize_t,
                             quat_mul_t, quat_normalize_t, quat_to_dcm_t, rotvec_to_dcm_t, rotvec_to_quat_t)
 from ..nav.linalg import cholesky
@@ -696,9 +696,7 @@ def _model(row, kind, st, fs, cv, nx, H, z, r, sat):
         w = (fs[F_W], fs[F_W + 1], fs[F_W + 2])
         v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
         # the fix is of the antenna at the stamp + tau: r_ant(t) + v_ant tau
-        dlon = row[RW_Z + 1] - lon
-        dlon = dlon - 2.0 * np.pi * np.floor((dlon + np.pi) / (2.0 * np.pi))     # modulo 360 deg
-        z[0] = -dlon * (rn + h) * np.cos(lat) + l_n[0] + v_ant[0] * tau
+        z[0] = dlon_nb(lon, row[RW_Z + 1]) * (rn + h) * np.cos(lat) + l_n[0] + v_ant[0] * tau   # across 180 deg too
         z[1] = (lat - row[RW_Z]) * (rm + h) + l_n[1] + v_ant[1] * tau
         z[2] = h - row[RW_Z + 2] + l_n[2] + v_ant[2] * tau
         for i in range(3):

@@ -50,7 +50,7 @@ NX15, NX21 = 15, 21
 
 @njit(cache=True)
 def dgravity_dh(sin_lat, h):
-    """``d g / d h`` of the FORMATS.md normal gravity (1/s^2): the vertical gravity gradient."""
+    """``d g / d h`` of the docs/formats.md normal gravity (1/s^2): the vertical gravity gradient."""
     return (-0.0000030876910891 + 0.0000000043977311 * sin_lat * sin_lat) + 2.0 * 0.0000000000007211 * h
 
 

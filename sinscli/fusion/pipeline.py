@@ -633,7 +633,7 @@ class Fusion:
                      e[2] / 299792.458, c)
 
     def _columns(self, var, bias) -> dict:
-        """FORMATS.md aided-trajectory columns from the row variances and the sensor estimates (SI)."""
+        """docs/formats.md aided-trajectory columns from the row variances and the sensor estimates (SI)."""
         d = math.degrees(1.0)
         out = {}
         for i, k in enumerate(SIGMA_COLUMNS[:6]):

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..nav.earth import local_en, radii_py
+from ..nav.earth import dlon, local_en, radii_py
 from ..types import GnssLog, Trajectory
 
 DEG = math.pi / 180.0
@@ -83,8 +83,7 @@ def antenna_offsets(traj: Trajectory, gnss: GnssLog, lever, sel) -> np.ndarray:
     k = np.clip(np.searchsorted(traj.time, t), 0, len(traj) - 1)
     l_n = traj.Cbn[k] @ np.asarray(lever, dtype=float)
     rm, rn = radii_py(np.sin(lat))
-    dlon = np.mod(lon - np.radians(gnss.lon[sel]) + math.pi, 2.0 * math.pi) - math.pi
-    de = dlon * (rn + h) * np.cos(lat) + l_n[:, 0]
+    de = dlon(lon, np.radians(gnss.lon[sel])) * (rn + h) * np.cos(lat) + l_n[:, 0]
     dn = (lat - np.radians(gnss.lat[sel])) * (rm + h) + l_n[:, 1]
     du = h - gnss.height[sel] + l_n[:, 2]
     return np.column_stack([de, dn, du])

@@ -1,6 +1,6 @@
-"""The optional columns of an aided (fused or smoothed) trajectory (FORMATS.md), and their checks.
+"""The optional columns of an aided (fused or smoothed) trajectory (docs/formats.md), and their checks.
 
-A fused navigator writes, beside the FORMATS.md trajectory columns, the
+A fused navigator writes, beside the docs/formats.md trajectory columns, the
 1-sigma of its own error estimate and its sensor error estimates
 (``Trajectory.extra`` keys):
 
@@ -10,7 +10,7 @@ A fused navigator writes, beside the FORMATS.md trajectory columns, the
 - optionally ``gyro_sf_x.._z``, ``accel_sf_x.._z`` (ppm).
 
 Every column whose name ends in ``_std`` is a 1-sigma: "a positive finite
-number on every row" (FORMATS.md).  Readers refuse anything else naming the
+number on every row" (docs/formats.md).  Readers refuse anything else naming the
 line and the column (:func:`check_columns`); writers refuse to write it (the writer guard
 :func:`sinscli.io.atomic.check_finite`, given the sigma columns).  No I/O here.
 """
@@ -61,7 +61,7 @@ def check_columns(where: str, data: dict, first_row: int = 2, row_label: str = "
         if a.dtype.kind != "f":
             continue
         if is_sigma(name):
-            check_sigma(where, a, name, first_row, row_label, " (FORMATS.md: a sigma column holds a positive finite "
+            check_sigma(where, a, name, first_row, row_label, " (docs/formats.md: a sigma column holds a positive finite "
                                                                "number on every row)")
         else:
             bad = ~np.isfinite(a)

@@ -2,11 +2,12 @@
 
 Reading parses every float exactly (pyarrow's parser is correctly rounded);
 writing uses pyarrow's shortest round-trip float formatting, so every float
-reads back to the identical float64 (FORMATS.md).
+reads back to the identical float64 (docs/formats.md).
 """
 from __future__ import annotations
 
 import collections
+import contextlib
 import csv
 import os
 from concurrent.futures import ThreadPoolExecutor
@@ -18,7 +19,7 @@ import pyarrow.csv as pacsv
 
 from ..errors import SinsError, num, quote
 from .atomic import check_finite
-from ..inputs import input_file
+from ..inputs import closing_native, input_file, native_path
 
 
 MAX_LINE_BYTES = 128 * 1024      # a numeric CSV line is far shorter; the header is refused beyond this
@@ -128,15 +129,18 @@ def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]
     """
     path = Path(path)
     file_cols = list(dict.fromkeys(columns.values()))
+    source = native_path(path)
     try:
         table = pacsv.read_csv(
-            path,
+            source,
             read_options=_read_options(path, file_cols, use_threads=True, block_size=1 << 24),
             parse_options=pacsv.ParseOptions(newlines_in_values=False),
             convert_options=_convert_options(file_cols),
         )
     except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as exc:
         raise SinsError(_locate_bad_cell(path, file_cols, exc)) from None
+    finally:
+        closing_native(source)
     if table.num_rows == 0:
         raise SinsError(f"{path}: no data rows after the header")
     return _finite_columns(path, columns, table.column, 2)
@@ -221,7 +225,7 @@ def iter_numeric_columns(path, columns: dict[str, str], block_bytes: int = STREA
     try:
         # no threaded read-ahead: the reader would run ahead of the navigator and buffer the file
         reader = pacsv.open_csv(
-            path,
+            native_path(path),
             read_options=_read_options(path, file_cols, use_threads=False, block_size=block_bytes),
             convert_options=_convert_options(file_cols))
     except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as exc:
@@ -333,11 +337,19 @@ class CsvTableWriter:
             self._fh.write(self._pending.popleft().result())
 
     def close(self) -> None:
-        self._drain(0)
+        try:
+            self._drain(0)
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+        finally:
+            self._shutdown()
+            self._fh.close()       # (after a failed flush it raises again; the first error is kept)
+
+    def discard(self) -> None:
+        """Stop without finishing the file (its staged file is removed by the caller)."""
         self._shutdown()
-        self._fh.flush()
-        os.fsync(self._fh.fileno())
-        self._fh.close()
+        with contextlib.suppress(OSError):
+            self._fh.close()
 
     def _shutdown(self) -> None:
         if self._pool is not None:
@@ -351,9 +363,8 @@ class CsvTableWriter:
         return self
 
     def __exit__(self, *exc):
-        self._shutdown()
         if not self._fh.closed:
-            self._fh.close()
+            self.discard()
 
 
 def write_table_csv(path, data: dict[str, np.ndarray], columns: list[str] | None = None, sigmas=()) -> None:

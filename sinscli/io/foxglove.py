@@ -29,12 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import SinsError
+from ..errors import SinsError, printable
 from ..nav.earth import local_enu_to_lla
 from ..nav.rotation import body_flu_in_enu, cbn_from_flu, dcm_to_euler_many, level_heading_frame, quat_to_dcm_many
 from ..types import Trajectory
 from . import aided_columns as ac
-from .atomic import atomic_path
+from .atomic import atomic_path, output_lon_lat
 from .local_frame import trajectory_enu_quat
 
 TOPIC_FIX, TOPIC_POSE, TOPIC_ODOM, TOPIC_BIAS = "/sins/fix", "/sins/pose", "/sins/odom", "/sins/imu_bias"
@@ -192,7 +192,7 @@ def write_trajectory_mcap(path, traj: Trajectory, conv: int = 0) -> None:
         raise SinsError(f"{traj.source}: times beyond 2^31 s do not fit a ROS time stamp")
     c_flu = body_flu_in_enu(traj.Cbn, conv)
     v_body = np.einsum("nji,nj->ni", c_flu, np.asarray(traj.vel_n, dtype=np.float64))   # C_n^FLU v_n
-    lat_deg, lon_deg = np.degrees(traj.lat), np.degrees(traj.lon)
+    lat_deg, lon_deg = output_lon_lat(path, np.degrees(traj.lat), np.degrees(traj.lon), traj.time)
     fields = np.column_stack([lat_deg, lon_deg, traj.height, enu, q, v_body])
     heading = dcm_to_euler_many(np.ascontiguousarray(traj.Cbn, dtype=np.float64), conv)[:, 2]
     pos_var, pose_cov, twist_cov = _covariances(traj, c_flu, heading)
@@ -226,8 +226,8 @@ def write_trajectory_mcap(path, traj: Trajectory, conv: int = 0) -> None:
                 c_bias = w.register_channel(TOPIC_BIAS, "json", s_bias)
             w.add_metadata("sins", {
                 "enu_origin_lat_deg": repr(float(np.degrees(origin[0]))),
-                "enu_origin_lon_deg": repr(float(np.degrees(origin[1]))),
-                "enu_origin_height_m": repr(float(origin[2])), "body_axes": "FLU", "source": str(traj.source)})
+                "enu_origin_lon_deg": repr(float(lon_deg[0])),
+                "enu_origin_height_m": repr(float(origin[2])), "body_axes": "FLU", "source": printable(traj.source)})
             for k, r in enumerate(rows):
                 tk, s_, ns_ = t_l[k], sec_l[k], nsec_l[k]
                 w.add_message(c_fix, log_time=tk, publish_time=tk, sequence=k,

@@ -23,19 +23,27 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import SinsError
+from ..errors import SinsError, printable
 from ..types import Trajectory
 from . import aided_columns as ac
-from .atomic import atomic_path
+from .atomic import atomic_path, output_lon_lat
 
 KML_NS = "http://www.opengis.net/kml/2.2"
 
 
-def _track(traj: Trajectory):
+def _track(path, traj: Trajectory):
     if len(traj) == 0:
         raise SinsError(f"{traj.source}: trajectory is empty; nothing to write")
-    lon, lat = np.degrees(traj.lon), np.degrees(traj.lat)
+    lat, lon = output_lon_lat(path, np.degrees(traj.lat), np.degrees(traj.lon), traj.time)   # lon in [-180, 180)
     return lon.tolist(), lat.tolist(), np.asarray(traj.height, dtype=np.float64).tolist()
+
+
+def _antimeridian_parts(lon: list) -> list[tuple[int, int]]:
+    """``[(a, b), ...]``: index ranges of the track between its crossings of the antimeridian (a step of more
+    than 180 deg in longitude), which RFC 7946 (3.1.9) asks to cut the line at."""
+    cuts = [k + 1 for k in range(len(lon) - 1) if abs(lon[k + 1] - lon[k]) > 180.0]
+    edges = [0, *cuts, len(lon)]
+    return list(zip(edges[:-1], edges[1:]))
 
 
 def _columns(traj: Trajectory) -> dict[str, np.ndarray]:
@@ -48,21 +56,29 @@ def _columns(traj: Trajectory) -> dict[str, np.ndarray]:
 
 def write_geojson(path, traj: Trajectory, conv: int = 0) -> None:
     """A FeatureCollection with one LineString feature (``[lon, lat, height]``) and the times."""
-    lon, lat, h = _track(traj)
+    lon, lat, h = _track(path, traj)
     cols = _columns(traj)
-    props = {"name": "sins trajectory", "source": str(traj.source)}
+    props = {"name": "sins trajectory", "source": printable(traj.source)}
     props.update({c: v.tolist() for c, v in cols.items()})
     units = {c: ac.UNITS.get(c, "") for c in cols if c != "time"}
     if units:
         props["units"] = {"time": "s", **units}
-    feature = {
-        "type": "Feature",
-        "geometry": {"type": "LineString", "coordinates": [list(p) for p in zip(lon, lat, h)]},
-        "properties": props,
-    }
+    points = [list(p) for p in zip(lon, lat, h)]
+    parts = _antimeridian_parts(lon)
+    geometry = ({"type": "LineString", "coordinates": points} if len(parts) == 1 else
+                {"type": "MultiLineString", "coordinates": [points[a:b] for a, b in parts]})  # cut at the antimeridian
+    feature = {"type": "Feature", "geometry": geometry, "properties": props}
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
             json.dump({"type": "FeatureCollection", "features": [feature]}, f, allow_nan=False)
+
+
+def _line_coords(geometry) -> np.ndarray:
+    """The points of a LineString, or of a MultiLineString's parts in order (a track cut at the antimeridian)."""
+    c = geometry["coordinates"]
+    if geometry["type"] == "MultiLineString":
+        c = [p for part in c for p in part]
+    return np.array(c, dtype=np.float64)
 
 
 def read_geojson(path):
@@ -71,8 +87,8 @@ def read_geojson(path):
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
         feats = doc["features"] if doc.get("type") == "FeatureCollection" else [doc]
-        feat = next(f for f in feats if f["geometry"]["type"] == "LineString")
-        coords = np.array(feat["geometry"]["coordinates"], dtype=np.float64)
+        feat = next(f for f in feats if f["geometry"]["type"] in ("LineString", "MultiLineString"))
+        coords = _line_coords(feat["geometry"])
     except (OSError, ValueError, KeyError, TypeError, StopIteration) as exc:
         raise SinsError(f"{path}: not a GeoJSON file with a LineString feature ({type(exc).__name__})") from None
     if coords.ndim != 2 or coords.shape[1] < 2:
@@ -89,8 +105,8 @@ def read_geojson_columns(path) -> dict[str, np.ndarray]:
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
         feats = doc["features"] if doc.get("type") == "FeatureCollection" else [doc]
-        feat = next(f for f in feats if f["geometry"]["type"] == "LineString")
-        n = len(feat["geometry"]["coordinates"])
+        feat = next(f for f in feats if f["geometry"]["type"] in ("LineString", "MultiLineString"))
+        n = len(_line_coords(feat["geometry"]))
         props = feat.get("properties") or {}
         out = {k: np.array(v, dtype=np.float64) for k, v in props.items()
                if isinstance(v, list) and len(v) == n and all(isinstance(x, (int, float)) for x in v)}
@@ -102,7 +118,7 @@ def read_geojson_columns(path) -> dict[str, np.ndarray]:
 
 def write_kml(path, traj: Trajectory, conv: int = 0) -> None:
     """A KML document with one Placemark LineString (absolute altitude), extra columns in ExtendedData."""
-    lon, lat, h = _track(traj)
+    lon, lat, h = _track(path, traj)
     cols = _columns(traj)
     coords = " ".join(f"{a!r},{b!r},{c!r}" for a, b, c in zip(lon, lat, h))
     extended = ""
@@ -114,7 +130,7 @@ def write_kml(path, traj: Trajectory, conv: int = 0) -> None:
             items.append(f'<Data name={quoteattr(c)}><displayName>{escape(label)}</displayName><value>'
                          + " ".join(repr(x) for x in v.tolist()) + "</value></Data>\n")
         extended = "<ExtendedData>\n" + "".join(items) + "</ExtendedData>\n"
-    name = str(traj.source).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    name = printable(traj.source).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write('<?xml version="1.0" encoding="UTF-8"?>\n'

@@ -1,4 +1,4 @@
-"""GNSS CSV reader and writer (FORMATS.md ``gnss.csv``), and the check of a GNSS log against the IMU's time."""
+"""GNSS CSV reader and writer (docs/formats.md ``gnss.csv``), and the check of a GNSS log against the IMU's time."""
 from __future__ import annotations
 
 import logging
@@ -9,7 +9,7 @@ import numpy as np
 from ..config import GNSS_NAMES
 from ..errors import SinsError
 from ..types import GnssLog
-from .atomic import atomic_path
+from .atomic import atomic_path, output_lon_lat
 from . import limits as limits_mod
 from .csvcore import read_mapped_columns, write_table_csv
 from ..frames import NED_NAMES, convention, file_name, to_enu
@@ -19,6 +19,8 @@ from .timebase import diagnose
 log = logging.getLogger("sins")
 
 REQUIRED = ["time", "lat", "lon", "height"]
+# a fix within 0.01 deg of a pole (limits.check_near_pole): what to do instead
+POLE_USE = "; such fixes cannot aid the ENU navigation: leave them out of the GNSS log"
 GROUPS = {"vel_n": ["vel_e", "vel_n", "vel_u"], "std_pos": ["std_e", "std_n", "std_u"],
           "std_vel": ["std_vel_e", "std_vel_n", "std_vel_u"]}
 
@@ -52,6 +54,7 @@ def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
     check_time(path, data["time"], allow_gaps=True, what=names["time"], warn_gaps=False)   # outages: the summary
     limits_mod.check_position(path, data["lat"], data["lon"], data["height"], lim,
                               (names["lat"], names["lon"], names["height"]), 2)
+    limits_mod.check_near_pole(path, data["lat"], names["lat"], 2, use=POLE_USE)
     if "vel_e" in data:
         limits_mod.check_velocity(path, np.column_stack([data[c] for c in GROUPS["vel_n"]]), lim,
                                   [names[c] for c in GROUPS["vel_n"]], 2)
@@ -67,7 +70,8 @@ def read_gnss_csv(path, cfg=None, limits=None) -> GnssLog:
 
 def write_gnss_csv(path, gnss: GnssLog) -> None:
     """Write ``gnss.csv`` atomically with exact floats (optional groups when present)."""
-    data = {"time": gnss.time, "lat": gnss.lat, "lon": gnss.lon, "height": gnss.height}
+    lat, lon = output_lon_lat(path, gnss.lat, gnss.lon, gnss.time)      # lon in [-180, 180), lat within +-90
+    data = {"time": gnss.time, "lat": lat, "lon": lon, "height": gnss.height}
     for name, group in GROUPS.items():
         arr = getattr(gnss, name)
         if arr is not None and np.isnan(arr).any():

@@ -1,4 +1,4 @@
-"""IMU CSV reader and writer (FORMATS.md ``imu.csv``), plus the checks every IMU log gets.
+"""IMU CSV reader and writer (docs/formats.md ``imu.csv``), plus the checks every IMU log gets.
 
 Two forms are read: rates (``gyro_*`` rad/s, ``accel_*`` m/s^2 at ``time``)
 and increments (``dtheta_*`` rad, ``dvel_*`` m/s over (previous time, time]).
@@ -152,7 +152,7 @@ def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=STREAM_BLOCK, lim
         if form == "rates":
             gyro = np.column_stack([data[c] for c in RATE_COLS[:3]]) * GYRO_UNITS[units["gyro"]]
             accel = np.column_stack([data[c] for c in RATE_COLS[3:]]) * ACCEL_UNITS[units["accel"]]
-            limits_mod.check_imu_rates(path, gyro, accel, lim, value_cols, line)
+            limits_mod.check_imu_rates(path, gyro, accel, lim, value_cols, line, gyro_unit=units["gyro"])
             if last is None:
                 check_rate_units(path, gyro, units["gyro"])
             else:
@@ -172,7 +172,7 @@ def iter_imu_csv(path, cfg=None, allow_gaps=False, block_bytes=STREAM_BLOCK, lim
             dt = np.diff(time, prepend=prev_time if prev_time is not None else np.nan)
             if prev_time is None:
                 dt[0] = dt[1] if dt.shape[0] > 1 else np.inf
-            limits_mod.check_imu_increments(path, dt, dtheta, dvel, lim, value_cols, line)
+            limits_mod.check_imu_increments(path, dt, dtheta, dvel, lim, value_cols, line, dtheta_unit=units["dtheta"])
             imu = ImuLog(time, dtheta, dvel, t0=None, source=str(path), kind="increments")
         yield apply_mounting(imu, c_sb)
     if form == "rates" and rows < 2:
@@ -255,7 +255,7 @@ def check_static_start(imu: ImuLog, g_local: float, conv: int = 0, seconds: floa
 
 
 def write_imu_rates_csv(path, time, gyro, accel) -> None:
-    """Write rates (FORMATS.md rate form: ``time``, ``gyro_*`` rad/s, ``accel_*`` m/s^2), atomically, exact floats."""
+    """Write rates (docs/formats.md rate form: ``time``, ``gyro_*`` rad/s, ``accel_*`` m/s^2), atomically, exact floats."""
     data = {"time": time}
     for i, ax in enumerate("xyz"):
         data[f"gyro_{ax}"] = gyro[:, i]
@@ -266,7 +266,7 @@ def write_imu_rates_csv(path, time, gyro, accel) -> None:
 
 
 def write_imu_csv(path, imu: ImuLog) -> None:
-    """Write increments (FORMATS.md increment form), atomically, exact floats."""
+    """Write increments (docs/formats.md increment form), atomically, exact floats."""
     data = {"time": imu.time}
     for i, ax in enumerate("xyz"):
         data[f"dtheta_{ax}"] = imu.dtheta_b[:, i]

@@ -1,4 +1,4 @@
-"""Initial state: an init YAML (FORMATS.md keys) or a row of a trajectory file."""
+"""Initial state: an init YAML (docs/formats.md keys) or a row of a trajectory file."""
 from __future__ import annotations
 
 import difflib
@@ -12,7 +12,7 @@ from ..errors import SinsError, num, quote
 from ..nav.rotation import dcm_to_euler, euler_to_dcm
 from ..types import NavState, time_tolerance
 from ..units import UG
-from .atomic import atomic_path, check_finite
+from .atomic import atomic_path, check_finite, output_lon_lat
 from . import limits as limits_mod
 from ..frames import convention, file_name, to_enu
 from ..inputs import input_file, load_yaml
@@ -23,7 +23,7 @@ INIT_KEYS = ["time", "lat", "lon", "height", "vel_e", "vel_n", "vel_u", "roll", 
 def read_init(path, t_start: float | None = None, conv: int = 0, limits=None, section=None) -> NavState:
     """Read the initial state.
 
-    A YAML file must hold every key of FORMATS.md (extra keys from ``sins
+    A YAML file must hold every key of docs/formats.md (extra keys from ``sins
     align`` are kept in ``extra``).  A trajectory CSV/Parquet gives the row at
     the IMU start ``t_start``: the last row at or before it, its attitude turned
     from the file's body axes (its marker or its angles) into those of ``conv``.  Values beyond the
@@ -57,9 +57,7 @@ def read_init(path, t_start: float | None = None, conv: int = 0, limits=None, se
 def _check_lat(path, lat_deg, where):
     if not -90.0 <= lat_deg <= 90.0:
         raise SinsError(f"{path}: {where}: latitude {num(lat_deg)} deg is outside [-90, 90]")
-    if abs(lat_deg) > 89.99:
-        raise SinsError(f"{path}: {where}: latitude {num(lat_deg)} deg is within 0.01 deg of a pole, where the "
-                        f"ENU frame is undefined; use --frame launch-inertial")
+    limits_mod.check_near_pole(f"{path}: {where}", lat_deg, use="; use --frame launch-inertial")
 
 
 def _read_init_yaml(path: Path, conv: int, lim: dict, frame: str = "enu", to_deg: float = 1.0) -> NavState:
@@ -139,7 +137,7 @@ def align_estimates(state: NavState, where, limits=None) -> tuple[dict, dict | N
 
 
 def init_dict(state: NavState, conv: int = 0) -> dict:
-    """FORMATS.md init keys of a state (degrees), as plain floats (exact round trip)."""
+    """docs/formats.md init keys of a state (degrees), as plain floats (exact round trip)."""
     roll, pitch, heading = dcm_to_euler(np.ascontiguousarray(state.Cbn), conv)
     d = math.degrees
     return {"time": float(state.time), "lat": d(state.lat), "lon": d(state.lon), "height": float(state.height),
@@ -148,8 +146,9 @@ def init_dict(state: NavState, conv: int = 0) -> dict:
 
 
 def write_init_yaml(path, state: NavState, conv: int = 0, extra: dict | None = None) -> None:
-    """Write an init YAML (FORMATS.md keys first, then ``extra``), atomically."""
+    """Write an init YAML (docs/formats.md keys first, then ``extra``), atomically."""
     data = init_dict(state, conv)
+    data["lat"], data["lon"] = (float(x) for x in output_lon_lat(path, data["lat"], data["lon"], state.time))
     for k, v in {**state.extra, **(extra or {})}.items():
         data[k] = _plain(v)
     check_finite(path, {k: v for k, v in data.items() if isinstance(v, (int, float)) or

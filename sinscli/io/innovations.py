@@ -97,6 +97,7 @@ def read_innovations(path) -> np.ndarray:
     """Read an innovations CSV back into a structured array of :data:`DTYPE` (checks as the writer)."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
+    from ..inputs import native_path
     from .csvcore import _finite_columns, _locate_bad_cell, read_header
     from .limits import check_sigma
     path = Path(path)
@@ -107,7 +108,7 @@ def read_innovations(path) -> np.ndarray:
     types = {"time": pa.float64(), "type": pa.string(), "axis": pa.string(), "innovation": pa.float64(),
              "sigma": pa.float64(), "nis": pa.float64(), "accepted": pa.bool_(), "sat": pa.string()}
     try:
-        table = pacsv.read_csv(path, convert_options=pacsv.ConvertOptions(
+        table = pacsv.read_csv(native_path(path), convert_options=pacsv.ConvertOptions(
             column_types=types, strings_can_be_null=False, quoted_strings_can_be_null=False, null_values=[],
             true_values=["true"], false_values=["false"]))
     except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as exc:

@@ -94,16 +94,38 @@ def check_sigma(where, values, column=None, first=0, row: str = "line", hint: st
     raise SinsError(f"{where}{_loc(row, _row(first, k), column)}: {what}{hint}")
 
 
-def check_imu_rates(where, gyro, accel, lim: dict, columns=None, first=0, row: str = "line") -> None:
-    """Angular rates (rad/s) and specific forces (m/s^2), (N, 3) each, against the limits."""
+def _unit_hint(check, declared: str | None, fits_in_degrees: bool):
+    """Run ``check``; a refusal of rates declared in radians that would fit the limit in degrees says so."""
+    try:
+        check()
+    except SinsError as exc:
+        if declared in ("rad/s", "rad") and fits_in_degrees:
+            key, unit = ("imu.units.gyro", "deg/s") if declared == "rad/s" else ("imu.units.dtheta", "deg")
+            raise SinsError(f"{exc}; read as {unit} every value is within it: the file holds {unit}, set {key}: "
+                            f"{unit} in the config") from None
+        raise
+
+
+def check_imu_rates(where, gyro, accel, lim: dict, columns=None, first=0, row: str = "line",
+                    gyro_unit: str | None = None) -> None:
+    """Angular rates (rad/s) and specific forces (m/s^2), (N, 3) each, against the limits.  ``gyro_unit``:
+    the unit the file declares (a refusal of rad/s data that fit the limit in deg/s names the unit to set)."""
     gcols, acols = (columns[:3], columns[3:]) if columns is not None else (None, None)
-    check_abs(where, gyro, lim["rate"], "angular rate", "rate", " rad/s", gcols, first, row)
+    _unit_hint(lambda: check_abs(where, gyro, lim["rate"], "angular rate", "rate", " rad/s", gcols, first, row),
+               gyro_unit, bool(np.all(np.abs(np.asarray(gyro)) * (np.pi / 180.0) <= lim["rate"])))
     check_abs(where, accel, lim["specific_force"], "specific force", "specific_force", " m/s^2", acols, first, row)
 
 
-def check_imu_increments(where, dt, dtheta, dvel, lim: dict, columns=None, first=0, row: str = "line") -> None:
-    """Increments over intervals ``dt`` (s, > 0), (N, 3) each: the rate and specific force they imply."""
+def check_imu_increments(where, dt, dtheta, dvel, lim: dict, columns=None, first=0, row: str = "line",
+                         dtheta_unit: str | None = None) -> None:
+    """Increments over intervals ``dt`` (s, > 0), (N, 3) each: the rate and specific force they imply.
+    ``dtheta_unit``: the unit the file declares (rad data that fit the limit in deg name the unit to set)."""
     dt = np.asarray(dt, dtype=np.float64)
+    fits = bool(np.all(np.abs(np.asarray(dtheta, dtype=np.float64)) * (np.pi / 180.0) <= lim["rate"] * dt[:, None]))
+    _unit_hint(lambda: _check_increments(where, dt, dtheta, dvel, lim, columns, first, row), dtheta_unit, fits)
+
+
+def _check_increments(where, dt, dtheta, dvel, lim, columns, first, row) -> None:
     for inc, key, what, unit, cols in ((dtheta, "rate", "angular rate", " rad", columns and columns[:3]),
                                        (dvel, "specific_force", "specific force", " m/s", columns and columns[3:])):
         inc = np.asarray(inc, dtype=np.float64)
@@ -138,6 +160,22 @@ def check_position(where, lat_deg, lon_deg, height, lim: dict, columns=("lat", "
     check_range(where, lon_deg, -LON_RANGE, LON_RANGE, "longitude", None, " deg", columns[1], first, row)
     check_range(where, height, lim["height_min"], lim["height_max"], "height", "height_min/height_max", " m",
                 columns[2], first, row)
+
+
+NEAR_POLE = 89.99          # deg: closer to a pole the ENU frame (east, north) is undefined
+
+
+def check_near_pole(where, lat_deg, column=None, first=0, row: str = "line", use: str = "") -> None:
+    """Refuse a latitude within 0.01 deg of a pole, where the ENU frame is undefined: the one rule of the
+    init reader (an initial state) and the GNSS readers (a fix that would aid the ENU navigation).
+    ``use``: what to do instead, added to the message."""
+    v = np.asarray(lat_deg, dtype=np.float64).reshape(-1)
+    bad = np.abs(v) > NEAR_POLE
+    if not bad.any():
+        return
+    k = int(np.argmax(bad))
+    raise SinsError(f"{where}{_loc(row, _row(first, k), column)}: latitude {num(v[k])} deg is within "
+                    f"{90.0 - NEAR_POLE:.2g} deg of a pole, where the ENU frame is undefined{use}")
 
 
 def check_velocity(where, vel, lim: dict, columns=None, first=0, row: str = "line") -> None:

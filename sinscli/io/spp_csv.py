@@ -1,4 +1,4 @@
-"""The fixes of ``sins gnss spp``: a FORMATS.md GNSS CSV (``time, lat, lon, height``, ENU velocity, 1-sigma of
+"""The fixes of ``sins gnss spp``: a docs/formats.md GNSS CSV (``time, lat, lon, height``, ENU velocity, 1-sigma of
 position and velocity) with three more columns per fix: ``nsat`` (satellites used), ``pdop`` and
 ``excluded`` (the satellites the chi-square test excluded, ``G05 E11``).  ``sins navigate --gnss`` reads it
 as it is (the three columns are known and ignored: :data:`SPP_COLUMNS`)."""

@@ -1,6 +1,6 @@
 """Which time base a file's times are in, and whether two files share one (no I/O).
 
-FORMATS.md allows any epoch "as long as all files of one run use the same
+docs/formats.md allows any epoch "as long as all files of one run use the same
 one".  Real logs break that in a few typical ways, which show in the
 magnitudes and offsets of the time spans:
 

@@ -1,15 +1,16 @@
-"""Trajectory files (FORMATS.md trajectory CSV): read, and write as CSV or Parquet (streamed).
+"""Trajectory files (docs/formats.md trajectory CSV): read, and write as CSV or Parquet (streamed).
 
 Extra columns (e.g. the 1-sigma and bias columns of an aided trajectory,
 :mod:`sinscli.io.aided_columns`) are written and read as they are; every
 value must be finite and every ``*_std`` column positive, on writing and on
-reading (FORMATS.md).
+reading (docs/formats.md).
 
 Other formats register a writer in :data:`WRITERS` by suffix
 (``function(path, traj, conv)``, writing atomically).
 """
 from __future__ import annotations
 
+import contextlib
 import math
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -19,12 +20,12 @@ import pyarrow as pa
 
 from ..conventions import BODY_CONVENTIONS, FLU
 from ..errors import SinsError, quote
-from ..inputs import input_file
+from ..inputs import closing_native, input_file, native_path
 from ..nav.rotation import dcm_to_euler_many, dcm_to_quat_many, euler_to_dcm_many, quat_to_dcm_many
 from ..types import Trajectory
 from . import aided_columns
 from . import limits as limits_mod
-from .atomic import atomic_path, check_finite, prepare_output
+from .atomic import StagedFile, check_finite, output_lon_lat, prepare_output
 from .csvcore import CsvTableWriter, float64_table, float_column, read_header, read_numeric_columns
 from ..frames import cbn_to_enu, file_name, to_enu
 
@@ -34,7 +35,7 @@ DCM_COLUMNS = [f"c{i}{j}" for i in range(1, 4) for j in range(1, 4)]
 REQUIRED = BASE_COLUMNS
 ROTATION_TOL = 1e-3          # a read attitude (c11..c33, or the quaternion's norm) is a rotation within this
 # The body convention of the attitude (docs/io_formats.md): the CSV column ``body`` (the same text on every row,
-# after the numbers; written for RFU and FRD, a file without it is FLU as FORMATS.md says) and the Parquet
+# after the numbers; written for RFU and FRD, a file without it is FLU as docs/formats.md says) and the Parquet
 # key-value metadata ``sins.body`` (always written).
 BODY_COLUMN = "body"
 BODY_METADATA = b"sins.body"
@@ -44,13 +45,17 @@ BODY_NAMES = {code: name for name, code in BODY_CONVENTIONS.items()}
 WRITERS: dict = {}
 
 
-def trajectory_columns(traj: Trajectory, conv: int = 0, with_dcm: bool = True) -> dict[str, np.ndarray]:
-    """FORMATS.md columns of a trajectory (degrees for angles), plus its extra columns."""
+def trajectory_columns(traj: Trajectory, conv: int = 0, with_dcm: bool = True, path=None,
+                       first_row: int = 1) -> dict[str, np.ndarray]:
+    """docs/formats.md columns of a trajectory (degrees for angles), plus its extra columns; latitude and
+    longitude through the writers' guard (:func:`sinscli.io.atomic.output_lon_lat`: longitude in
+    [-180, 180), latitude within +-90) for the output ``path``."""
     cbn = np.ascontiguousarray(traj.Cbn, dtype=np.float64)
     eul = dcm_to_euler_many(cbn, conv)
     q = dcm_to_quat_many(cbn)
     d = math.degrees(1.0)
-    cols = {"time": traj.time, "lat": traj.lat * d, "lon": traj.lon * d, "height": traj.height,
+    lat, lon = output_lon_lat(path or traj.source, traj.lat * d, traj.lon * d, traj.time, first_row)
+    cols = {"time": traj.time, "lat": lat, "lon": lon, "height": traj.height,
             "vel_e": traj.vel_n[:, 0], "vel_n": traj.vel_n[:, 1], "vel_u": traj.vel_n[:, 2],
             "roll": eul[:, 0] * d, "pitch": eul[:, 1] * d, "heading": eul[:, 2] * d,
             "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3]}
@@ -63,10 +68,12 @@ def trajectory_columns(traj: Trajectory, conv: int = 0, with_dcm: bool = True) -
 
 
 class TrajectoryWriter:
-    """Stream trajectory chunks to ``.csv`` or ``.parquet`` through a temporary file.
+    """Stream trajectory chunks to ``.csv`` or ``.parquet`` through a staged file
+    (:class:`sinscli.io.atomic.StagedFile`).
 
-    ``close()`` renames into place; ``abort()`` (or an exception inside a
-    ``with`` block) removes the temporary file, leaving no output.
+    ``close()`` hands the complete file over to be moved into place; ``abort()`` (or an exception
+    inside a ``with`` block) removes it, leaving no output.  Either raises a file system fault (disk
+    full, I/O error) as the one-line write error naming the target.
     """
 
     def __init__(self, path, conv: int = 0, extra_columns=()):
@@ -77,15 +84,23 @@ class TrajectoryWriter:
             raise SinsError(f"{path}: streaming output supports .csv and .parquet")
         self.columns = BASE_COLUMNS + DCM_COLUMNS + list(extra_columns)
         self.sigmas = [c for c in self.columns if aided_columns.is_sigma(c)]
-        self._ctx = atomic_path(self.path)
-        self._tmp = self._ctx.__enter__()
+        self._stage = StagedFile(self.path)
+        self._tmp = self._stage.tmp
         self._writer = None
         self._rows = 0
         self._pool = None          # Parquet: one thread writes row groups while the caller computes the next
         self._pending = None
+        self._sink = None          # a pyarrow file of a name that is not UTF-8 (io/inputs.native_path)
+        self._open = True
 
     def write(self, traj: Trajectory) -> None:
-        cols = trajectory_columns(traj, self.conv)
+        try:
+            self._write(traj)
+        except BaseException as exc:
+            raise self.abort(exc) from None
+
+    def _write(self, traj: Trajectory) -> None:
+        cols = trajectory_columns(traj, self.conv, path=self.path, first_row=self._rows + 1)
         if self.suffix != ".csv":            # (the CSV table writer applies the same guard)
             check_finite(self.path, {c: cols[c] for c in self.columns}, cols["time"], self._rows + 1, self.sigmas)
         self._rows += len(traj)
@@ -95,13 +110,13 @@ class TrajectoryWriter:
                 self._writer = CsvTableWriter(self._tmp, self.columns, self.sigmas, text_columns=text)
             self._writer.write(cols)
         else:
-            import pyarrow as pa
             import pyarrow.parquet as pq
             table = float64_table({c: cols[c] for c in self.columns})
             table = table.replace_schema_metadata({BODY_METADATA: BODY_NAMES[self.conv].encode()})
             if self._writer is None:
                 # no dictionary encoding: navigation floats hardly repeat, and it costs 2.4x the write time
-                self._writer = pq.ParquetWriter(self._tmp, table.schema, use_dictionary=False)
+                self._sink = native_path(self._tmp, "wb")
+                self._writer = pq.ParquetWriter(self._sink, table.schema, use_dictionary=False)
                 self._pool = ThreadPoolExecutor(1, thread_name_prefix="sins-parquet")
             self._wait()                      # in order; an error of the previous row group surfaces here
             self._pending = self._pool.submit(self._writer.write_table, table)   # pyarrow releases the GIL
@@ -117,31 +132,38 @@ class TrajectoryWriter:
             self._pool = None
 
     def close(self) -> None:
+        """Finish the file (the last row group or CSV slices, flushed) and hand it over."""
+        if not self._open:
+            return
         try:
             self._wait()
-        except BaseException as exc:       # the last row group failed: no output, as for any error
-            self.abort(exc)
-            raise
-        self._shutdown()
-        if self._writer is not None:
-            self._writer.close()
-        self._ctx.__exit__(None, None, None)
-
-    def abort(self, exc=None) -> None:
-        try:
-            self._wait()
-        except Exception:
-            pass
-        self._shutdown()
-        if self._writer is not None:
-            try:
+            self._shutdown()
+            if self._writer is not None:
                 self._writer.close()
-            except Exception:
-                pass
-        try:
-            self._ctx.__exit__(type(exc) if exc else RuntimeError, exc or RuntimeError("aborted"), None)
-        except BaseException:
-            pass
+                if self._sink is not None:
+                    closing_native(self._sink)
+            self._open = False
+            self._stage.done()
+        except BaseException as exc:        # a late write error (disk full at the last block): no output
+            raise self.abort(exc) from None
+
+    def abort(self, exc=None) -> BaseException | None:
+        """Remove the staged file; return the exception to raise (a file system fault as the write error)."""
+        if not self._open:
+            return exc
+        self._open = False
+        with contextlib.suppress(Exception):
+            self._wait()
+        self._shutdown()
+        if self._writer is not None:
+            with contextlib.suppress(Exception):
+                if isinstance(self._writer, CsvTableWriter):
+                    self._writer.discard()
+                else:
+                    self._writer.close()
+                if self._sink is not None:
+                    closing_native(self._sink)
+        return self._stage.fail(exc)
 
     def __enter__(self):
         return self
@@ -149,8 +171,10 @@ class TrajectoryWriter:
     def __exit__(self, et, ev, tb):
         if et is None:
             self.close()
-        else:
-            self.abort(ev)
+            return False
+        err = self.abort(ev)
+        if err is not None and err is not ev:
+            raise err from None
         return False
 
 
@@ -167,11 +191,13 @@ def write_trajectory(path, traj: Trajectory, conv: int = 0) -> None:
 
 
 def guard_trajectory(path, traj: Trajectory) -> None:
-    """The writer guard (:func:`sinscli.io.atomic.check_finite`) on a whole trajectory: every value finite,
-    every ``*_std`` column positive (the writers of :data:`WRITERS` rely on it)."""
+    """The writer guards (:func:`sinscli.io.atomic.check_finite`, :func:`~sinscli.io.atomic.output_lon_lat`) on a
+    whole trajectory: every value finite, every ``*_std`` column positive, every latitude within +-90 deg
+    (the writers of :data:`WRITERS` rely on it)."""
     check_finite(path, {"time": traj.time, "lat": traj.lat, "lon": traj.lon, "height": traj.height,
                         "velocity": traj.vel_n, "attitude": traj.Cbn, **traj.extra}, traj.time,
                  sigmas=[c for c in traj.extra if aided_columns.is_sigma(c)])
+    output_lon_lat(path, np.degrees(traj.lat), np.degrees(traj.lon), traj.time)    # no track over a pole
 
 
 def check_trajectory_output(path) -> Path:
@@ -193,7 +219,7 @@ def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) 
     Rows beyond the physical ``limits`` (the config's section; default: the defaults), Euler angles
     out of range and an attitude that is not a rotation are refused naming the row and column.  A file
     in ``frame`` NED (``vel_d``, attitude body -> NED) or with angles in radians (``to_deg``, the factor to
-    degrees) is read into FORMATS.md's ENU and degrees (:mod:`sinscli.frames`, the config's ``init``
+    degrees) is read into docs/formats.md's ENU and degrees (:mod:`sinscli.frames`, the config's ``init``
     and ``truth`` sections).
     """
     lim = limits_mod.resolve(limits)
@@ -201,7 +227,7 @@ def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) 
     if path.suffix.lower() == ".parquet":
         import pyarrow.parquet as pq
         try:
-            table = pq.read_table(path)
+            table = pq.read_table(native_path(path))
         except Exception as exc:
             raise SinsError(f"{path}: cannot read as Parquet ({type(exc).__name__})") from None
         header = table.column_names
@@ -264,9 +290,9 @@ def read_trajectory(path, limits=None, frame: str = "enu", to_deg: float = 1.0) 
 
 
 def body_from_angles(cbn, roll_deg, pitch_deg, heading_deg, rows: int = 64) -> int | None:
-    """The body convention under which the file's physical Euler angles (FORMATS.md roll, pitch, heading)
+    """The body convention under which the file's physical Euler angles (docs/formats.md roll, pitch, heading)
     give its attitude ``cbn``, from up to ``rows`` rows spread over the file: FLU, RFU or FRD, or None when
-    none fits within 1e-6 (a writer that does not follow FORMATS.md).  The three give different ``Cbn``
+    none fits within 1e-6 (a writer that does not follow docs/formats.md).  The three give different ``Cbn``
     for the same angles (a quarter turn about z, a half turn about x), so at most one fits."""
     n = cbn.shape[0]
     k = np.unique(np.linspace(0, n - 1, min(rows, n)).astype(np.int64))
@@ -293,7 +319,7 @@ def _read_body_column(path) -> int:
     """The ``body`` column of a trajectory CSV: one convention name, the same on every line."""
     import pyarrow.csv as pacsv
     try:
-        col = pacsv.read_csv(path, convert_options=pacsv.ConvertOptions(
+        col = pacsv.read_csv(native_path(path), convert_options=pacsv.ConvertOptions(
             include_columns=[BODY_COLUMN], column_types={BODY_COLUMN: pa.string()})).column(BODY_COLUMN)
     except (pa.ArrowInvalid, pa.ArrowTypeError, UnicodeDecodeError) as exc:
         raise SinsError(f"{path}: column '{BODY_COLUMN}': cannot read ({type(exc).__name__})") from None
@@ -315,7 +341,7 @@ def _check_columns(path, header, frame: str = "enu"):
     if missing:
         hint = " (a NED file: config frame: ned)" if frame != "ned" and "vel_d" in header else ""
         raise SinsError(f"{path}: missing trajectory column(s) {', '.join(missing)}; expected "
-                        f"{', '.join(required)} (FORMATS.md){hint}")
+                        f"{', '.join(required)} (docs/formats.md){hint}")
 
 
 # Result formats of other modules (MCAP for Foxglove/ROS, TUM for evo, GeoJSON and KML for maps).

@@ -23,7 +23,7 @@ from ..nav.earth import local_enu_to_lla
 from ..nav.rotation import cbn_from_flu, quat_to_dcm_many
 from ..types import Trajectory
 from . import limits as limits_mod
-from .atomic import atomic_path
+from .atomic import atomic_path, output_lon_lat
 from ..inputs import input_file
 from .local_frame import trajectory_enu_quat
 
@@ -42,12 +42,13 @@ def write_tum(path, traj: Trajectory, conv: int = 0) -> None:
         logging.getLogger("sins").warning("%s: the TUM format has 8 fixed columns; the column(s) %s are left out "
                                           "(write .csv, .parquet or .mcap to keep them)", path, ", ".join(traj.extra))
     cols = [_fmt(traj.time)] + [_fmt(enu[:, i]) for i in range(3)] + [_fmt(q[:, i]) for i in range(4)]
+    lat0, lon0 = output_lon_lat(path, np.degrees(origin[0]), np.degrees(origin[1]), traj.time[:1])
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding="ascii", newline="\n") as f:
             f.write("# sins trajectory, TUM format: time tx ty tz qx qy qz qw; position in a local ENU frame (m), "
                     "attitude of the FLU body axes in that frame\n")
-            f.write(f"# origin_lat_deg={float(np.degrees(origin[0]))!r} "
-                    f"origin_lon_deg={float(np.degrees(origin[1]))!r} origin_height_m={float(origin[2])!r}\n")
+            f.write(f"# origin_lat_deg={float(lat0)!r} "
+                    f"origin_lon_deg={float(lon0)!r} origin_height_m={float(origin[2])!r}\n")
             f.writelines(" ".join(row) + "\n" for row in zip(*cols))
 
 

@@ -1,4 +1,4 @@
-"""Earth model: WGS-84 ellipsoid, the FORMATS.md normal gravity, earth and transport rates.
+"""Earth model: WGS-84 ellipsoid, the docs/formats.md normal gravity, earth and transport rates.
 
 Each formula is written once, as a plain function of its arguments using only
 arithmetic and ``np.sqrt`` / ``np.sin`` / ``np.cos``; the ``*_py`` names are
@@ -28,7 +28,7 @@ def radii_py(sin_lat):
 
 
 def gravity_py(sin_lat, h):
-    """Normal gravity magnitude of FORMATS.md, m/s^2, acting along -Up.
+    """Normal gravity magnitude of docs/formats.md, m/s^2, acting along -Up.
 
     ``g = 9.7803267715 (1 + 0.0052790414 s^2 + 0.0000232718 s^4)
          + (-3.0876910891e-6 + 4.3977311e-9 s^2) h + 7.211e-13 h^2``
@@ -39,38 +39,76 @@ def gravity_py(sin_lat, h):
             + 0.0000000000007211 * h * h)
 
 
+def wrap_lon(lon, half=np.pi):
+    """Longitude wrapped into ``[-half, half)`` (``half`` = pi for radians, 180 for degrees): values already
+    there are returned unchanged, bit for bit; arrays or scalars.  Every writer and every reported
+    longitude goes through it (the antimeridian, RFC 7946, KML)."""
+    x = np.asarray(lon, dtype=np.float64)
+    inside = (x >= -half) & (x < half)
+    if np.all(inside):
+        return lon if np.ndim(lon) else float(x)
+    w = np.mod(x + half, 2.0 * half) - half
+    out = np.where(inside, x, np.where(w >= half, -half, w))
+    return out if np.ndim(lon) else float(out)
+
+
+def dlon(a, b, half=np.pi):
+    """``a - b`` of two longitudes taken modulo a full turn, into ``[-half, half]``: the east offset across
+    the antimeridian (179.9999 to -179.9999 deg is 0.0002 deg, not -359.9998).  The plain difference when it
+    is already within a half turn (the rounded count of turns is 0), so nothing changes away from the
+    antimeridian.  Arrays or scalars; :data:`dlon_nb` is the same function compiled for the kernels.
+    Residuals, ENU offsets, velocities from positions and comparisons use it."""
+    d = a - b
+    return d - 2.0 * half * np.round(d / (2.0 * half))
+
+
 radii = njit(cache=True)(radii_py)
+dlon_nb = njit(cache=True)(dlon)
 gravity = njit(cache=True)(gravity_py)
 
 
 @njit(cache=True)
-def earth_rate_n(lat):
-    """``w_ie^n = (0, W cos L, W sin L)`` in ENU, rad/s."""
+def earth_rate_sc(sin_lat, cos_lat):
+    """``w_ie^n = (0, W cos L, W sin L)`` in ENU, rad/s, from ``sin L`` and ``cos L``."""
     out = np.empty(3)
     out[0] = 0.0
-    out[1] = OMEGA_IE * np.cos(lat)
-    out[2] = OMEGA_IE * np.sin(lat)
+    out[1] = OMEGA_IE * cos_lat
+    out[2] = OMEGA_IE * sin_lat
+    return out
+
+
+@njit(cache=True)
+def earth_rate_n(lat):
+    """``w_ie^n`` (:func:`earth_rate_sc`) at latitude ``lat`` (rad)."""
+    return earth_rate_sc(np.sin(lat), np.cos(lat))
+
+
+@njit(cache=True)
+def transport_rate_sc(sin_lat, tan_lat, h, vel_n):
+    """``w_en^n = (-vN/(RM+h), vE/(RN+h), vE tan L/(RN+h))`` in ENU, rad/s, from ``sin L`` and ``tan L``
+    (the simulator passes its own, CPU-independent values: sinscli/sim/pinned.py)."""
+    rm, rn = radii(sin_lat)
+    out = np.empty(3)
+    out[0] = -vel_n[1] / (rm + h)
+    out[1] = vel_n[0] / (rn + h)
+    out[2] = vel_n[0] * tan_lat / (rn + h)
     return out
 
 
 @njit(cache=True)
 def transport_rate_n(lat, h, vel_n):
-    """``w_en^n = (-vN/(RM+h), vE/(RN+h), vE tan L/(RN+h))`` in ENU, rad/s."""
-    rm, rn = radii(np.sin(lat))
-    out = np.empty(3)
-    out[0] = -vel_n[1] / (rm + h)
-    out[1] = vel_n[0] / (rn + h)
-    out[2] = vel_n[0] * np.tan(lat) / (rn + h)
-    return out
+    """``w_en^n`` (:func:`transport_rate_sc`) at latitude ``lat`` (rad)."""
+    return transport_rate_sc(np.sin(lat), np.tan(lat), h, vel_n)
 
 
-def lla_to_ecef(lat, lon, h):
-    """Geodetic (radians, metres) to ECEF metres; arrays broadcast.  Returns (..., 3)."""
-    s = np.sin(lat)
+def lla_to_ecef(lat, lon, h, m=np):
+    """Geodetic (radians, metres) to ECEF metres; arrays broadcast.  Returns (..., 3).  ``m``: the module of
+    the trigonometric functions (numpy; the simulator's CPU-independent :mod:`sinscli.sim.pinned`)."""
+    s = m.sin(lat)
     _, rn = radii_py(s)
-    c = np.cos(lat)
-    return np.stack([(rn + h) * c * np.cos(lon),
-                     (rn + h) * c * np.sin(lon),
+    c = m.cos(lat)
+    return np.stack([(rn + h) * c * m.cos(lon),
+                     (rn + h) * c * m.sin(lon),
                      (rn * (1.0 - E2) + h) * s], axis=-1)
 
 
@@ -93,34 +131,35 @@ def enu_axes(lat, lon):
     return (-so, co, 0.0), (-sl * co, -sl * so, cl), (cl * co, cl * so, sl)
 
 
-def ecef_to_lla(xyz):
-    """ECEF metres (..., 3) to geodetic ``(lat, lon, h)`` (radians, metres).
+def ecef_to_lla(xyz, m=np):
+    """ECEF metres (..., 3) to geodetic ``(lat, lon, h)`` (radians, metres); ``m`` as for :func:`lla_to_ecef`.
 
     Bowring's start and three Newton-type refinements: below 1e-9 m for any
     terrestrial or near-space point.
     """
     xyz = np.asarray(xyz, dtype=float)
     x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
-    p = np.hypot(x, y)
-    lon = np.arctan2(y, x)
-    lat = np.arctan2(z, p * (1.0 - E2))
+    p = m.hypot(x, y)
+    lon = m.arctan2(y, x)
+    lat = m.arctan2(z, p * (1.0 - E2))
     for _ in range(5):
-        s = np.sin(lat)
+        s = m.sin(lat)
         _, rn = radii_py(s)
-        h = np.where(np.abs(np.cos(lat)) > 1e-8, p / np.maximum(np.cos(lat), 1e-300) - rn,
-                     np.abs(z) - B)
-        lat = np.arctan2(z, p * (1.0 - E2 * rn / (rn + h)))
-    s = np.sin(lat)
+        c = m.cos(lat)
+        h = np.where(np.abs(c) > 1e-8, p / np.maximum(c, 1e-300) - rn, np.abs(z) - B)
+        lat = m.arctan2(z, p * (1.0 - E2 * rn / (rn + h)))
+    s = m.sin(lat)
     _, rn = radii_py(s)
-    c = np.cos(lat)
+    c = m.cos(lat)
     h = p * c + z * s - A * A / rn
     return lat, lon, h
 
 
-def enu_rotation(lat, lon):
-    """``C_e^n`` rows (E, N, U) of the ENU frame at (lat, lon) in ECEF axes; (..., 3, 3)."""
-    sl, cl = np.sin(lat), np.cos(lat)
-    so, co = np.sin(lon), np.cos(lon)
+def enu_rotation(lat, lon, m=np):
+    """``C_e^n`` rows (E, N, U) of the ENU frame at (lat, lon) in ECEF axes; (..., 3, 3); ``m`` as for
+    :func:`lla_to_ecef`."""
+    sl, cl = m.sin(lat), m.cos(lat)
+    so, co = m.sin(lon), m.cos(lon)
     z = np.zeros_like(sl)
     e = np.stack([-so, co, z], axis=-1)
     n = np.stack([-sl * co, -sl * so, cl], axis=-1)
@@ -137,12 +176,12 @@ def lla_to_local_enu(lat, lon, h, lat0: float, lon0: float, h0: float) -> np.nda
 def enu_offset(lat, lon, h, lat0, lon0, h0) -> np.ndarray:
     """Small-angle offset (m, E N U; (..., 3)) of the point ``(lat, lon, h)`` from ``(lat0, lon0, h0)`` (rad, m):
     ``E = dlon (RN + h) cos lat``, ``N = dlat (RM + h)``, ``U = h - h0``, with the WGS-84 radii at the point
-    and the longitude difference wrapped into (-pi, pi].  Exact to first order in the offset (the error is
+    and the longitude difference taken by :func:`dlon`.  Exact to first order in the offset (the error is
     ~offset^2 / R: 1.6e-7 m at 1 m, 1.6 mm at 100 m); :func:`lla_to_local_enu` is the exact form."""
     lat = np.asarray(lat, dtype=float)
     rm, rn = radii_py(np.sin(lat))
-    dlon = np.angle(np.exp(1j * (np.asarray(lon) - lon0)))
-    return np.stack(np.broadcast_arrays(dlon * (rn + h) * np.cos(lat), (lat - lat0) * (rm + h), np.asarray(h) - h0),
+    east = dlon(np.asarray(lon, dtype=float), lon0)       # across the antimeridian
+    return np.stack(np.broadcast_arrays(east * (rn + h) * np.cos(lat), (lat - lat0) * (rm + h), np.asarray(h) - h0),
                     axis=-1)
 
 

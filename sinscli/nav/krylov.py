@@ -1,6 +1,6 @@
 """Attitude by extended (four) Krylov angles, and the classic three (seed 003).
 
-Formulas and section numbers are those of ``shared/docs/KRYLOV.md``, which
+Formulas and section numbers are those of ``docs/krylov.md``, which
 rebuilds the patent's lost equations.  The navigation frame is ENU and the
 body frame FLU (x forward, y left, z up); the caller turns other body
 conventions into FLU before calling.
@@ -65,7 +65,7 @@ SUBSTEP_ANGLE = substep_angle()
 
 @njit(cache=True, error_model="numpy")
 def wrap_pi(a):
-    """Angle ``a`` (rad) mapped to (-pi, pi] (``wrap`` of KRYLOV.md)."""
+    """Angle ``a`` (rad) mapped to (-pi, pi] (``wrap`` of docs/krylov.md)."""
     if -math.pi < a <= math.pi:
         return a
     return a - TWO_PI * math.ceil((a - math.pi) / TWO_PI)

@@ -131,8 +131,11 @@ class Navigator:
         t_init = self.init.time
         tol = time_tolerance(t_init)
         if self.first_time is None and len(imu):
-            start = imu.t0 if imu.t0 is not None else imu.time[0] - (
-                imu.time[1] - imu.time[0] if len(imu) > 1 else 0.0)
+            if imu.t0 is None and len(imu) == 1:
+                raise SinsError(f"{imu.source}: a single increment row (t = {float(imu.time[0])!r}): where its "
+                                "interval starts cannot be told (an increment file's first interval is taken as "
+                                "long as the second); give two rows or more")
+            start = imu.t0 if imu.t0 is not None else imu.time[0] - (imu.time[1] - imu.time[0])
             if t_init < start - tol:
                 raise SinsError(f"{imu.source}: the initial time {t_init!r} is before the log starts "
                                 f"({start!r}); the init must lie within the log")
@@ -225,6 +228,16 @@ class Navigator:
         if self.applied == 0:
             raise SinsError(f"{self._source}: no IMU sample after the initial time {self.init.time!r}: "
                             f"the init time is outside the log")
+        n, every = self.opts.subsamples, self.opts.every
+        if self.applied < n * every and not self.stopped:     # not one row after the initial one
+            if self.applied < n:
+                what = f"fewer than one attitude update of --subsamples {n} samples"
+            else:
+                what = (f"{self.applied // n:,} attitude update(s) of {n} sample(s), fewer than one output row "
+                        f"every {every} updates (--every)")
+            raise SinsError(f"{self._source}: {self.applied:,} IMU sample(s) after the initial time "
+                            f"{self.init.time!r} s: {what}; nothing would be navigated (navigation.subsamples and "
+                            f"navigation.every in the config)")
 
 
 def concat(parts: list[Trajectory]) -> Trajectory:

@@ -1,6 +1,6 @@
 """Rotation kernels: DCM, quaternion, rotation vector, Euler angles.
 
-Conventions (``FORMATS.md``): ``Cbn`` turns a body vector into ENU; the
+Conventions (``docs/formats.md``): ``Cbn`` turns a body vector into ENU; the
 quaternion ``q_b^n`` is scalar first and means the same rotation; Euler angles
 are physical (heading clockwise from north, pitch nose up, roll right side
 down) whatever the body convention.  Body conventions are coded as integers:
@@ -328,7 +328,7 @@ def _rz(a):
 
 @njit(cache=True)
 def euler_to_dcm(roll, pitch, heading, conv):
-    """``Cbn`` from physical Euler angles in radians (FORMATS.md).
+    """``Cbn`` from physical Euler angles in radians (docs/formats.md).
 
     For RFU axes ``Cbn = Rz(-heading) Rx(pitch) Ry(roll)``; other conventions
     follow through ``C_{conv}^{RFU}``.

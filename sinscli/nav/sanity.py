@@ -1,7 +1,7 @@
 """The mounting check of every ``sins navigate`` (issue 10): the specific force at rest against what the
 initial attitude predicts.
 
-At rest (or in unaccelerated motion) the accelerometers measure ``f^b = C_n^b (0, 0, g)`` (ENU, FORMATS.md):
+At rest (or in unaccelerated motion) the accelerometers measure ``f^b = C_n^b (0, 0, g)`` (ENU, docs/formats.md):
 the initial attitude ``Cbn`` predicts it, and a gross mismatch (tens of degrees) is not a sensor error but
 an axis mistake: a missing or wrong ``imu.mounting``, FRD data read as FLU (``imu.body``), or a wrong
 roll/pitch in the init.  Without an initial attitude (``--align`` takes it from the log), the body's up axis
@@ -16,7 +16,9 @@ import numpy as np
 
 from ..config import mounting_angles, mounting_matrix
 from ..conventions import FRD
+from ..errors import SinsError
 from ..types import time_tolerance
+from .earth import OMEGA_IE
 from .imu_stats import block_means
 from .rotation import rotvec_to_dcm
 
@@ -136,3 +138,120 @@ def mounting_warning(imu, t0: float, g: float, conv: int, cbn0, imu_cfg: dict) -
     k = int(np.searchsorted(imu.time, t0 + time_tolerance(t0), side="right"))
     return check_mounting(imu.time[k:], imu.dtheta_b[k:], imu.dvel_b[k:], t0, g, conv, cbn0,
                           mounting_matrix(imu_cfg.get("mounting")), str(imu.source or "IMU log"))
+
+
+# --- gyro units (issue 22) ---------------------------------------------------------------------------
+#
+# At rest the gyros measure the earth rate W (7.29e-5 rad/s) plus their bias.  Rates in deg/s read as rad/s
+# are 57.3 times that.  The window is "at rest" by the accelerometers: over it the specific force keeps its
+# direction to within STILL of the tilt that the declared horizontal rate would have turned it by (so the
+# rate is not a real rotation: a slow turn, a swaying base tilt it; a turn about the vertical is not used).
+# The data are then physically impossible as declared when either
+#   * the mean rate, read as deg/s, has the earth rate's geometry (its component along the up axis W sin L,
+#     the horizontal one W cos L, both within UNIT_MATCH W) while as declared it is at least
+#     UNIT_MIN_EXCESS earth rates (a good gyro's deg/s data), or
+#   * its horizontal part needs a bias beyond any shipped sensor's (BIAS_SIGMAS times the turn-on and
+#     in-run bias sigmas per axis of the 'mems' preset, the worst the project ships, or of the sensor
+#     description when that is looser: a wrong description never refuses real data), while read as deg/s
+#     the whole rate is within that bound.
+# A warning with a plausible-but-wrong trajectory is not enough: the run is refused, naming the unit to
+# set; --force accepts the data as declared (a gyro with a bias beyond every preset).
+
+UNIT_MATCH = 0.25          # of W: largest departure of (up, horizontal) of the rate/57.3 from the earth rate's
+UNIT_MIN_EXCESS = 10.0     # the declared mean rate at rest is at least this many earth rates
+STILL = 0.1                # the specific force turns by at most this fraction of the declared tilt rotation
+MIN_REST = 5.0             # s: the shortest rest window used
+BIAS_SIGMAS = 5.0          # the bias bound, in sigmas per axis (the norm bound is sqrt(3) times this)
+REST_AVERAGE = 60.0        # s: the rest average runs over at most this many consecutive rest seconds
+
+
+def rest_mean_rate(time, dtheta_b, dvel_b, t0: float, g: float):
+    """``(w_b, f_b, seconds, start, turned)``: the mean angular rate and specific force over the first run
+    of consecutive rest-like seconds (:func:`rest_window`'s test) of the first :data:`SEARCH` s, at most
+    :data:`REST_AVERAGE` s long, and the angle (rad) by which the specific force turned from its first to
+    its last second; None without one."""
+    time = np.asarray(time, dtype=float)
+    sel = time <= t0 + SEARCH + REST_AVERAGE
+    if sel.sum() < 2 or time[sel][-1] - t0 < 1.0:
+        return None
+    w, f = block_means(time[sel], np.asarray(dtheta_b)[sel], np.asarray(dvel_b)[sel], t0, 1.0)
+    rest = (np.linalg.norm(w, axis=1) < REST_RATE) & (np.abs(np.linalg.norm(f, axis=1) - g) < REST_FORCE * g)
+    idx = np.flatnonzero(rest)
+    if idx.size == 0 or idx[0] > SEARCH:
+        return None
+    k0 = k1 = int(idx[0])
+    while k1 + 1 < rest.size and rest[k1 + 1] and k1 + 1 - k0 < REST_AVERAGE:
+        k1 += 1
+    turned = _angle(f[k0], f[k1]) * math.pi / 180.0          # the specific force's turn over the window, rad
+    return w[k0:k1 + 1].mean(axis=0), f[k0:k1 + 1].mean(axis=0), float(k1 + 1 - k0), t0 + k0, turned
+
+
+def gyro_bias_bound(sensor: dict | None) -> float:
+    """rad/s: the largest norm of a gyro bias (:data:`BIAS_SIGMAS` sigmas per axis) of the 'mems' preset, or
+    of the sensor description when that allows more."""
+    from ..sensors import load_sensor   # PyYAML: only when a gyro-unit check needs the presets
+
+    def bound(s):
+        gyro = (s or {}).get("gyro") or {}
+        sig = np.hypot(np.asarray(gyro.get("bias_sigma", 0.0), dtype=float),
+                       np.asarray(gyro.get("bias_instability", 0.0), dtype=float)) * np.ones(3)
+        return float(BIAS_SIGMAS * np.linalg.norm(sig))
+    return max(bound(load_sensor("mems", None, "preset", None)), bound(sensor))
+
+
+def gyro_unit_refusal(time, dtheta_b, dvel_b, t0: float, g: float, lat: float | None, declared: str,
+                      source: str, sensor: dict | None = None, fix: str | None = None) -> str | None:
+    """The refusal text when a log's gyros, read in ``declared`` units (``rad/s``, or ``rad`` for
+    increments), are physically impossible at rest but plausible in deg/s (see above); else None.
+    ``lat`` (rad; None: unknown) enables the earth-rate geometry; ``fix`` is what to do instead of the
+    config key (a ROS log, whose messages are rad/s by definition)."""
+    if declared not in ("rad/s", "rad"):
+        return None
+    found = rest_mean_rate(time, dtheta_b, dvel_b, t0, g)
+    if found is None:
+        return None
+    w_b, f_b, seconds, start, turned = found
+    if seconds < MIN_REST:
+        return None
+    up = f_b / np.linalg.norm(f_b)
+    w_h = float(np.linalg.norm(w_b - float(w_b @ up) * up))   # the declared rate that would tilt the body
+    if turned > STILL * w_h * seconds:                     # the accelerometers see (part of) that rotation
+        return None
+    as_deg = w_b * math.pi / 180.0                       # the same numbers read as deg/s
+    norm, norm_deg = float(np.linalg.norm(w_b)), float(np.linalg.norm(as_deg))
+    bound = gyro_bias_bound(sensor)
+    why = None
+    if lat is not None and norm >= UNIT_MIN_EXCESS * OMEGA_IE:
+        v_up = float(as_deg @ up)
+        v_h = float(np.linalg.norm(as_deg - v_up * up))
+        if math.hypot(v_up - OMEGA_IE * math.sin(lat), v_h - OMEGA_IE * math.cos(lat)) <= UNIT_MATCH * OMEGA_IE:
+            why = (f"{norm / OMEGA_IE:.0f} times the earth rate; read as deg/s they are the earth rate ({v_up:.3g} "
+                   f"rad/s up, {v_h:.3g} horizontal; expected {OMEGA_IE * math.sin(lat):.3g}, "
+                   f"{OMEGA_IE * math.cos(lat):.3g})")
+    if why is None and w_h > bound + OMEGA_IE and norm_deg <= bound + OMEGA_IE:
+        why = (f"{w_h:.3g} rad/s of it horizontal while the specific force stays put ({turned:.2g} rad in "
+               f"{seconds:.0f} s): a bias beyond every shipped sensor's bound of {bound:.3g} rad/s; read as deg/s "
+               f"they are {norm_deg:.3g} rad/s, within it")
+    if why is None:
+        return None
+    key, unit = ("imu.units.gyro", "deg/s") if declared == "rad/s" else ("imu.units.dtheta", "deg")
+    todo = fix or f"set {key}: {unit} in the config"
+    return (f"{source}: gyro units: at rest ({seconds:.0f} s from t = {start:.6g} s) the gyros read {norm:.3g} "
+            f"{declared if declared == 'rad/s' else 'rad/s'} as declared, {why}: the data are in {unit}; {todo} "
+            f"(--force takes them as {declared})")
+
+
+def gyro_unit_check(imu, t0: float, g: float, lat: float | None, imu_cfg: dict, sensor: dict | None = None,
+                    force: bool = False, ros: bool = False) -> None:
+    """Refuse (:func:`gyro_unit_refusal`) an IMU block read with the config's ``imu`` section, unless ``force``.
+    ``ros``: the log is a ROS/MCAP log (sensor_msgs/Imu is rad/s; no unit key applies)."""
+    if force or len(imu) < 2:
+        return
+    units = (imu_cfg or {}).get("units") or {}
+    declared = "rad/s" if ros else (units.get("gyro", "rad/s") if imu.kind == "rates" else units.get("dtheta", "rad"))
+    k = int(np.searchsorted(imu.time, t0, side="right"))
+    fix = "the publisher writes deg/s where sensor_msgs/Imu holds rad/s: convert the log" if ros else None
+    text = gyro_unit_refusal(imu.time[k:], imu.dtheta_b[k:], imu.dvel_b[k:], t0, g, lat, declared,
+                             str(imu.source or "IMU log"), sensor, fix)
+    if text:
+        raise SinsError(text)

@@ -111,7 +111,7 @@ def new_state(time, lat, lon, h, vel_n, cbn, method=ATT_QUAT, conv=0, krylov_sub
     """A fresh state vector at the initial time (radians, metres, ENU).
 
     For the angle methods the angles are initialized from ``Cbn`` in FLU axes
-    (KRYLOV.md 4.8; the 3-angle extraction of 2.4); ``krylov_substep_tol`` is the
+    (docs/krylov.md 4.8; the 3-angle extraction of 2.4); ``krylov_substep_tol`` is the
     relative RK4 truncation allowed per interval (``navigation.krylov_substep_tol``).
     """
     st = np.zeros(STATE_SIZE)
@@ -332,7 +332,7 @@ def _att_dcm(st, phi, zeta):
 
 @njit(cache=True, inline="always")
 def _angle_update(st, method, alpha, alpha_prev, zeta, cflu, integrator, t_start, events, n_ev):
-    """Seed 003 angle methods over one interval (KRYLOV.md 4.6, 2.4), in FLU axes.
+    """Seed 003 angle methods over one interval (docs/krylov.md 4.6, 2.4), in FLU axes.
 
     ``alpha``/``alpha_prev`` are the raw summed body increments of this and the
     previous interval (the two-sample rate model does the coning part, so the
@@ -351,7 +351,7 @@ def _angle_update(st, method, alpha, alpha_prev, zeta, cflu, integrator, t_start
 
 @njit(cache=True)
 def _angle_krylov(st, alpha, alpha_prev, zeta, cflu, t_start, events, n_ev):
-    """The four-angle update of :func:`_angle_update` (KRYLOV.md 4.6); returns the event count."""
+    """The four-angle update of :func:`_angle_update` (docs/krylov.md 4.6); returns the event count."""
     a_f = m_vec(cflu, alpha)
     p_f = m_vec(cflu, alpha_prev)
     ang = (st[S_ANG], st[S_ANG + 1], st[S_ANG + 2], st[S_ANG + 3])
@@ -378,7 +378,7 @@ def _angle_krylov(st, alpha, alpha_prev, zeta, cflu, t_start, events, n_ev):
 
 @njit(cache=True)
 def _angle_euler(st, alpha, alpha_prev, zeta, cflu, integrator, t_start):
-    """The three-angle update of :func:`_angle_update` (KRYLOV.md 2.4)."""
+    """The three-angle update of :func:`_angle_update` (docs/krylov.md 2.4)."""
     a_f = m_vec(cflu, alpha)
     p_f = m_vec(cflu, alpha_prev)
     ang3 = (st[S_ANG], st[S_ANG + 1], st[S_ANG + 2])

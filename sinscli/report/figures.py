@@ -12,6 +12,7 @@ envelope per pixel column, so every peak stays visible.
 from __future__ import annotations
 
 import textwrap
+import warnings
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -106,6 +107,14 @@ def _angle_unit(lines: dict[str, dict]) -> tuple[str, float]:
     return ("arcsec", _DEG * 3600.0) if peak * _DEG < 1.0 / 60.0 else ("deg", _DEG)
 
 
+def _tight(fig: Figure) -> None:
+    """``tight_layout``, quietly: with a very long method name the margins cannot fit and matplotlib would
+    print a warning on stderr; the figure is then drawn as laid out."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        fig.tight_layout()
+
+
 def _save(fig: Figure, path) -> None:
     FigureCanvasAgg(fig)
     with atomic_path(path, suffix=".png") as tmp:
@@ -168,7 +177,7 @@ def plot_attitude(outdir, lines: dict[str, dict], title: str = "") -> list[str]:
         ax.set_ylabel(f"truth - navigation ({unit})")
         _title(ax, title, label)
         _legend(ax, len(lines))
-        fig.tight_layout()
+        _tight(fig)
         _save(fig, outdir / fname)
         names.append(fname)
     fig = Figure(figsize=(8, 4))
@@ -180,7 +189,7 @@ def plot_attitude(outdir, lines: dict[str, dict], title: str = "") -> list[str]:
     ax.set_ylabel(f"angle ({unit})")
     _title(ax, title, "Attitude error angle |phi| (log scale)")
     _legend(ax, len(lines))
-    fig.tight_layout()
+    _tight(fig)
     _save(fig, outdir / "att_angle.png")
     return names + ["att_angle.png"]
 
@@ -194,7 +203,7 @@ def _three_panel(outdir, fname, lines, prefix, unit, what, title) -> str:
     _title(axes[0], title, f"{what} error, truth - navigation")
     _legend(axes[0], len(lines))
     axes[-1].set_xlabel("time (s)")
-    fig.tight_layout()
+    _tight(fig)
     _save(fig, outdir / fname)
     return fname
 
@@ -228,7 +237,7 @@ def plot_metrics(outdir, results: dict, title: str = "", frame: str = "") -> lis
                + ("" if next(iter(ate.values())).alignment.mode == "none"
                   else f" after {next(iter(ate.values())).alignment.mode} alignment"))
         ax.legend(fontsize=8)
-        fig.tight_layout()
+        _tight(fig)
         _save(fig, outdir / "ate.png")
         names.append("ate.png")
     rpe = {m: r for m, r in results.items() if r.rpe_i is not None}
@@ -247,7 +256,7 @@ def plot_metrics(outdir, results: dict, title: str = "", frame: str = "") -> lis
         axes[-1].set_xlabel("time at the pair's end (s)")
         _title(axes[0], title, "Relative pose error per pair")
         axes[0].legend(fontsize=8)
-        fig.tight_layout()
+        _tight(fig)
         _save(fig, outdir / "rpe.png")
         names.append("rpe.png")
     first = next(iter(results.values()))
@@ -265,6 +274,6 @@ def plot_metrics(outdir, results: dict, title: str = "", frame: str = "") -> lis
     ax.set_ylabel("y / north (m)")
     _title(ax, title, "Plan view" + (f": {frame}" if frame and len(frame) < 60 else ""))
     ax.legend(fontsize=8)
-    fig.tight_layout()
+    _tight(fig)
     _save(fig, outdir / "trajectory_xy.png")
     return names + ["trajectory_xy.png"]

@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from . import pinned as pm
+
 
 def gauss_markov(phi, sigma_w, b0, w):
     """First-order Gauss-Markov sequence (N, 3): ``b[k] = phi b[k-1] + sigma_w w[k]``, ``b[-1] = b0``
@@ -98,12 +100,12 @@ def corrupt(inc: np.ndarray, dt: np.ndarray, spec: dict, seedseq: np.random.Seed
     if "misalignment_sigma" in spec:
         mis += spec["misalignment_sigma"] * rng_mis.standard_normal(6)
     M = np.eye(3) + np.diag(sf) + _misalignment_matrix(mis)
-    out = inc @ M.T + bias[None, :] * dt[:, None]
+    out = pm.matmul(inc, M.T) + bias[None, :] * dt[:, None]
     gm = None
     if "bias_instability" in spec and np.any(spec["bias_instability"] > 0):
         sig, tau = spec["bias_instability"], spec["bias_tau"]
         dtm = float(np.mean(dt))
-        phi = np.exp(-dtm / tau)
+        phi = pm.exp(-dtm / tau)
         b0 = sig * rng_gm.standard_normal(3)
         gm = gauss_markov(phi, sig * np.sqrt(1.0 - phi * phi), b0, rng_gm.standard_normal((n, 3)))
         out += gm * dt[:, None]

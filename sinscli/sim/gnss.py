@@ -21,6 +21,7 @@ import numpy as np
 
 from ..nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef, radii_py
 from ..types import GnssLog
+from . import pinned as pm
 from .errors import gauss_markov_times
 from .imu_synth import transport_rate_many
 
@@ -39,15 +40,15 @@ def antenna_truth(lat, lon, h, vel_n, cbn, w_nb_b, lever_b):
     lever_b = np.asarray(lever_b, dtype=float)
     if not np.any(lever_b):
         return lat, lon, h, vel_n
-    c_en = enu_rotation(lat, lon)                                # C_e^n (n, 3, 3)
-    l_n = cbn @ lever_b
-    r_a = lla_to_ecef(lat, lon, h) + np.einsum("nij,ni->nj", c_en, l_n)   # C_n^e = (C_e^n)^T
-    lat_a, lon_a, h_a = ecef_to_lla(r_a)
+    c_en = enu_rotation(lat, lon, m=pm)                          # C_e^n (n, 3, 3)
+    l_n = pm.matmul(cbn, lever_b)
+    r_a = lla_to_ecef(lat, lon, h, m=pm) + np.einsum("nij,ni->nj", c_en, l_n)   # C_n^e = (C_e^n)^T
+    lat_a, lon_a, h_a = ecef_to_lla(r_a, m=pm)
     w_en = transport_rate_many(lat, h, vel_n)
     w_eb = w_nb_b + np.einsum("nji,nj->ni", cbn, w_en)          # C_n^b w_en^n
     v_a_n = vel_n + np.einsum("nij,nj->ni", cbn, np.cross(w_eb, lever_b))
     v_a_e = np.einsum("nij,ni->nj", c_en, v_a_n)
-    v_a = np.einsum("nij,nj->ni", enu_rotation(lat_a, lon_a), v_a_e)
+    v_a = np.einsum("nij,nj->ni", enu_rotation(lat_a, lon_a, m=pm), v_a_e)
     return lat_a, lon_a, h_a, v_a
 
 
@@ -60,9 +61,9 @@ def make_gnss(tau, t0, lat, lon, h, vel_n, cfg: dict, rng: np.random.Generator |
     if rng is not None:
         e_pos = _noise(rng.standard_normal((n, 3)), tau, pos_sig, cfg.get("pos_tau"))
         e_vel = _noise(rng.standard_normal((n, 3)), tau, vel_sig, cfg.get("vel_tau"))
-        rm, rn = radii_py(np.sin(lat))
+        rm, rn = radii_py(pm.sin(lat))
         lat += e_pos[:, 1] / (rm + h)
-        lon += e_pos[:, 0] / ((rn + h) * np.cos(lat))
+        lon += e_pos[:, 0] / ((rn + h) * pm.cos(lat))
         h += e_pos[:, 2]
         vel += e_vel
     rep_pos, rep_vel = cfg.get("reported_pos_sigma"), cfg.get("reported_vel_sigma")

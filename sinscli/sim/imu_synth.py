@@ -3,7 +3,7 @@
     w_ib^b = w_nb^b + C_n^b (w_ie^n + w_en^n)
     f^b    = C_n^b (dv^n/dt + (2 w_ie^n + w_en^n) x v^n - g^n)
 
-(the strapdown attitude and velocity equations, seed 004 / ALGORITHMS.md,
+(the strapdown attitude and velocity equations, seed 004 / docs/algorithms.md,
 solved for the sensor outputs), ENU navigation frame, FLU body axes.
 ``w_nb^b`` comes from the attitude jet: ``[w_nb^b x] = C_n^b dCbn/dt``.
 """
@@ -12,20 +12,21 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..nav.earth import earth_rate_n, enu_rotation, gravity_py, lla_to_ecef, plumb_gravity_py, transport_rate_n
+from ..nav.earth import earth_rate_sc, enu_rotation, gravity_py, lla_to_ecef, plumb_gravity_py, transport_rate_sc
 from ..nav.rotation import cross, mtv3
+from . import pinned as pm
 from .jets import vee
 
 
 def body_rate_nb(cbn: np.ndarray, dcbn: np.ndarray) -> np.ndarray:
     """``w_nb^b`` (n, 3) rad/s from ``Cbn`` and its time derivative (n, 3, 3): ``vee(Cbn^T dCbn/dt)``."""
-    return vee(np.matmul(np.swapaxes(cbn, -1, -2), dcbn))
+    return vee(pm.matmul(np.swapaxes(cbn, -1, -2), dcbn))
 
 
 def normal_gravity_n(lat: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """``g^n = (0, 0, -g(L, h))`` (n, 3), the FORMATS.md normal gravity along the ellipsoid normal."""
+    """``g^n = (0, 0, -g(L, h))`` (n, 3), the docs/formats.md normal gravity along the ellipsoid normal."""
     out = np.zeros(np.shape(lat) + (3,))
-    out[..., 2] = -gravity_py(np.sin(lat), h)
+    out[..., 2] = -gravity_py(pm.sin(lat), h)
     return out
 
 
@@ -38,29 +39,35 @@ def j2_gravity_n(lat: np.ndarray, h: np.ndarray) -> np.ndarray:
     """
     lat = np.asarray(lat, dtype=float)
     zero = np.zeros_like(lat)
-    r = lla_to_ecef(lat, zero, h)
+    r = lla_to_ecef(lat, zero, h, m=pm)
     g = np.stack(plumb_gravity_py(r[..., 0], r[..., 1], r[..., 2]), axis=-1)
-    return np.einsum("...ij,...j->...i", enu_rotation(lat, zero), g)
+    return np.einsum("...ij,...j->...i", enu_rotation(lat, zero, m=pm), g)
 
 
 # Gravity models ``g^n(lat, h)`` (n, 3) selectable by a scenario's ``gravity`` key.
 GRAVITY_MODELS = {"normal": normal_gravity_n, "j2": j2_gravity_n}
 
 
-@njit(cache=True)
 def sensor_outputs(lat, h, vel_n, acc_n, cbn, w_nb_b, g_n):
     """``(w_ib^b, f^b)`` (n, 3) each from the navigation-frame kinematics at n instants.
 
     ``lat`` rad, ``h`` m, ``vel_n`` / ``acc_n`` ENU m/s and m/s^2 (``acc_n`` is
     ``dv^n/dt`` of the ENU components), ``cbn`` (n, 3, 3), ``w_nb_b`` rad/s,
-    ``g_n`` m/s^2 ENU.
+    ``g_n`` m/s^2 ENU.  The latitude's sine, cosine and tangent are the pinned ones (not the C library's,
+    whose last bits depend on the CPU).
     """
-    n = lat.shape[0]
+    lat = np.asarray(lat, dtype=np.float64)
+    return _sensor_outputs(pm.sin(lat), pm.cos(lat), pm.tan(lat), h, vel_n, acc_n, cbn, w_nb_b, g_n)
+
+
+@njit(cache=True)
+def _sensor_outputs(sin_lat, cos_lat, tan_lat, h, vel_n, acc_n, cbn, w_nb_b, g_n):
+    n = sin_lat.shape[0]
     w_ib = np.empty((n, 3))
     f_b = np.empty((n, 3))
     for k in range(n):
-        wie = earth_rate_n(lat[k])
-        wen = transport_rate_n(lat[k], h[k], vel_n[k])
+        wie = earth_rate_sc(sin_lat[k], cos_lat[k])
+        wen = transport_rate_sc(sin_lat[k], tan_lat[k], h[k], vel_n[k])
         w_in = wie + wen
         w_ib[k] = w_nb_b[k] + mtv3(cbn[k], w_in)
         a = acc_n[k] + cross(2.0 * wie + wen, vel_n[k]) - g_n[k]
@@ -68,11 +75,16 @@ def sensor_outputs(lat, h, vel_n, acc_n, cbn, w_nb_b, g_n):
     return w_ib, f_b
 
 
-@njit(cache=True)
 def transport_rate_many(lat, h, vel_n):
-    """``w_en^n`` (n, 3) at n instants (:func:`sinscli.nav.earth.transport_rate_n` per row)."""
-    n = lat.shape[0]
+    """``w_en^n`` (n, 3) at n instants (:func:`sinscli.nav.earth.transport_rate_sc` per row, pinned trigonometry)."""
+    lat = np.asarray(lat, dtype=np.float64)
+    return _transport_rate_many(pm.sin(lat), pm.tan(lat), h, vel_n)
+
+
+@njit(cache=True)
+def _transport_rate_many(sin_lat, tan_lat, h, vel_n):
+    n = sin_lat.shape[0]
     out = np.empty((n, 3))
     for k in range(n):
-        out[k] = transport_rate_n(lat[k], h[k], vel_n[k])
+        out[k] = transport_rate_sc(sin_lat[k], tan_lat[k], h[k], vel_n[k])
     return out

@@ -7,11 +7,14 @@ the derivatives exactly (Leibniz and chain rule), through
 ``__array_ufunc__``, so that plain formulas written for numpy arrays, such as
 :func:`sinscli.nav.earth.radii_py` and :func:`sinscli.nav.earth.gravity_py`,
 run unchanged on jets.  This is forward-mode automatic differentiation: the
-derivatives are exact to rounding, never finite differences.
+derivatives are exact to rounding, never finite differences.  The values of the functions and the
+matrix products are those of :mod:`sinscli.sim.pinned` (the same bits on every CPU).
 """
 from __future__ import annotations
 
 import numpy as np
+
+from . import pinned as pm
 
 _BINOM = ((1,), (1, 1), (1, 2, 1))
 
@@ -134,14 +137,14 @@ class Jet:
             return np.exp(p * np.log(self))
         p = float(p)
         x = self.c[0]
-        return _compose(self, lambda: x ** p, lambda: p * x ** (p - 1.0),
-                        lambda: p * (p - 1.0) * x ** (p - 2.0))
+        return _compose(self, lambda: pm.power(x, p), lambda: p * pm.power(x, p - 1.0),
+                        lambda: p * (p - 1.0) * pm.power(x, p - 2.0))
 
     def __matmul__(self, other):
-        return _mul(self, other, np.matmul)
+        return _mul(self, other, pm.matmul)
 
     def __rmatmul__(self, other):
-        return _mul(other, self, np.matmul)
+        return _mul(other, self, pm.matmul)
 
     # ---- numpy functions ----------------------------------------------
     def __array_ufunc__(self, ufunc, method, *inputs, **kwargs):
@@ -211,18 +214,18 @@ def _reciprocal(g: Jet) -> Jet:
 
 def _sin(g):
     x = g.c[0]
-    s = np.sin(x)
-    return _compose(g, lambda: s, lambda: np.cos(x), lambda: -s)
+    s = pm.sin(x)
+    return _compose(g, lambda: s, lambda: pm.cos(x), lambda: -s)
 
 
 def _cos(g):
     x = g.c[0]
-    c = np.cos(x)
-    return _compose(g, lambda: c, lambda: -np.sin(x), lambda: -c)
+    c = pm.cos(x)
+    return _compose(g, lambda: c, lambda: -pm.sin(x), lambda: -c)
 
 
 def _tan(g):
-    t = np.tan(g.c[0])
+    t = pm.tan(g.c[0])
     sec2 = 1.0 + t * t
     return _compose(g, lambda: t, lambda: sec2, lambda: 2.0 * t * sec2)
 
@@ -230,7 +233,7 @@ def _tan(g):
 def _arctan(g):
     x = g.c[0]
     r = 1.0 / (1.0 + x * x)
-    return _compose(g, lambda: np.arctan(x), lambda: r, lambda: -2.0 * x * r * r)
+    return _compose(g, lambda: pm.arctan(x), lambda: r, lambda: -2.0 * x * r * r)
 
 
 def _sqrt(g):
@@ -239,13 +242,13 @@ def _sqrt(g):
 
 
 def _exp(g):
-    e = np.exp(g.c[0])
+    e = pm.exp(g.c[0])
     return _compose(g, lambda: e, lambda: e, lambda: e)
 
 
 def _log(g):
     x = g.c[0]
-    return _compose(g, lambda: np.log(x), lambda: 1.0 / x, lambda: -1.0 / (x * x))
+    return _compose(g, lambda: pm.log(x), lambda: 1.0 / x, lambda: -1.0 / (x * x))
 
 
 def _square(g):
@@ -257,7 +260,7 @@ def _arctan2(y, x):
     n = max(y.order if isinstance(y, Jet) else 0, x.order if isinstance(x, Jet) else 0)
     y, x = _lift(y, n), _lift(x, n)
     n = min(y.order, x.order)
-    c = [np.arctan2(y.c[0], x.c[0])]
+    c = [pm.arctan2(y.c[0], x.c[0])]
     if n >= 1:
         r2 = x.c[0] * x.c[0] + y.c[0] * y.c[0]
         num = x.c[0] * y.c[1] - y.c[0] * x.c[1]
@@ -283,10 +286,10 @@ _BINARY = {
     np.add: _add,
     np.subtract: lambda a, b: _add(a, _neg(b)),
     np.multiply: lambda a, b: _mul(a, b, np.multiply),
-    np.matmul: lambda a, b: _mul(a, b, np.matmul),
+    np.matmul: lambda a, b: _mul(a, b, pm.matmul),
     np.true_divide: _true_divide,
     np.arctan2: _arctan2,
-    np.power: lambda a, b: a ** b if isinstance(a, Jet) else np.exp(b * np.log(a)),
+    np.power: lambda a, b: a ** b if isinstance(a, Jet) else np.exp(b * pm.log(a)),
 }
 
 

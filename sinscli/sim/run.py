@@ -10,6 +10,7 @@ from ..errors import SinsError
 from ..nav.rotation import conv_to_flu
 from ..sensors import load_sensor
 from ..types import BodyVelLog, GnssLog, ImuLog, NavState, Trajectory
+from . import pinned as pm
 from . import truth as truth_mod
 from .errors import apply_imu_errors, gnss_seedseq
 from .gnss import antenna_truth, gnss_times, make_gnss
@@ -106,12 +107,12 @@ def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: d
     c_flu_conv = conv_to_flu(conv).T.copy()          # C_FLU^conv
     idx = td.imu_idx
     tau = td.tau[idx]
-    cbn = td.cbn[idx] @ conv_to_flu(conv)            # Cbn_conv = Cbn_FLU C_conv^FLU
+    cbn = pm.matmul(td.cbn[idx], conv_to_flu(conv))  # Cbn_conv = Cbn_FLU C_conv^FLU
     truth = Trajectory(time=sc.t0 + tau, lat=td.lat[idx], lon=td.lon[idx], height=td.h[idx],
                        vel_n=td.vel_n[idx], Cbn=cbn, source=f"simulate:{sc.name}")
-    c_out = c_flu_conv.T if sc.mounting is None else c_flu_conv.T @ sc.mounting   # rows: FLU body -> sensor
-    dtheta = td.dtheta_b @ c_out
-    dvel = td.dvel_b @ c_out
+    c_out = c_flu_conv.T if sc.mounting is None else pm.matmul(c_flu_conv.T, sc.mounting)  # rows: FLU body -> sensor
+    dtheta = pm.matmul(td.dtheta_b, c_out)
+    dvel = pm.matmul(td.dvel_b, c_out)
     realized = {}
     if sensor and (sensor.get("gyro") or sensor.get("accel")):
         dtheta, dvel, realized = apply_imu_errors(dtheta, dvel, np.diff(tau), sensor, seed)
@@ -119,7 +120,7 @@ def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: d
                  source=f"simulate:{sc.name}", kind="increments")
     rates = imu_rates(sc, td, c_out, sensor, seed) if sc.imu_output == "rates" else None
     gi = np.searchsorted(td.tau, tau_g)
-    lever_flu = conv_to_flu(conv) @ sc.gnss["lever_arm"]
+    lever_flu = pm.matmul(conv_to_flu(conv), sc.gnss["lever_arm"])
     lat_a, lon_a, h_a, v_a = antenna_truth(td.lat[gi], td.lon[gi], td.h[gi], td.vel_n[gi], td.cbn[gi],
                                            td.w_nb_b[gi], lever_flu)
     rng = None if perfect else np.random.default_rng(gnss_seedseq(seed))
@@ -141,28 +142,26 @@ SIM_FILES = ("imu.csv", "gnss.csv", "truth.csv", "init.yaml", "sim_truth.yaml")
 
 def write_sim(result: SimResult, outdir) -> list[Path]:
     """Write ``imu.csv``, ``gnss.csv``, ``truth.csv``, ``init.yaml``, ``sim_truth.yaml`` (and ``odom.csv``
-    with odometry) into ``outdir`` (FORMATS.md, docs/simulate.md).
+    with odometry) into ``outdir`` (docs/formats.md, docs/simulate.md).
 
-    Each file is written atomically by the project's writers.  Returns the paths.
+    The files are one set (:func:`sinscli.io.atomic.staged_dir`): all of them replace an earlier
+    set, or none does (a full disk never pairs new IMU data with an old truth).  Returns the paths.
     """
+    from ..io.atomic import staged_dir
     from ..io.gnss_csv import write_gnss_csv
     from ..io.init_state import write_init_yaml
     from ..io.trajectory import write_trajectory
     from .logs import write_imu_log, write_odometry, write_record
 
-    from ..io.atomic import prepare_output
     out = Path(outdir)
-    paths = [out / name for name in SIM_FILES] + ([out / "odom.csv"] if result.odometry is not None else [])
-    for p in paths:                             # all checked before any is written (e.g. not an input)
-        prepare_output(p)
-    out.mkdir(parents=True, exist_ok=True)
-    write_imu_log(paths[0], result)
-    write_gnss_csv(paths[1], result.gnss)
-    write_trajectory(paths[2], result.truth, conv=result.conv)
-    extra = {"scenario": result.name, "seed": result.seed, "perfect": result.perfect,
-             "body": ("flu", "rfu", "frd")[result.conv], "launch": result.launch}
-    write_init_yaml(paths[3], result.init, result.conv, extra)
-    write_record(paths[4], result.record)
-    if result.odometry is not None:
-        write_odometry(paths[5], result.odometry)
-    return paths
+    with staged_dir(out, owned=SIM_FILES + ("odom.csv",)) as tmp:
+        write_imu_log(tmp / SIM_FILES[0], result)
+        write_gnss_csv(tmp / SIM_FILES[1], result.gnss)
+        write_trajectory(tmp / SIM_FILES[2], result.truth, conv=result.conv)
+        extra = {"scenario": result.name, "seed": result.seed, "perfect": result.perfect,
+                 "body": ("flu", "rfu", "frd")[result.conv], "launch": result.launch}
+        write_init_yaml(tmp / SIM_FILES[3], result.init, result.conv, extra)
+        write_record(tmp / SIM_FILES[4], result.record)
+        if result.odometry is not None:
+            write_odometry(tmp / "odom.csv", result.odometry)
+    return [out / name for name in SIM_FILES] + ([out / "odom.csv"] if result.odometry is not None else [])

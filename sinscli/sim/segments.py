@@ -17,7 +17,7 @@ acceleration), and analytic inside a primitive.
 
 Attitude and velocity (FLU body axes, ENU navigation frame):
 
-    Cbn = Rz(-heading) Rx(pitch) Ry(roll) C_FLU^RFU P(t)     (FORMATS.md Euler chain)
+    Cbn = Rz(-heading) Rx(pitch) Ry(roll) C_FLU^RFU P(t)     (docs/formats.md Euler chain)
     v^n = speed (sin hdg cos pitch, cos hdg cos pitch, sin pitch) + d'(t) u^n
 
 so the velocity is along the path's forward axis (no sideslip or angle of

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..nav.earth import radii_py
+from . import pinned as pm
 from .imu_synth import body_rate_nb, normal_gravity_n, sensor_outputs
 from .quadrature import gauss_legendre
 from .segments import Primitive
@@ -102,10 +103,10 @@ def _collocate(f, half, w, A, y0):
     the node values (J, n) and the end values (J,) of ``y - y0`` offsets
     added to ``y0`` only at the end (small numbers keep their precision).
     """
-    inc = half * (f @ w)
+    inc = half * pm.matmul(f, w)
     ends = np.cumsum(inc)
     starts = ends - inc
-    nodes = starts[:, None] + half[:, None] * (f @ A.T)
+    nodes = starts[:, None] + half[:, None] * pm.matmul(f, A.T)
     return nodes, ends
 
 
@@ -121,7 +122,7 @@ def integrate_position(lat0, lon0, h0, half, vel_nodes, w, A):
     h_n = h0 + dh_n
     dl_n = np.zeros_like(h_n)
     for _ in range(PICARD_MAX):
-        rm, _ = radii_py(np.sin(lat0 + dl_n))
+        rm, _ = radii_py(pm.sin(lat0 + dl_n))
         new_n, dl_e = _collocate(vel_nodes[..., 1] / (rm + h_n), half, w, A, lat0)
         change = np.max(np.abs(new_n - dl_n)) if new_n.size else 0.0
         dl_n = new_n
@@ -130,8 +131,8 @@ def integrate_position(lat0, lon0, h0, half, vel_nodes, w, A):
     else:   # pragma: no cover - would mean an unphysical trajectory
         raise RuntimeError("latitude integration did not converge")
     lat_n = lat0 + dl_n
-    _, rn = radii_py(np.sin(lat_n))
-    dlon_n, dlon_e = _collocate(vel_nodes[..., 0] / ((rn + h_n) * np.cos(lat_n)), half, w, A, lon0)
+    _, rn = radii_py(pm.sin(lat_n))
+    dlon_n, dlon_e = _collocate(vel_nodes[..., 0] / ((rn + h_n) * pm.cos(lat_n)), half, w, A, lon0)
     return (lat_n, lon0 + dlon_n, h_n), (lat0 + dl_e, lon0 + dlon_e, h0 + dh_e)
 
 

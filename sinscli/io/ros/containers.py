@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import heapq
 import io
+import os
 import sqlite3
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +26,7 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from ...errors import SinsError
+from ...errors import SinsError, quote
 from ...inputs import input_file, load_yaml
 from . import decode
 from .decode import ImuBlock
@@ -160,8 +161,9 @@ class _RosbagsLog(_Log):
         what = "cannot open log (truncated, corrupt or unsupported)"
         if path.suffix.lower() == ".bag":
             what += "; a ROS 1 bag with a damaged index can be rebuilt with `rosbag reindex` (or rosbags-convert)"
+        self._alias_dir = None
         with guard(path, None, what):
-            self.reader = AnyReader([path])
+            self.reader = AnyReader([self._plain_name(path)])
             self.reader.open()
         self.is2 = self.reader.is2
         try:
@@ -184,18 +186,62 @@ class _RosbagsLog(_Log):
                         raise SinsError(f"{path}: topic {name} has several message types")
                     self.topics[name] = TopicInfo(name, normalize_type(ti.msgtype), int(ti.msgcount),
                                                   "cdr" if self.is2 else "ros1", {"connections": ti.connections})
+            if self.is2:
+                self._check_storage()
         except BaseException:
             with contextlib.suppress(Exception):
                 self.reader.close()
             raise
+
+    def _check_storage(self) -> None:
+        """A ROS 2 sqlite3 storage file agrees with the topics read (from metadata.yaml, for a bag folder) and
+        holds CDR: otherwise a topic's messages would be read as nothing, or decoded as the wrong bytes."""
+        st = self._storage_files()
+        if st is None or st[0] != "sqlite3":
+            return
+        where = f"{self.path / 'metadata.yaml'}" if self.meta is not None else "the log's type definitions"
+        for f in st[1]:
+            if not f.is_file():
+                continue
+            with guard(f, None, "cannot read the sqlite3 storage"):
+                with contextlib.closing(_sqlite_connect(f)) as con:
+                    rows = con.execute("SELECT name, type, serialization_format FROM topics").fetchall()
+            for name, typ, ser in rows:
+                name, typ, ser = (x.decode("utf-8", "replace") if isinstance(x, bytes) else str(x)
+                                  for x in (name, typ, ser))
+                if ser != "cdr":
+                    raise SinsError(f"{f}: topic {name}: serialization format {quote(ser, 30)}; a ROS 2 bag holds "
+                                    "CDR ('cdr'), the only serialization sins reads")
+                info = self.topics.get(name)
+                if info is not None and normalize_type(typ) != info.msgtype:
+                    raise SinsError(f"{f}: topic {name} has the type {quote(typ, 50)} in the storage file but "
+                                    f"{info.msgtype} in {where}; the bag's files disagree")
 
     def _metadata(self) -> dict:
         with guard(self.path, None, "cannot read metadata.yaml"):
             meta = load_yaml(self.path / "metadata.yaml", "bag metadata")["rosbag2_bagfile_information"]
         return meta
 
+    def _plain_name(self, path: Path) -> Path:
+        """``path``, or for a name that is not UTF-8 (which rosbags cannot open: SQLite and its metadata take
+        text) a symbolic link to it with a plain name in a private temporary folder."""
+        try:
+            str(path).encode("utf-8")
+            return path
+        except UnicodeEncodeError:
+            import tempfile
+            self._alias_dir = tempfile.mkdtemp(prefix="sins-log-")
+            alias = Path(self._alias_dir) / ("log" + (path.suffix if path.suffix.isascii() else ""))
+            os.symlink(os.path.abspath(path), alias)
+            return alias
+
     def close(self):
-        self.reader.close()
+        try:
+            self.reader.close()
+        finally:
+            if self._alias_dir is not None:
+                import shutil
+                shutil.rmtree(self._alias_dir, ignore_errors=True)
 
     def iter_raw(self, topic):
         conns = self.topics[topic].extra["connections"]
@@ -340,7 +386,8 @@ class _RosbagsLog(_Log):
 
 
 def _sqlite_connect(path: Path) -> sqlite3.Connection:
-    con = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    from ...inputs import sqlite_uri
+    con = sqlite3.connect(sqlite_uri(path), uri=True)
     con.text_factory = bytes
     return con
 

@@ -130,6 +130,8 @@ def _read_navsat(lg: _Log, topic: str, where: str, vel_topic, time_source, lim: 
         raise SinsError(f"{where}: message {k} has a fix with NaN or infinite latitude/longitude/altitude")
     limits_mod.check_position(where, lla[:, 0], lla[:, 1], lla[:, 2], lim, ("latitude", "longitude", "altitude"),
                               keep, "message")
+    from ..gnss_csv import POLE_USE
+    limits_mod.check_near_pole(where, lla[:, 0], "latitude", keep, "message", use=POLE_USE)
     check_increasing(t, where, f"{time_source} stamp")
     ctype = np.array([int(m.position_covariance_type) for m in msgs])
     cov = np.array([np.asarray(m.position_covariance, dtype=np.float64) for m in msgs]).reshape(-1, 9)

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...errors import SinsError
 from ...nav.imu_stats import time_stats
 from .containers import open_log
 from .decode import ACCEL, GYRO, IMU_TYPE, imu_from_message, stamp_seconds
@@ -37,6 +38,9 @@ def log_summary(path, imu_window: float = 1.0) -> dict:
                     s, ns, v = imu_from_message(deser(raw))
                     vals.append(v)
                     stamps.append((s, ns))
+                if not vals:
+                    raise SinsError(f"{path}: topic {name}: {t_ns.size} messages listed in the index but none "
+                                    "could be read (the log's files disagree, or it is damaged)")
                 vals = np.array(vals)
                 acc = vals[:, ACCEL].mean(axis=0)
                 gyr = vals[:, GYRO].mean(axis=0)

@@ -37,11 +37,26 @@
     for (var v = Math.ceil(a / step) * step; v <= b + step * 1e-9; v += step) out.push(Math.abs(v) < step * 1e-9 ? 0 : v);
     return out;
   }
+  /* Ticks of a log axis spanning log10 values [a, b]: [position (log10 of the value), label].  Exact decades
+   * ("1e-2") when two fit; else 1, 2, 5 (then every digit) times the decades, labelled with their values
+   * ("0.03"); else (less than a factor 1.25) evenly spaced values.  Never a fractional exponent. */
   function logTicks(a, b) {
-    var out = [];
-    for (var e = Math.floor(a); e <= Math.ceil(b); e++) if (e >= a - 1e-9 && e <= b + 1e-9) out.push(e);
-    if (out.length < 2) return niceTicks(a, b, 4);
-    return out;
+    var out = [], e, i;
+    for (e = Math.floor(a); e <= Math.ceil(b); e++) if (e >= a - 1e-9 && e <= b + 1e-9) out.push([e, "1e" + e]);
+    if (out.length >= 2) return out;
+    var sets = [[1, 2, 5], [1, 2, 3, 4, 5, 6, 7, 8, 9]];
+    for (i = 0; i < sets.length; i++) {
+      out = [];
+      for (e = Math.floor(a); e <= Math.ceil(b); e++) {
+        sets[i].forEach(function (m) {
+          var pos = e + Math.log10(m);
+          if (pos >= a - 1e-9 && pos <= b + 1e-9) out.push([pos, fmt(Number((m * Math.pow(10, e)).toPrecision(12)))]);
+        });
+      }
+      if (out.length >= 2) return out;
+    }
+    return niceTicks(Math.pow(10, a), Math.pow(10, b), 4).filter(function (v) { return v > 0; })
+      .map(function (v) { return [Math.log10(v), fmt(v)]; });
   }
   function range(vals, lo, hi) {
     for (var i = 0; i < vals.length; i++) {
@@ -158,12 +173,13 @@
       var t = el("text", {x: X, y: h - M.b + 14, "text-anchor": "middle"}, axes);
       t.textContent = fmt(v);
     });
-    (p.logy ? logTicks(yr[0], yr[1]) : niceTicks(yr[0], yr[1], 5)).forEach(function (v) {
-      var Y = sy(v);
-      el("line", {x1: M.l, x2: w - M.r, y1: Y, y2: Y, stroke: "#eee"}, axes);
-      var t = el("text", {x: M.l - 4, y: Y + 4, "text-anchor": "end"}, axes);
-      t.textContent = p.logy ? "1e" + v : fmt(v);
-    });
+    (p.logy ? logTicks(yr[0], yr[1]) : niceTicks(yr[0], yr[1], 5).map(function (v) { return [v, fmt(v)]; }))
+      .forEach(function (tick) {
+        var Y = sy(tick[0]);
+        el("line", {x1: M.l, x2: w - M.r, y1: Y, y2: Y, stroke: "#eee"}, axes);
+        var t = el("text", {x: M.l - 4, y: Y + 4, "text-anchor": "end"}, axes);
+        t.textContent = tick[1];
+      });
     var xl = el("text", {x: (M.l + w - M.r) / 2, y: h - 6, "text-anchor": "middle"}, axes);
     xl.textContent = p.xlabel || "";
     var yl = el("text", {x: 14, y: (M.t + h - M.b) / 2, "text-anchor": "middle",
@@ -381,6 +397,10 @@
     });
   }
 
+  if (typeof document === "undefined") {          // loaded by node (tests/test_report_html.py): the helpers only
+    module.exports = {logTicks: logTicks, niceTicks: niceTicks, fmt: fmt};
+    return;
+  }
   var node = document.getElementById("sins-data");
   var data = node ? JSON.parse(node.textContent) : {plots: []};
   data.plots.forEach(build);
