@@ -12,7 +12,7 @@ import click
 import numpy as np
 
 from ..errors import SinsError
-from ..io.gnss_csv import check_gnss_against_imu
+from ..io.gnss_csv import check_gnss_against_imu, check_init_against_gnss
 from ..io.atomic import atomic_path, prepare_output
 from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
@@ -121,6 +121,7 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         init = read_init(init_path, t0 if window.start is None else window.start, opts.conv, cfg["limits"],
                          cfg["init"])
         check_init(init.time, window, str(init_path))
+        check_init_against_gnss(init, gnss, cfg["limits"]["speed"], str(init_path))
         if len(gnss) == 0:
             gyro_units(float(init.lat), float(init.height))
         init_sigma, init_bias = align_estimates(init, init_path, cfg["limits"])
