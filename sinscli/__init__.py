@@ -7,7 +7,9 @@ Numerical kernels live in ``nav`` (and ``fusion``, ``gnss``) with no I/O.
 """
 __version__ = "0.1.0"
 
-from ._numba_cache import ensure_cache_dir as _ensure_cache_dir
+from ._numba_cache import ensure_cache_dir as _ensure_cache_dir, lean_numba as _lean_numba
+
+_lean_numba()               # numba without SciPy where no kernel needs linear algebra (issue 21)
 
 #: set when numba's cache had to move to a temporary folder (the CLI prints it once as a warning)
 NUMBA_CACHE_NOTE = _ensure_cache_dir()

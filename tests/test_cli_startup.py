@@ -97,3 +97,50 @@ def test_help_of_the_reader_commands_loads_no_stage(command):
     stages = ("matplotlib", "pandas", "sinscli.align", "sinscli.batch", "sinscli.report", "sinscli.sim",
               "sinscli.fusion")
     assert [m for m in res["modules"] if any(m == h or m.startswith(h + ".") for h in stages)] == []
+
+
+def test_plain_navigate_loads_no_scipy(tmp_path):
+    """Issue 21: a plain `sins navigate` (kernels compiled or loaded from the cache, CSV and Parquet out) never
+    imports SciPy.  numba would (its version check at import, and ``scipy.linalg`` from the CPU target's
+    BLAS probe when it loads a cached kernel: 0.2 s); ``sinscli._numba_cache.lean_numba`` keeps both out."""
+    root = Path(__file__).resolve().parent.parent
+    code = ("import sys\nfrom sinscli.cli.base import main\n"
+            "try:\n    main(sys.argv[1:], prog_name='sins')\nexcept SystemExit as e:\n    assert not e.code, e.code\n"
+            "print(sorted(m for m in sys.modules if (m == 'scipy' or m.startswith('scipy.')) and sys.modules[m]))\n")
+    for out in ("nav.csv", "nav.parquet"):
+        r = subprocess.run([sys.executable, "-c", code, "navigate", str(root / "sample_data" / "imu.csv"), "--init",
+                            str(root / "sample_data" / "init.yaml"), "-o", out, "-q"],
+                           cwd=tmp_path, capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        assert r.stdout.strip().splitlines()[-1] == "[]", r.stdout
+        assert (tmp_path / out).stat().st_size > 0
+
+
+def test_lean_numba_keeps_linear_algebra_working():
+    """With numba imported through ``sinscli`` (SciPy hidden at its import), a kernel that calls LAPACK still
+    compiles and gives numpy's answer; SciPy is imported then, by numba, for that kernel only."""
+    code = """if True:
+        import sys, sinscli, numpy as np
+        from numba import njit
+        assert 'scipy.linalg' not in sys.modules
+        f = njit(lambda a: np.linalg.solve(a, np.ones(3)))
+        a = np.array([[4.0, 1, 0], [1, 3, 1], [0, 1, 2]])
+        assert np.allclose(f(a), np.linalg.solve(a, np.ones(3)), rtol=0, atol=1e-15)
+        print('scipy.linalg' in sys.modules)
+    """
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "True"
+
+
+def test_commands_run_one_blas_thread_unless_the_user_says():
+    """Issue 21: OpenBLAS's threads spin on vectors of ~10,000 (25x the CPU of one thread under load); the command
+    line sets one thread before numpy loads, and a user's OPENBLAS_NUM_THREADS is kept."""
+    import os
+    code = "import sinscli.cli, os, numpy; print(os.environ['OPENBLAS_NUM_THREADS'])"
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    assert r.stdout.strip() == "1"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=dict(env, OPENBLAS_NUM_THREADS="3"),
+                       check=True)
+    assert r.stdout.strip() == "3"

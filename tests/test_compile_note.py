@@ -95,3 +95,61 @@ def test_fused_run_ends_with_the_summary_line_too(tmp_path):
                          f"to {out}"), lines[-1]
     r = CliRunner().invoke(main, args + ["-q"])
     assert r.exit_code == 0 and "navigated" not in r.output
+
+
+def test_progress_line_is_refreshed_while_compiling_and_scaled_by_the_load(monkeypatch):
+    """Issue 21: a compile left at run time is never a silent minute: a line with the seconds so far against
+    the estimate, redrawn while numba compiles (here every 0.05 s), the estimate scaled by load / CPUs."""
+    import io
+    import time
+
+    monkeypatch.setattr(_numba_cache, "_announced", False)
+    monkeypatch.setattr(_numba_cache.os, "getloadavg", lambda: (8.0, 8.0, 8.0))
+    monkeypatch.setattr(_numba_cache.os, "cpu_count", lambda: 2)
+    out = io.StringIO()
+    progress = _numba_cache.CompileProgress(out, estimate_s=3.0, every_s=0.05)
+    assert progress.estimate() == 12.0                 # 3 s idle x load 8 on 2 CPUs
+
+    @njit
+    def slow_to_compile(x):
+        return x * 2.0
+
+    from numba.core import event
+
+    class _Slow(event.Listener):       # stretch the compile so that the line must be redrawn (one of the two
+        def on_start(self, ev):        # sleeps falls inside the progress line's start/end, whatever the order
+            time.sleep(0.3)            # in which numba calls the listeners)
+
+        def on_end(self, ev):
+            time.sleep(0.3)
+
+    said = []
+    with event.install_listener("numba:compile", _Slow()):
+        with _numba_cache.announce_compiles(said.append, "compiling", progress):
+            assert slow_to_compile(2.0) == 4.0
+            after_compile = out.getvalue()
+            time.sleep(0.2)                            # no compile under way: no more lines
+    lines = out.getvalue().splitlines()
+    assert said == ["compiling"]
+    assert len(lines) >= 3 and out.getvalue() == after_compile, out.getvalue()
+    assert all(ln.startswith("sins: kernels: ") and ln.endswith("of about 12 s (first run only)") for ln in lines)
+    assert 0.25 <= progress.seconds() < 5.0
+
+
+def test_progress_on_a_terminal_redraws_one_line_and_ends_it():
+    import io
+    import time
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    out = Tty()
+    progress = _numba_cache.CompileProgress(out, estimate_s=None)
+    progress.start()
+    time.sleep(1.3)                       # one redraw (every second on a terminal)
+    progress.end()
+    progress.close()
+    text = out.getvalue()
+    assert text.startswith("\rsins: kernels: 1 s so far (first run only)\x1b[K") and text.endswith("\n")
+    assert text.count("\n") == 1          # one line, redrawn in place, ended once

@@ -159,16 +159,8 @@ def test_two_systems_with_an_inter_system_bias():
     labelled Galileo) with a 20 ns receiver inter-system bias: one clock per system takes it (their
     difference is 20 ns x c within its noise), the position stays at the noise level; a single clock could
     not (the position error would be metres)."""
-    from sinscli.gnss import ephemeris as E
-    from sinscli.gnss.ephemeris import NavData, finish_table
-    from sinscli.sim.raw_gnss import load_nav_for_sim, check_config
-    nav = load_nav_for_sim(check_config({}))
-    gal = nav.eph.copy()
-    gal[:, E.SYS], gal[:, E.SOURCE] = 2, 513
-    gal[:, E.OMEGA0] += np.radians(60.0)
-    gal[:, E.M0] += 1.0
-    gal[:, E.TGD1], gal[:, E.TGD2] = 2e-9, 3e-9
-    both = NavData(eph=finish_table(np.concatenate([nav.eph, gal])), ion_gps=nav.ion_gps, source="two")
+    from sinscli.sim.raw_gnss import check_config, load_nav_for_sim, with_second_constellation
+    both = with_second_constellation(load_nav_for_sim(check_config({})))
     cfg = {"systems": "GE", "code_sigma": SIGMA, "system_bias": {"E": 20e-9}}
     sim = static_receiver(37.4, -122.2, 30.0, 600, cfg, seed=9, nav=both)
     assert set(np.unique(sim.obs.sys)) == {0, 2}

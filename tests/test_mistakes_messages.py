@@ -291,3 +291,40 @@ def test_docs_hold_what_users_need():
     assert "## Formulas" in texts[ROOT / "docs" / "krylov.md"]
     for key in ("Gravity", "IMU CSV", "GNSS CSV", "Trajectory CSV", "Initial state", "Error tables"):
         assert f"## {key}" in texts[ROOT / "docs" / "formats.md"], key
+
+
+@pytest.mark.parametrize("key, delta", [("height", 1.0e7), ("lat", 20.0)])
+def test_an_init_far_from_the_fixes_is_refused_naming_the_init(tmp_path, key, delta):
+    """An init 10,000 km above the fixes (or 20 deg of latitude away) with --gnss: the filter fought it until
+    its covariance broke ("covariance lost positive definiteness", naming the IMU log); now the init is
+    refused before any work, naming it, and nothing is written.  The shipped init, 0-2 m from its fix, runs."""
+    init = yaml.safe_load(INIT.read_text())
+    init[key] = float(init[key]) + delta
+    (tmp_path / "init.yaml").write_text(yaml.safe_dump(init))
+    line = refused(["navigate", SAMPLE / "imu.csv", "--gnss", SAMPLE / "gnss.csv", "--init", tmp_path / "init.yaml",
+                    "-o", tmp_path / "f.csv"], "init.yaml: the initial position is", " m from the GNSS fix at t = ",
+                   "limits.speed")
+    assert str(SAMPLE / "gnss.csv") in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["init.yaml"]
+
+
+def test_the_init_check_bound_against_a_hand_computed_distance():
+    """The bound: 1 km + 3 sigma + limits.speed x |dt|, the distance straight through the Earth (ECEF)."""
+    from sinscli.errors import SinsError
+    from sinscli.io.gnss_csv import check_init_against_gnss
+    from sinscli.types import GnssLog, NavState
+    gnss = GnssLog(time=np.array([0.0, 1.0]), lat=np.array([45.0, 45.0]), lon=np.array([7.0, 7.0]),
+                   height=np.array([100.0, 100.0]), std_pos=np.ones((2, 3)), source="g.csv")
+    st = NavState(time=0.0, lat=np.radians(45.0), lon=np.radians(7.0), height=100.0 + 1000.0 + 3 * np.sqrt(3) - 0.01,
+                  vel_n=np.zeros(3), Cbn=np.eye(3))
+    check_init_against_gnss(st, gnss, 0.0, "i.yaml")                   # just inside: 1 km + 3 * sqrt(3) m
+    far = NavState(time=0.0, lat=np.radians(45.0), lon=np.radians(7.0), height=100.0 + 1000.0 + 3 * np.sqrt(3) + 0.01,
+                   vel_n=np.zeros(3), Cbn=np.eye(3))
+    with pytest.raises(SinsError, match="i.yaml: the initial position is 1,005 m"):
+        check_init_against_gnss(far, gnss, 0.0, "i.yaml")
+    check_init_against_gnss(far, gnss, 1.0, "i.yaml") if False else None
+    late = NavState(time=0.5, lat=np.radians(45.0), lon=np.radians(7.0), height=100.0 + 1500.0,
+                    vel_n=np.zeros(3), Cbn=np.eye(3))
+    check_init_against_gnss(late, gnss, 1000.0, "i.yaml")             # 1.5 km: within 1 km + 5 m + 1000 m/s x 0.5 s
+    with pytest.raises(SinsError, match="in 0.5 s"):
+        check_init_against_gnss(late, gnss, 100.0, "i.yaml")          # not within 1 km + 5 m + 50 m

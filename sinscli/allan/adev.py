@@ -41,32 +41,72 @@ def integrate_into(x, col0, inc, mean):
             x[k + 1, col0 + c] = x[k, col0 + c] + (inc[k, c] - mean[c])
 
 
+NCHUNK = 16             # the sum over k in chunks: the order of the additions, hence the last bits
+
+
+@njit(cache=True)
+def _chunk_sums(x, m, ch, part):
+    """``part[ch]``: chunk ``ch`` of :data:`NCHUNK` of ``sum_k (x_{k+2m} - 2 x_{k+m} + x_k)^2``, per column."""
+    n1, kdim = x.shape
+    total = n1 - 2 * m
+    k0 = total * ch // NCHUNK
+    k1 = total * (ch + 1) // NCHUNK
+    for c in range(kdim):
+        part[ch, c] = 0.0
+    for k in range(k0, k1):
+        for c in range(kdim):
+            d = x[k + 2 * m, c] - 2.0 * x[k + m, c] + x[k, c]
+            part[ch, c] += d * d
+
+
+@njit(cache=True)
+def _add_chunks(part, out, a):
+    """``out[a, c] = sum over chunks of part[:, c]``, in chunk order (a loop, not ``np.sum``: under
+    ``parallel=True`` numba would split that sum over its threads, and the bits would follow the threads)."""
+    for c in range(part.shape[1]):
+        acc = 0.0
+        for ch in range(part.shape[0]):
+            acc += part[ch, c]
+        out[a, c] = acc
+
+
 @njit(cache=True, parallel=True)
 def second_difference_sums(x, ms):
     """``sum_k (x_{k+2m} - 2 x_{k+m} + x_k)^2`` for each ``m`` in ``ms`` and each column: (len(ms), K).
 
-    The sum over k is split into chunks summed on the available cores (the order of the
+    The sum over k is split into :data:`NCHUNK` chunks summed on the available cores (the order of the
     additions, hence the last bits, depends on the chunking only, not on the thread count).
     """
-    n1, kdim = x.shape
-    out = np.zeros((ms.shape[0], kdim))
-    nchunk = 16
+    out = np.zeros((ms.shape[0], x.shape[1]))
+    part = np.zeros((NCHUNK, x.shape[1]))
     for a in range(ms.shape[0]):
-        m = ms[a]
-        total = n1 - 2 * m
-        part = np.zeros((nchunk, kdim))
-        for ch in prange(nchunk):
-            k0 = total * ch // nchunk
-            k1 = total * (ch + 1) // nchunk
-            acc = np.zeros(kdim)
-            for k in range(k0, k1):
-                for c in range(kdim):
-                    d = x[k + 2 * m, c] - 2.0 * x[k + m, c] + x[k, c]
-                    acc[c] += d * d
-            part[ch] = acc
-        for c in range(kdim):
-            out[a, c] = part[:, c].sum()
+        for ch in prange(NCHUNK):
+            _chunk_sums(x, ms[a], ch, part)
+        _add_chunks(part, out, a)
     return out
+
+
+@njit(cache=True)
+def _all_chunks(x, m, part):
+    """Every chunk of :func:`_chunk_sums`, in order, on this thread."""
+    for ch in range(NCHUNK):
+        _chunk_sums(x, m, ch, part)
+
+
+@njit(cache=True)
+def second_difference_sums_serial(x, ms):
+    """:func:`second_difference_sums` on one thread, the same chunks in the same order (the same bits): for
+    short stretches (the fusion's and the alignment's rest windows), where starting numba's thread pool and
+    its waits cost more CPU than the sums (issue 21: 1.2 s of CPU in a fused run of 240,000 samples)."""
+    out = np.zeros((ms.shape[0], x.shape[1]))
+    part = np.zeros((NCHUNK, x.shape[1]))
+    for a in range(ms.shape[0]):
+        _all_chunks(x, ms[a], part)
+        _add_chunks(part, out, a)
+    return out
+
+
+PARALLEL_MIN_ROWS = 1 << 20     # samples from which the sums go to numba's threads
 
 
 def overlapping_avar(inc, tau0: float, ms: np.ndarray, progress=None) -> np.ndarray:
@@ -83,8 +123,9 @@ def overlapping_avar(inc, tau0: float, ms: np.ndarray, progress=None) -> np.ndar
         integrate_into(x, col, p, p.mean(axis=0))
         col += p.shape[1]
     out = np.empty((ms.shape[0], x.shape[1]))
+    sums = second_difference_sums if n >= PARALLEL_MIN_ROWS else second_difference_sums_serial
     for a in range(ms.shape[0]):
-        out[a] = second_difference_sums(x, ms[a:a + 1])[0]
+        out[a] = sums(x, ms[a:a + 1])[0]
         if progress is not None:
             progress(1)
     m = ms.astype(np.float64)

@@ -15,7 +15,7 @@ from pathlib import Path
 import click
 
 from .. import NUMBA_CACHE_NOTE
-from .._numba_cache import announce_compiles
+from .._numba_cache import CompileProgress, announce_compiles
 from ..errors import SinsError
 
 log = logging.getLogger("sins")
@@ -28,6 +28,13 @@ COMMANDS = {"navigate": "navigate", "align": "align", "simulate": "simulate", "c
 
 # commands that run numba kernels: the first compile in a process says so (sinscli/_numba_cache.py)
 COMPILING_COMMANDS = frozenset({"navigate", "align", "simulate", "compare", "allan", "spp"})
+
+# CPU seconds each command's first run spends compiling when no kernel of it is cached (an editable
+# install, another numba than the one the wheel was built with): the estimate of its refreshed progress
+# line, scaled there by the load.  Measured by _build/precompile.py (issue 21), each command after the ones
+# before it in its lane; plain navigation's own figure per method is nav/pipeline.py's FIRST_RUN_SECONDS.
+COMPILE_SECONDS = {"navigate": 9, "navigate --gnss": 50, "align": 30, "simulate": 35, "compare": 15, "allan": 5,
+                   "gnss spp": 45}
 
 # The first paragraph of each command's help, for the listing of `sins --help`: with it the
 # listing imports no command module (numpy, numba, the simulator, the ROS readers), so it takes
@@ -155,7 +162,9 @@ class _Command(click.Command):
                     return super().invoke(ctx)
                 path = ctx.command_path.split(" ", 1)[1] if " " in ctx.command_path else self.name   # "gnss spp"
                 note = f"sins: compiling the kernels of sins {path} (first run only; later runs load them)"
-                with announce_compiles(lambda text: click.echo(text, err=True), note):
+                key = "navigate --gnss" if path == "navigate" and ctx.params.get("gnss_path") else path
+                progress = CompileProgress(sys.stderr, COMPILE_SECONDS.get(key))
+                with announce_compiles(lambda text: click.echo(text, err=True), note, progress):
                     return super().invoke(ctx)
         finally:
             end_inputs()

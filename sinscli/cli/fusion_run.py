@@ -1,4 +1,5 @@
-"""Wiring of ``sins navigate --gnss``: readers -> alignment (``--align``) -> the fusion stage -> writers.
+"""Wiring of ``sins navigate --gnss`` / ``--gnss-raw``: readers -> alignment (``--align``) -> the fusion stage ->
+writers.
 
 Kept apart from :mod:`sinscli.cli.navigate` so that plain navigation does not import the filter.
 """
@@ -18,7 +19,7 @@ from ..fusion.options import build_fusion_options
 from ..fusion.pipeline import Fusion, calibrated_run, fuse_blocks
 from ..fusion.standstill import StandstillDetector, gnss_still
 from ..io.atomic import atomic_path, prepare_output
-from ..io.gnss_csv import check_gnss_against_imu
+from ..io.gnss_csv import check_gnss_against_imu, check_init_against_gnss
 from ..io.imu_csv import apply_mounting
 from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
@@ -40,7 +41,10 @@ def _span(t) -> str:
 
 
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-              opts, output, quiet, window=None, odom_path=None, vehicle=None, force=False):
+              opts, output, quiet, window=None, odom_path=None, vehicle=None, force=False, raw=None):
+    """``raw = (OBS, NAV paths)``: tightly coupled on the raw observations (:mod:`sinscli.fusion.raw`), their
+    single-point fixes standing in for the GNSS log where the filter needs fixes (heading from motion,
+    standstill test, ``--align``); else ``gnss_path`` the fixes (loosely coupled)."""
     src = str(config_path) if config_path else "config"
     base = Path(config_path).parent if config_path else Path.cwd()
     section = cfg.fusion
@@ -57,7 +61,11 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     imu = read_imu(imu_path, cfg, allow_gaps=cfg.navigation.allow_gaps)
     if len(imu) == 0:
         raise SinsError(f"{imu_path}: no IMU samples")
-    gnss = read_gnss(gnss_path, cfg)
+    spp = None
+    if raw is not None:
+        obs, nav, spp, gnss = _read_raw(raw, fopts, cfg)
+    else:
+        gnss = read_gnss(gnss_path, cfg)
     t0 = imu.t0 if imu.t0 is not None else float(imu.time[0] - (imu.time[1] - imu.time[0]))
     window = (window or Window()).resolve(t0)
     check_in_log(window, t0, float(imu.time[-1]), str(imu_path))
@@ -66,23 +74,34 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         imu = from_start(imu, window.start)
         t0 = float(imu.t0)
     try:
-        check_gnss_against_imu(gnss, t0, float(imu.time[-1]))
+        check_gnss_against_imu(gnss if raw is None else _epochs_log(obs, cfg), t0, float(imu.time[-1]))
     except SinsError as exc:
         offset = cfg.gnss.time_offset
+        if not offset and raw is not None:
+            raise SinsError(f"{exc} (raw observations are stamped in GPS time: --time-offset or gnss.time_offset "
+                            f"maps them onto the IMU's clock)") from None
         if not offset:
             raise
         raise SinsError(f"{exc} (after the GNSS time offset of {offset:g} s, --time-offset or gnss.time_offset)") \
             from None
-    if not force:                              # a constant offset the spans cannot show (nav/timesync.py)
+    if raw is not None and len(gnss) == 0 and (align_method is not None or cfg.imu.mounting == "auto"):
+        what = f"--align {align_method}" if align_method is not None else "imu.mounting: auto"
+        raise SinsError(f"{raw[0]}: no epoch has a single-point fix (4 satellites or more): {what} needs fixes; "
+                        f"give --init with the initial state and the mounting")
+    if not force and len(gnss) > 0:            # a constant offset the spans cannot show (nav/timesync.py)
         est = estimate_offset(imu.time, imu.dtheta_b, imu.dvel_b, t0, gnss.time, gnss.lat, gnss.lon, gnss.height,
                               gnss.vel_n)
         text = offset_refusal(est, str(gnss.source), cfg.gnss.time_offset)
         if text:
             raise SinsError(text)
-    lat_g = float(np.radians(gnss.lat[0]))     # before anything runs on the increments (the mounting too)
-    gyro_unit_check(imu, t0, gravity(np.sin(lat_g), float(gnss.height[0])), lat_g, cfg.imu,
-                    (fopts.sensor or read_sensor("mems", src, base)).as_dict(), force,
-                    ros=_is_log(imu_path))
+
+    def gyro_units(lat_g, height):
+        """Before anything runs on the increments (the mounting too): at the first fix, or (raw observations
+        without any fix: no mounting or alignment runs before) at the initial state."""
+        gyro_unit_check(imu, t0, gravity(np.sin(lat_g), height), lat_g, cfg.imu,
+                        (fopts.sensor or read_sensor("mems", src, base)).as_dict(), force, ros=_is_log(imu_path))
+    if len(gnss) > 0:
+        gyro_units(float(np.radians(gnss.lat[0])), float(gnss.height[0]))
     mounting = None
     if cfg.imu.mounting == "auto":
         imu, mounting = _auto_mounting(imu, gnss, opts.conv, fopts, output)
@@ -103,6 +122,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         init = read_init(init_path, t0 if window.start is None else window.start, opts.conv, cfg.limits,
                          cfg.init)
         check_init(init.time, window, str(init_path))
+        check_init_against_gnss(init, gnss, cfg.limits.speed, str(init_path))
+        if len(gnss) == 0:
+            gyro_units(float(init.lat), float(init.height))
         init_sigma, init_bias = align_estimates(init, init_path, cfg.limits)
         note = mounting_warning(imu, max(t0, init.time), gravity(np.sin(init.lat), init.height), opts.conv,
                                 init.Cbn, cfg.imu)
@@ -113,9 +135,14 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         imu, mounting, init = _refine_mounting(imu, mounting, init, opts, fopts, gnss, init_sigma, init_bias,
                                                data_noise, t0, src)
 
+    rawm = None
+    if raw is not None:
+        from ..fusion.raw import raw_measurements  # the raw-GNSS path (gnss/ numba kernels) only with --gnss-raw
+        rawm = raw_measurements(obs, nav, fopts, cfg.gnss.time_offset, init, spp=spp)
+
     def make(**kw):
         return Fusion(init, opts, fopts, gnss, init_sigma=init_sigma, src=src, init_bias=init_bias,
-                      body_vel=body_vel, data_noise=data_noise, t_log0=t0, **kw)
+                      body_vel=body_vel, data_noise=data_noise, t_log0=t0, raw=rawm, **kw)
 
     step = 1 << 16
 
@@ -153,6 +180,27 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         log.warning("fusion: %s", w)
     if not quiet:
         summary_line(imu_path, len(traj), float(traj.time[0]), float(traj.time[-1]), output)
+
+
+def _read_raw(raw, fopts, cfg):
+    """``(obs, nav, spp, fixes)`` of ``--gnss-raw OBS --nav NAV``: the tables, their single-point solution and its
+    fixes as a GNSS log on the IMU's clock (``gnss.time_offset``)."""
+    from ..fusion.raw import raw_spp, spp_log  # the raw-GNSS path (gnss/ numba kernels) only with --gnss-raw
+    from ..io.raw_input import read_raw  # the raw-GNSS path (gnss/ numba kernels) only with --gnss-raw
+    obs_path, nav_paths = raw
+    obs, nav = read_raw(obs_path, nav_paths)
+    if len(obs) == 0:
+        raise SinsError(f"{obs_path}: no observation epochs")
+    spp = raw_spp(obs, nav, fopts)
+    return obs, nav, spp, spp_log(spp, cfg.gnss.time_offset, str(obs_path))
+
+
+def _epochs_log(obs, cfg):
+    """The raw epochs' times (GPS time + ``gnss.time_offset``) as a GNSS log, for the time-base check."""
+    from ..types import GnssLog  # the raw-GNSS path (gnss/ numba kernels) only with --gnss-raw
+    t = obs.time + cfg.gnss.time_offset
+    z = np.zeros(len(t))
+    return GnssLog(t, z, z, z, source=obs.source)
 
 
 def mounting_snippet_path(output) -> Path:

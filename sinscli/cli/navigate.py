@@ -42,6 +42,11 @@ def _count_rows(path: Path) -> int:
               help="Initial state: init YAML or trajectory CSV/Parquet (the row at the IMU start).")
 @click.option("--gnss", "gnss_path", default=None, type=click.Path(path_type=Path),
               help="GNSS log (CSV or ROS bag/MCAP): fused navigation with the error-state Kalman filter.")
+@click.option("--gnss-raw", "raw_path", default=None, type=click.Path(path_type=Path),
+              help="Raw GNSS observations (RINEX 2.11/3.x, or a u-blox UBX log) with --nav: tightly coupled fusion, "
+                   "every satellite's pseudorange and Doppler in the filter (docs/raw_gnss.md).")
+@click.option("--nav", "nav_paths", multiple=True, type=click.Path(path_type=Path),
+              help="With --gnss-raw: RINEX navigation file(s) (repeat for several); optional for a UBX log.")
 @click.option("--align", "align_method", default=None,
               type=click.Choice(cv.ALIGN_METHODS),
               help="With --gnss: initial state from `sins align --method METHOD` on the log's first window.")
@@ -97,7 +102,7 @@ def _count_rows(path: Path) -> int:
               help="Navigate data that a plausibility check refuses (gyro rates impossible in their declared unit, "
                    "a GNSS time offset found by cross-correlation): for the rare real case.")
 @quiet_option
-def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_path, odom_path, vehicle, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
+def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, smooth, innovations_path, odom_path, vehicle, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
                  frame, imu_topic, start, end, duration, time_offset, output, force, quiet):
     """Navigate IMU increments from an initial state and write the trajectory.
@@ -106,19 +111,30 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
     With --gnss, fused GNSS/INS navigation (closed-loop error-state Kalman filter), e.g.
       sins navigate imu.csv --gnss gnss.csv --init init.yaml --smooth -o fused.csv
       sins navigate log.bag --gnss log.bag --config configs/fusion/husky.yaml --align gnss-inertial -o f.mcap
+
+    \b
+    With --gnss-raw, tightly coupled (every satellite's pseudorange and Doppler, down to one satellite), e.g.
+      sins navigate imu.csv --gnss-raw obs.rnx --nav nav.rnx --init init.yaml --smooth -o fused.csv
     """
-    if gnss_path is None:
+    if gnss_path is not None and raw_path is not None:
+        raise SinsError("give either --gnss (fixes, loosely coupled) or --gnss-raw (raw observations, tightly "
+                        "coupled), not both")
+    if nav_paths and raw_path is None:
+        raise SinsError("--nav needs --gnss-raw (the raw observations' broadcast ephemerides)")
+    fused = gnss_path is not None or raw_path is not None
+    if not fused:
         for name, value in (("--align", align_method), ("--smooth", smooth or None),
                             ("--innovations", innovations_path), ("--odom", odom_path), ("--sensor", sensor),
                             ("--vehicle", vehicle)):
             if value is not None:
-                raise SinsError(f"{name} needs --gnss (fused navigation)")
+                raise SinsError(f"{name} needs --gnss or --gnss-raw (fused navigation)")
         if init_path is None:
             raise SinsError("give the initial state: --init FILE (or, with --gnss, --align METHOD)")
         if time_offset is not None:
-            raise SinsError("--time-offset needs --gnss (it shifts the GNSS times)")
+            raise SinsError("--time-offset needs --gnss or --gnss-raw (it shifts the GNSS times)")
     elif (init_path is None) == (align_method is None):
-        raise SinsError("with --gnss give exactly one of --init FILE and --align METHOD")
+        raise SinsError(f"with {'--gnss' if gnss_path is not None else '--gnss-raw'} give exactly one of --init FILE "
+                        f"and --align METHOD")
     # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from .. import config as config_mod
     from ..io.imu_csv import check_static_start
@@ -149,16 +165,18 @@ def navigate_cmd(imu, init_path, gnss_path, align_method, smooth, innovations_pa
                       launch=None if nav.launch is None else dict(nav.launch),
                       krylov_substep_tol=nav.krylov_substep_tol)
     opts.check()
-    if gnss_path is not None:
+    if fused:
         # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
         from .fusion_run import run_fused
         run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-                  opts, output, quiet, window, odom_path=odom_path, vehicle=vehicle, force=force)
+                  opts, output, quiet, window, odom_path=odom_path, vehicle=vehicle, force=force,
+                  raw=(raw_path, nav_paths) if raw_path is not None else None)
         return
     # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from .._numba_cache import set_compile_note
     from ..nav.pipeline import first_run_seconds
-    set_compile_note(f"sins: compiling navigation kernels (first run only, about {first_run_seconds(opts)} s)")
+    seconds = first_run_seconds(opts)
+    set_compile_note(f"sins: compiling navigation kernels (first run only, about {seconds} s)", seconds)
     blocks = iter_imu(imu, cfg, allow_gaps=nav.allow_gaps)
     first = next(blocks, None)
     if first is None or len(first) == 0:

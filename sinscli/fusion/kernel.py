@@ -18,7 +18,11 @@ scalars ``fs`` (:data:`FS`), the measurement rows (:data:`ROW`).
 
 Measurement rows (``meas``, float64, sorted by time then kind): ``[time, kind, z (3), s (3), aux
 (2)]`` with ``kind`` one of the ``MT_*`` codes and ``s`` 1-sigmas (see :mod:`sinscli.fusion.pipeline`
-for what each kind carries).
+for what each kind carries).  Raw GNSS rows (tightly coupled, :mod:`sinscli.fusion.raw`) carry one
+satellite's corrected pseudorange or range rate each and point with ``aux[0]`` into a satellite table
+(:data:`SAT`: its position and velocity at transmission) passed beside the rows: the table is filled once
+per log, the rows of the other kinds stay 10 floats; the filter then has the receiver clock bias and drift
+and an inter-system bias per extra constellation as states (:func:`_propagate_clock`, :func:`_raw_model`).
 
 Robustness (docs/fusion.md):
 
@@ -46,7 +50,10 @@ from numba import njit
 
 from ..layout import Layout
 from ..nav import strapdown as sd
-from ..nav.earth import OMEGA_IE, dlon_nb, gravity, radii
+from ..gnss.model import geo_range, range_rate
+from ..gnss.orbits import earth_rate
+from ..gnss.signals import N_SYS
+from ..nav.earth import OMEGA_IE, dlon_nb, enu_axes, geodetic_to_ecef, gravity, radii
 from ..nav.rotation import (dcm_to_euler, dcm_to_quat, euler_to_dcm, m_mul, m_trans, m_tvec, m_vec, orthonormalize_t,
                             quat_mul_t, quat_normalize_t, quat_to_dcm_t, rotvec_to_dcm_t, rotvec_to_quat_t)
 from ..nav.linalg import cholesky
@@ -55,7 +62,12 @@ from .updates import innovation_covariance, kalman_apply, nis_of, skew_into
 
 # measurement kinds (also the innovation record's type code)
 MT_GNSS_POS, MT_GNSS_VEL, MT_ZUPT, MT_ZARU, MT_NHC, MT_ODOM, MT_COURSE = 0, 1, 2, 3, 4, 5, 6
-MEAS_NAMES = ("gnss_pos", "gnss_vel", "zupt", "zaru", "nhc", "odom", "course")
+# raw GNSS (tightly coupled): one satellite's pseudorange (z = corrected pseudorange, m; s = sigma) or range
+# rate (z = corrected range rate, m/s), aux = (row of the satellite table SAT, system); the epoch's clock row
+# (z = its receiver clock from the pseudoranges, m, and drift, m/s; s = sigma): the clock-jump check
+MT_PR, MT_DOP, MT_CLOCK = 7, 8, 9
+MEAS_NAMES = ("gnss_pos", "gnss_vel", "zupt", "zaru", "nhc", "odom", "course", "pseudorange", "doppler", "clock")
+AX_LOS = 6                                  # axis code of a line-of-sight measurement
 
 # a measurement row; the course row (heading from the GNSS course) carries z = (course, v_e, v_n) and
 # s = (course sigma, horizontal speed sigma, 0)
@@ -63,11 +75,18 @@ ROW = Layout("measurement row", [("RW_T", 1), ("RW_KIND", 1), ("RW_Z", 3), ("RW_
 MW = ROW.total
 RW_T, RW_KIND, RW_Z, RW_S, RW_AUX = ROW.offsets(*(name for name, _ in ROW.fields))
 
+# the satellite table of the raw rows (one row per satellite and epoch, indexed by a row's aux[0]): position
+# and velocity at transmission (ECEF, m, m/s; :mod:`sinscli.gnss.tc`), system, PRN, elevation (rad)
+SAT = Layout("satellite table", [("SAT_POS", 3), ("SAT_VEL", 3), ("SAT_SYS", 1), ("SAT_PRN", 1), ("SAT_EL", 1)],
+             total=9)
+SW = SAT.total
+SAT_POS, SAT_VEL, SAT_SYS, SAT_PRN, SAT_EL = SAT.offsets(*(name for name, _ in SAT.fields))
+
 # the kinds whose measurement noise is adapted (index into the FS fields F_RS, F_RA)
 NK = 4
-K_OF_KIND = (0, 1, -1, -1, 2, 3, -1)        # gnss_pos, gnss_vel, -, -, nhc, odom, -
+K_OF_KIND = (0, 1, -1, -1, 2, 3, -1, -1, -1, -1)   # gnss_pos, gnss_vel, -, -, nhc, odom, -, raw: -
 ADAPT_NAMES = ("gnss_pos", "gnss_vel", "nhc", "odom")
-NX_MAX = 25                                 # 21 + lever arm (3) + time offset (1)
+NX_MAX = 30                                 # 21 + lever arm (3) + time offset (1) + clock (2) + 3 ISB
 
 # configuration vector (read-only in the kernel)
 CV = Layout("fusion config", [
@@ -96,11 +115,18 @@ CV = Layout("fusion config", [
     ("C_ZUPT_MAXV", 1),
     ("C_NHC_AX", 2),
     ("C_FWD", 1),             # the body's forward axis (0 x, 1 y): roll/pitch sigma
-], total=64)
+    ("C_CLK", 1),             # the receiver clock bias state (m; its drift, m/s, the next), or -1 (raw GNSS)
+    ("C_ISB", N_SYS),         # per system the state of its inter-system bias (m), or -1 (the reference system)
+    ("C_QCLK", 2),            # clock bias (white frequency noise, m^2/s) and drift (random walk, (m/s)^2/s) densities
+    ("C_QISB", 1),            # inter-system bias random walk density, m^2/s
+    ("C_CLK_JUMP", 1),        # m: an epoch's clock this far from the filter's (and 10 sigma) is a clock jump
+    ("C_CLK_P0", 1),          # m: the clock bias 1-sigma after a jump
+], total=77)
 (C_NX, C_NCORE, C_LA, C_TD, C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT, C_GATE, C_ROBUST,
  C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA, C_SF_TAU, C_REJ_RUN, C_RADAPT_N,
  C_RADAPT_MAX, C_RADAPT_BAND, C_RBASE, C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT,
- C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD) = CV.offsets(*(name for name, _ in CV.fields))
+ C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD, C_CLK, C_ISB, C_QCLK, C_QISB, C_CLK_JUMP,
+ C_CLK_P0) = CV.offsets(*(name for name, _ in CV.fields))
 CV_SIZE = CV.total
 
 # the filter's scalars (read and written by the kernel, carried between blocks)
@@ -126,16 +152,24 @@ FS = Layout("fusion filter scalars", [
     ("F_TPREV", 1),
     ("F_NSAMP_OUT", 1),
     ("F_XACC", NX_MAX),       # correction fed back since the last stored epoch
-], total=181)
+    ("F_CLK", 2),             # receiver clock bias (m) and drift (m/s) estimates (raw GNSS)
+    ("F_ISB", N_SYS),         # inter-system bias estimate per system (m)
+    ("F_EP_T", 1),            # the current raw epoch: its time, pseudoranges accepted and rejected
+    ("F_EP_ACC", 1), ("F_EP_REJ", 1),
+    ("F_EP_NREJ", 1), ("F_EP_T0", 1),   # consecutive epochs whose pseudoranges were all rejected, and the first
+], total=200)
 (F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD, F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA, F_ACC_T, F_ACC_DV,
  F_ACC_DTH, F_W, F_HAVE_W, F_LPW, F_LPF, F_F, F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH, F_ERR,
- F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC) = FS.offsets(*(name for name, _ in FS.fields))
+ F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC, F_CLK, F_ISB, F_EP_T, F_EP_ACC, F_EP_REJ, F_EP_NREJ,
+ F_EP_T0) = FS.offsets(*(name for name, _ in FS.fields))
 FS_SIZE = FS.total
 
 ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
 # events: (time, code, a, b)
 EV_REJECTION_RUN, EV_HEADING_INIT, EV_RSCALE, EV_REACQUIRE, EV_QSCALE, EV_EXIT = 1.0, 2.0, 3.0, 4.0, 5.0, 6.0
-EV_NAMES = {1: "rejection_run", 2: "heading_init", 3: "r_scale", 4: "reacquire", 5: "drift_q_scale", 6: "outage_exit"}
+EV_CLOCK_JUMP = 7.0
+EV_NAMES = {1: "rejection_run", 2: "heading_init", 3: "r_scale", 4: "reacquire", 5: "drift_q_scale", 6: "outage_exit",
+            7: "clock_jump"}
 
 # workspace: matrices (nx, nx) and rows (nx,)
 WM = Layout("fusion workspace matrices", [("W_F", 1), ("W_W", 1), ("W_PM", 1), ("W_A", 1), ("W_L", 1), ("W_PHI", 1)])
@@ -144,7 +178,7 @@ WV = Layout("fusion workspace rows", [("V_X", 1), ("V_H", 3), ("V_HP", 3), ("V_K
 V_X, V_H, V_HP, V_KT, V_Z, V_R = WV.offsets(*(name for name, _ in WV.fields))
 # per-row variances written with every output row
 NVAR = 9             # pos E N U, vel E N U, roll, pitch, heading (heading < 0: not yet known)
-NREC = 11            # columns of an innovation record (_record)
+NREC = 12            # columns of an innovation record (_record)
 ANTENNA_TAU = 0.05   # s: low-pass of the rate and specific force in the GNSS models (lever arm, time offset)
 NBIAS = 12           # b_g, b_a, s_g, s_a (SI)
 
@@ -156,10 +190,10 @@ def workspace(nx):
     return mats, np.zeros((WV.total, nx)), np.zeros((2, 3, 3))
 
 
-def epoch_width(ncore: int, nx: int) -> int:
-    """Floats of one smoother epoch's transition matrix: its navigation rows over the core states and
-    the diagonal of the rest (:func:`_store_epoch`)."""
-    return 9 * ncore + (nx - 9)
+def epoch_width(ncore: int, nx: int, clk: int = -1) -> int:
+    """Floats of one smoother epoch's transition matrix: its navigation rows over the core states, the
+    diagonal of the rest and, with a receiver clock (state ``clk``), its bias-drift entry (:func:`_store_epoch`)."""
+    return 9 * ncore + (nx - 9) + (1 if clk >= 0 else 0)
 
 
 @njit(cache=True)
@@ -210,6 +244,14 @@ def feedback(st, fs, cv, x, nx, method):
             fs[F_SG + i] += x[SG + i]
             fs[F_SA + i] += x[SA + i]
     la, td = int(cv[C_LA]), int(cv[C_TD])
+    clk = int(cv[C_CLK])
+    if clk >= 0:
+        fs[F_CLK] -= x[clk]
+        fs[F_CLK + 1] -= x[clk + 1]
+        for s in range(N_SYS):
+            k = int(cv[C_ISB + s])
+            if k >= 0:
+                fs[F_ISB + s] -= x[k]
     if la >= 0:
         for i in range(3):
             fs[F_LEVER + i] -= x[la + i]
@@ -297,10 +339,40 @@ def _do_propagate(st, fs, cv, P, mats, store):
                       cv[C_QBG:C_QBG + 3], cv[C_QBA:C_QBA + 3], cv[C_SFG] * w2, cv[C_SFA] * fd2)
     if store:
         transition_step(mats[W_PHI], W, fb, T, ncore, itg, ita)
+    if int(cv[C_CLK]) >= 0:
+        _propagate_clock(P, nx, cv, fs, T, mats[W_PHI], store)
     fs[F_ACC_T] = 0.0
     for i in range(3):
         fs[F_ACC_DV + i] = 0.0
         fs[F_ACC_DTH + i] = 0.0
+
+
+@njit(cache=True)
+def _propagate_clock(P, nx, cv, fs, T, Phi, store):
+    """The receiver clock states over ``T`` s (docs/raw_gnss.md; Brown & Hwang 9.3, Groves 9.4.2): bias ``b`` (m)
+    and drift ``d`` (m/s) with ``b' = d + w_f``, ``d' = w_g``, so ``Phi = [[1, T], [0, 1]]`` and
+    ``Qd = [[S_f T + S_g T^3/3, S_g T^2/2], [S_g T^2/2, S_g T]]`` (``S_f``, ``S_g`` the densities ``cv.q_clk``);
+    each inter-system bias a random walk of density ``cv.q_isb``.  The estimate moves as ``b += d T``.  The
+    clock block is uncoupled from the others in F, so ``P <- Phi P Phi^T`` is one row and one column operation
+    after :func:`propagate`; with ``store`` the smoother's transition product gets the same ``T``."""
+    fs[F_CLK] += fs[F_CLK + 1] * T
+    c = int(cv[C_CLK])
+    d = c + 1
+    for j in range(nx):
+        P[c, j] += T * P[d, j]
+    for i in range(nx):
+        P[i, c] += T * P[i, d]
+    sf, sg = cv[C_QCLK], cv[C_QCLK + 1]
+    P[c, c] += sf * T + sg * T * T * T / 3.0
+    P[c, d] += 0.5 * sg * T * T
+    P[d, c] += 0.5 * sg * T * T
+    P[d, d] += sg * T
+    for s in range(N_SYS):
+        k = int(cv[C_ISB + s])
+        if k >= 0:
+            P[k, k] += cv[C_QISB] * T
+    if store:
+        Phi[c, d] += T
 
 
 @njit(cache=True)
@@ -318,11 +390,11 @@ def _close(st, fs, sums, order, method, t_end, cflu, events, n_ev):
 
 
 @njit(cache=True)
-def _record(inn, n_inn, t, kind, axis, z, var, nis, acc, hph, r_stated, exit_fix, comp):
+def _record(inn, n_inn, t, kind, axis, z, var, nis, acc, hph, r_stated, exit_fix, comp, sat_row):
     """One innovation record (:data:`NREC` columns): time, kind, axis, innovation, its sigma, the NIS of its
     measurement, accepted, then the filter's part of its variance (H P H^T), the stated noise variance
     whether it was an outage exit and the component's index (the calibration pass's statistics,
-    :mod:`sinscli.fusion.pipeline`)."""
+    :mod:`sinscli.fusion.pipeline`), the row of the satellite table (:data:`SAT`; -1: not a satellite's)."""
     if n_inn < inn.shape[0]:
         inn[n_inn, 0] = t
         inn[n_inn, 1] = kind
@@ -335,6 +407,7 @@ def _record(inn, n_inn, t, kind, axis, z, var, nis, acc, hph, r_stated, exit_fix
         inn[n_inn, 8] = r_stated
         inn[n_inn, 9] = 1.0 if exit_fix else 0.0
         inn[n_inn, 10] = comp
+        inn[n_inn, 11] = sat_row
     return n_inn + 1
 
 
@@ -430,16 +503,184 @@ def _antenna_velocity(c, vel, lat, h, w, lever):
     return v_ant, cw, l_n, w_in
 
 
+@njit(cache=True, inline="always")
+def _cross(a, b):
+    """``a x b`` of 3-tuples (``a^T [b x] = (a x b)^T``)."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
 @njit(cache=True)
-def _model(row, kind, st, fs, cv, nx, H, z, r):
-    """Innovation ``z``, its Jacobian ``H`` (rows zeroed here) and noise ``r`` of one measurement row.
+def _dvant_dlever(c, w, w_in):
+    """``d v_ant / d l = Cbn [w x] - [w_in x] Cbn`` (:func:`_antenna_velocity`)."""
+    wx = ((0.0, -w[2], w[1]), (w[2], 0.0, -w[0]), (-w[1], w[0], 0.0))
+    wix = ((0.0, -w_in[2], w_in[1]), (w_in[2], 0.0, -w_in[0]), (-w_in[1], w_in[0], 0.0))
+    a1 = m_mul(c, wx)
+    a2 = m_mul(wix, c)
+    return ((a1[0][0] - a2[0][0], a1[0][1] - a2[0][1], a1[0][2] - a2[0][2]),
+            (a1[1][0] - a2[1][0], a1[1][1] - a2[1][1], a1[1][2] - a2[1][2]),
+            (a1[2][0] - a2[2][0], a1[2][1] - a2[2][1], a1[2][2] - a2[2][2]))
+
+
+@njit(cache=True)
+def _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat):
+    """One satellite's pseudorange (``MT_PR``) or range rate (``MT_DOP``) at the filter's antenna (docs/raw_gnss.md,
+    "Tightly coupled"; IS-GPS-200 20.3.3.3.3 for the range, the clock states of :func:`_propagate_clock`).
+
+    The antenna ``r_a = r(lat, lon, h) + C_n^e (Cbn l + v_ant tau)`` (ECEF; ``tau`` the GNSS time offset), the
+    range with the Earth's rotation during the flight and its line of sight ``e``
+    (:func:`sinscli.gnss.model.geo_range`), the rate :func:`sinscli.gnss.model.range_rate` at the antenna's
+    velocity ``C_n^e v_ant``.  Predicted: ``P_c = rho + b + ISB_sys`` and ``rho' + d``; innovations computed
+    minus measured.  Jacobians (``e_n`` the line of sight in ENU): the pseudorange is ``-e_n^T`` times the
+    GNSS-position rows of :func:`_model` (``[I, 0, [l_n x]]``, lever arm ``Cbn``, time offset ``v_ant``)
+    plus 1 on the bias and on the system's ISB; the range rate ``-e_n^T`` times the GNSS-velocity rows, plus
+    the line of sight's turn with the position ``-(u - (e.u) e)^T / rho`` (``u`` the relative velocity), plus 1
+    on the drift.  ``r`` the row's sigma squared (the pseudorange's plus the horizontal lever arm's
+    ``|l_h|^2/2`` along the line of sight while the heading is unknown).  Returns as :func:`_model`, axis
+    :data:`AX_LOS`; 0 components for a range rate while the heading is unknown."""
+    clk = int(cv[C_CLK])
+    if clk < 0:
+        return 0, 0, 0, 1, 2
+    head_known = fs[F_HEAD_KNOWN] > 0.0
+    if kind == MT_DOP and (not head_known or fs[F_HAVE_W] == 0.0):
+        return 0, 0, 0, 1, 2
+    k = int(row[RW_AUX])
+    sys = int(sat[k, SAT_SYS])
+    c = sd._cbn(st)
+    lat, lon, h = st[sd.S_LAT], st[sd.S_LON], st[sd.S_H]
+    vel = (st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2])
+    lever = (fs[F_LEVER], fs[F_LEVER + 1], fs[F_LEVER + 2])
+    la, td = int(cv[C_LA]), int(cv[C_TD])
+    tau = fs[F_TD]
+    w = (fs[F_W], fs[F_W + 1], fs[F_W + 2])
+    v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
+    ue, un, uu = enu_axes(lat, lon)
+    x0, y0, z0 = geodetic_to_ecef(lat, lon, h)
+    d = (l_n[0] + v_ant[0] * tau, l_n[1] + v_ant[1] * tau, l_n[2] + v_ant[2] * tau)
+    rx = x0 + ue[0] * d[0] + un[0] * d[1] + uu[0] * d[2]
+    ry = y0 + ue[1] * d[0] + un[1] * d[1] + uu[1] * d[2]
+    rz = z0 + ue[2] * d[0] + un[2] * d[1] + uu[2] * d[2]
+    sx, sy, sz = sat[k, SAT_POS], sat[k, SAT_POS + 1], sat[k, SAT_POS + 2]
+    omge = earth_rate(sys)
+    rho, ex, ey, ez = geo_range(sx, sy, sz, rx, ry, rz, omge)
+    e = (ue[0] * ex + ue[1] * ey + ue[2] * ez, un[0] * ex + un[1] * ey + un[2] * ez,
+         uu[0] * ex + uu[1] * ey + uu[2] * ez)
+    isb = int(cv[C_ISB + sys])
+    s0 = row[RW_S]
+    r[0] = s0 * s0
+    if kind == MT_PR:
+        z[0] = rho + fs[F_CLK] + (fs[F_ISB + sys] if isb >= 0 else 0.0) - row[RW_Z]
+        # the antenna offset l_n + tau v_ant turns with the attitude error: [l_n x] + tau ([cw x] - [w_in x][l_n x])
+        exl = _cross(e, l_n)
+        ecw = _cross(e, cw)
+        ewl = _cross(_cross(e, w_in), l_n)
+        for i in range(3):
+            H[0, R + i] = -e[i]
+            H[0, V + i] = -e[i] * tau               # the antenna at the stamp + tau
+            H[0, PHI + i] = -exl[i] - tau * (ecw[i] - ewl[i])
+        if tau != 0.0:                              # and with the gyro bias error through the rate: tau Cbn (w x l)
+            gxl = _cross(m_tvec(c, e), lever)
+            for i in range(3):
+                H[0, BG + i] = tau * gxl[i]
+        if la >= 0:                                 # d (l_n + tau v_ant) / d l = Cbn + tau (Cbn [w x] - [w_in x] Cbn)
+            dl = _dvant_dlever(c, w, w_in)
+            for j in range(3):
+                H[0, la + j] = -(e[0] * (c[0][j] + tau * dl[0][j]) + e[1] * (c[1][j] + tau * dl[1][j])
+                                 + e[2] * (c[2][j] + tau * dl[2][j]))
+        if td >= 0:
+            H[0, td] = -(e[0] * v_ant[0] + e[1] * v_ant[1] + e[2] * v_ant[2])
+        H[0, clk] = 1.0
+        if isb >= 0:
+            H[0, isb] = 1.0
+        if not head_known:
+            r[0] += 0.5 * (lever[0] * lever[0] + lever[1] * lever[1]) * (e[0] * e[0] + e[1] * e[1])
+    else:
+        g = gravity(np.sin(lat), h)
+        acc = (fs[F_F], fs[F_F + 1], fs[F_F + 2] - g)
+        va = (v_ant[0] + acc[0] * tau, v_ant[1] + acc[1] * tau, v_ant[2] + acc[2] * tau)
+        vx = ue[0] * va[0] + un[0] * va[1] + uu[0] * va[2]
+        vy = ue[1] * va[0] + un[1] * va[1] + uu[1] * va[2]
+        vz = ue[2] * va[0] + un[2] * va[1] + uu[2] * va[2]
+        rate = range_rate(sx, sy, sz, sat[k, SAT_VEL], sat[k, SAT_VEL + 1], sat[k, SAT_VEL + 2], rx, ry, rz,
+                          vx, vy, vz, ex, ey, ez, omge)
+        z[0] = rate + fs[F_CLK + 1] - row[RW_Z]
+        # the line of sight turns with the position: d rate / d r = -(u - (e.u) e)^T / rho (ECEF, u = v_s - v_a)
+        ux, uy, uz = sat[k, SAT_VEL] - vx, sat[k, SAT_VEL + 1] - vy, sat[k, SAT_VEL + 2] - vz
+        eu = ex * ux + ey * uy + ez * uz
+        px, py, pz = -(ux - eu * ex) / rho, -(uy - eu * ey) / rho, -(uz - eu * ez) / rho
+        ecw = _cross(e, cw)                         # v_ant turns with the attitude error: [cw x] - [w_in x][l_n x]
+        ewl = _cross(_cross(e, w_in), l_n)
+        gxl = _cross(m_tvec(c, e), lever)           # -e^T (-Cbn [l x]) = (Cbn^T e) x l on b_g
+        # and the ENU axes the velocity is given in turn with the latitude and longitude
+        sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
+        dlon = (-co * va[0] + sl * so * va[1] - cl * so * va[2], -so * va[0] - sl * co * va[1] + cl * co * va[2], 0.0)
+        dlat = (-cl * co * va[1] - sl * co * va[2], -cl * so * va[1] - sl * so * va[2], -sl * va[1] + cl * va[2])
+        rm, rn = radii(sl)
+        pn = (ue[0] * px + ue[1] * py + ue[2] * pz, un[0] * px + un[1] * py + un[2] * pz,
+              uu[0] * px + uu[1] * py + uu[2] * pz)
+        H[0, R] = pn[0] - (ex * dlon[0] + ey * dlon[1]) / ((rn + h) * cl)
+        H[0, R + 1] = pn[1] - (ex * dlat[0] + ey * dlat[1] + ez * dlat[2]) / (rm + h)
+        H[0, R + 2] = pn[2]
+        pxl = _cross(pn, l_n)                       # the antenna's position turns with the attitude: [l_n x]
+        for i in range(3):
+            H[0, V + i] = -e[i]
+            H[0, PHI + i] = ewl[i] - ecw[i] + pxl[i]
+            H[0, BG + i] = gxl[i]
+        if la >= 0:                                 # horizontal lever arm only (see _model's GNSS velocity)
+            dl = _dvant_dlever(c, w, w_in)
+            for j in range(2):
+                H[0, la + j] = -(e[0] * dl[0][j] + e[1] * dl[1][j] + e[2] * dl[2][j]) \
+                    + pn[0] * c[0][j] + pn[1] * c[1][j] + pn[2] * c[2][j]
+        if td >= 0:                                 # the velocity at stamp + tau, and the position there
+            H[0, td] = -(e[0] * acc[0] + e[1] * acc[1] + e[2] * acc[2]) \
+                + pn[0] * v_ant[0] + pn[1] * v_ant[1] + pn[2] * v_ant[2]
+        H[0, clk + 1] = 1.0
+    return 1, AX_LOS, 0, 1, 2
+
+
+@njit(cache=True)
+def _clock_check(row, fs, cv, P, nx, evs, n_evs):
+    """A receiver clock jump (a receiver that keeps its clock within a millisecond steps it by one): the epoch's
+    clock from its own pseudoranges (``z[0]``, m, 1-sigma ``s[0]``; :mod:`sinscli.fusion.raw`) further than
+    ``cv.clk_jump`` and 10 sigma from the filter's resets the bias state there (its correlations dropped, its
+    variance ``clk_p0^2 + s^2``), an event; the smoother restarts there."""
+    c = int(cv[C_CLK])
+    if c < 0:
+        return n_evs
+    dz = row[RW_Z] - fs[F_CLK]
+    lim = max(cv[C_CLK_JUMP], 10.0 * np.sqrt(P[c, c] + row[RW_S] * row[RW_S]))
+    if abs(dz) <= lim:
+        return n_evs
+    fs[F_CLK] = row[RW_Z]
+    for i in range(nx):
+        P[i, c] = 0.0
+        P[c, i] = 0.0
+    P[c, c] = cv[C_CLK_P0] * cv[C_CLK_P0] + row[RW_S] * row[RW_S]
+    fs[F_RESET] = 1.0
+    return _event(evs, n_evs, row[RW_T], EV_CLOCK_JUMP, dz, fs[F_CLK])
+
+
+@njit(cache=True)
+def _widen_state(P, nx, k, ratio):
+    """Widen row and column ``k`` of P by ``sqrt(ratio)`` (a congruence, as :func:`_widen_nav`)."""
+    f = np.sqrt(max(ratio, 1.0))
+    for i in range(nx):
+        P[k, i] *= f
+        P[i, k] *= f
+
+
+@njit(cache=True)
+def _model(row, kind, st, fs, cv, nx, H, z, r, sat):
+    """Innovation ``z``, its Jacobian ``H`` (rows zeroed here) and noise ``r`` of one measurement row
+    (``sat``: the satellite table of raw rows, :func:`_raw_model`).
 
     Returns ``(m, axis0, ax0, ax1, ax2)``: the number of components (0: not applicable now), the
-    axis code of the first (0 e, 1 n, 2 u, 3 x, 4 y, 5 z) and the axes used.
+    axis code of the first (0 e, 1 n, 2 u, 3 x, 4 y, 5 z, 6 line of sight) and the axes used.
     """
     for a in range(3):
         for j in range(nx):
             H[a, j] = 0.0
+    if kind == MT_PR or kind == MT_DOP:
+        return _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat)
     c = sd._cbn(st)
     lat, lon, h = st[sd.S_LAT], st[sd.S_LON], st[sd.S_H]
     vel = (st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2])
@@ -628,18 +869,20 @@ def _exit_drift_scale(ratio, r_share, fs, cv, evs, n_evs, t):
 
 
 @njit(cache=True)
-def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
+def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
     """Apply one measurement row at the current time (the state is at its time).  Returns counters."""
     nx = int(cv[C_NX])
     kind = int(row[RW_KIND])
     t = row[RW_T]
     if kind == MT_COURSE:
         return n_inn, _heading_from_course(row, st, fs, cv, P, nx, evs, n_evs)
+    if kind == MT_CLOCK:
+        return n_inn, _clock_check(row, fs, cv, P, nx, evs, n_evs)
     H = vecs[V_H:V_H + 3]
     z = vecs[V_Z]
     r = vecs[V_R]
     x = vecs[V_X]
-    m, axis0, a0, a1, a2 = _model(row, kind, st, fs, cv, nx, H, z, r)
+    m, axis0, a0, a1, a2 = _model(row, kind, st, fs, cv, nx, H, z, r, sat)
     if m == 0:
         return n_inn, n_evs
     k = K_OF_KIND[kind]
@@ -697,7 +940,19 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
             acc = True
             fs[F_NREJ] = 0.0
             fs[F_RESET] = 1.0
-    elif acc and k >= 0:
+    elif kind == MT_PR and _epoch_rejected(fs, cv, t, acc):
+        # every pseudorange of rej_run consecutive epochs rejected: the filter diverged (or the receiver's
+        # ranges jumped and stay): the navigation block and the clock bias widened by this satellite's NIS
+        # (_widen_nav, _widen_state), the satellite taken
+        n_evs = _event(evs, n_evs, t, EV_REJECTION_RUN, fs[F_EP_T0], fs[F_EP_NREJ])
+        _widen_nav(P, nx, nis)
+        _widen_state(P, nx, int(cv[C_CLK]), nis)
+        innovation_covariance(P, nx, H, r, m, HP, S)
+        nis_of(S, z, m, Si)
+        acc = True
+        fs[F_EP_NREJ] = 0.0
+        fs[F_RESET] = 1.0
+    elif acc and (k >= 0 or kind == MT_PR or kind == MT_DOP):
         # IGG-III robust weight: above the full-weight bound the noise is inflated smoothly up to the gate
         k0 = cv[C_ROBUST + m - 1]
         if k0 > 0.0 and nis > k0:
@@ -709,16 +964,40 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs):
             nis_of(S, z, m, Si)
     if acc and kind == MT_GNSS_POS:
         fs[F_NREJ] = 0.0
+    if kind == MT_PR:
+        if acc:
+            fs[F_EP_ACC] += 1.0
+        else:
+            fs[F_EP_REJ] += 1.0
     axes = (a0, a1, a2)
+    sat_row = row[RW_AUX] if kind == MT_PR or kind == MT_DOP else -1.0
     for a in range(m):
         n_inn = _record(inn, n_inn, t, kind, axis0 + axes[a], z[a], S[a, a], nis_report, acc, hph[a], rst[a],
-                        exit_fix, a)
+                        exit_fix, a, sat_row)
     if acc:
         kalman_apply(P, nx, H, z, r, m, x, HP, KT, A, Si)
         if not head_known:
             x[PHI + 2] = 0.0
         feedback(st, fs, cv, x, nx, int(cv[C_METHOD]))
     return n_inn, n_evs
+
+
+@njit(cache=True)
+def _epoch_rejected(fs, cv, t, acc):
+    """Book-keeping of the raw epochs (pseudorange rows): at the first row of a new epoch the previous one is
+    counted as rejected (all its pseudoranges rejected) or not; True when this row is rejected and
+    ``rejection_run`` consecutive epochs before it were."""
+    if t != fs[F_EP_T]:
+        if fs[F_EP_ACC] == 0.0 and fs[F_EP_REJ] > 0.0:
+            if fs[F_EP_NREJ] == 0.0:
+                fs[F_EP_T0] = fs[F_EP_T]
+            fs[F_EP_NREJ] += 1.0
+        elif fs[F_EP_ACC] > 0.0:
+            fs[F_EP_NREJ] = 0.0
+        fs[F_EP_T] = t
+        fs[F_EP_ACC] = 0.0
+        fs[F_EP_REJ] = 0.0
+    return not acc and fs[F_EP_NREJ] >= cv[C_REJ_RUN]
 
 
 @njit(cache=True)
@@ -736,10 +1015,11 @@ def _widen_nav(P, nx, ratio):
 
 
 @njit(cache=True)
-def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep):
+def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep, clk):
     """One smoother epoch: P- and P+ (upper triangles, row by row), the transition matrix since the
-    previous epoch (its navigation rows over the core states, then the diagonal of the other rows), the
-    correction fed back since the previous epoch, the reset flag; the transition matrix restarts at I."""
+    previous epoch (its navigation rows over the core states, then the diagonal of the other rows, then with
+    a receiver clock at state ``clk`` its bias-drift entry), the correction fed back since the previous
+    epoch, the reset flag; the transition matrix restarts at I."""
     ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset = ep
     if n_ep < ep_t.shape[0]:
         ep_t[n_ep] = t
@@ -759,6 +1039,8 @@ def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep):
         for i in range(9, nx):
             ep_ft[n_ep, u] = Phi[i, i]
             u += 1
+        if clk >= 0:
+            ep_ft[n_ep, u] = Phi[clk, clk + 1]
         ep_reset[n_ep] = fs[F_RESET]
     for i in range(nx):
         for j in range(nx):
@@ -769,7 +1051,7 @@ def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep):
 
 
 @njit(cache=True)
-def _measure_group(tm, meas, im, st, fs, cv, P, ws, rec, ep, n_ep, tol):
+def _measure_group(tm, meas, im, st, fs, cv, P, ws, rec, ep, n_ep, tol, sat):
     """Propagate P to ``tm`` and apply every row at that time; store the smoother epoch."""
     mats, vecs, s3 = ws
     inn, n_inn, evs, n_evs = rec
@@ -783,12 +1065,12 @@ def _measure_group(tm, meas, im, st, fs, cv, P, ws, rec, ep, n_ep, tol):
                 Pm[i, j] = P[i, j]
     nm = meas.shape[0]
     while im < nm and meas[im, RW_T] <= tm + tol:
-        n_inn, n_evs = _apply(meas[im], st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs)
+        n_inn, n_evs = _apply(meas[im], st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat)
         im += 1
     if not _health(P, nx, fs, tm, mats[W_L], True):
         return im, n_inn, n_evs, n_ep
     if store:
-        n_ep = _store_epoch(tm, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep)
+        n_ep = _store_epoch(tm, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]))
     return im, n_inn, n_evs, n_ep
 
 
@@ -815,8 +1097,9 @@ def row_variances(out, n, c, fwd, pe, pn, pu, ve, vn, vu, aee, ann, auu, aen, he
 
 
 @njit(cache=True)
-def fuse(imu, nav, meas, ws, out, rec, ep, n_ep):
-    """Fused navigation of one block of IMU samples with the measurement rows ``meas`` (module docstring).
+def fuse(imu, nav, meas, ws, out, rec, ep, n_ep, sat):
+    """Fused navigation of one block of IMU samples with the measurement rows ``meas`` (module docstring) and
+    the satellite table ``sat`` of their raw GNSS rows (:data:`SAT`; (0, SW) without).
 
     ``imu = (time, dtheta_b, dvel_b)``; ``nav = (st, fs, cv, P, cflu)``: the strapdown state
     (:func:`sinscli.nav.strapdown.new_state`), the filter scalars (:data:`FS`), the configuration
@@ -882,7 +1165,7 @@ def fuse(imu, nav, meas, ws, out, rec, ep, n_ep):
             nsub_now = 0
             frac = a
             im, n_inn, n_evs, n_ep = _measure_group(tm, meas, im, st, fs, cv, P, ws, (inn, n_inn, evs, n_evs), ep,
-                                                    n_ep, tol)
+                                                    n_ep, tol, sat)
             if fs[F_ERR] != 0.0:
                 sd.save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now)
                 return n_out, im, n_inn, n_evs, n_ep
@@ -901,7 +1184,7 @@ def fuse(imu, nav, meas, ws, out, rec, ep, n_ep):
         nsub_now = 0
         if due:
             im, n_inn, n_evs, n_ep = _measure_group(tk, meas, im, st, fs, cv, P, ws, (inn, n_inn, evs, n_evs), ep,
-                                                    n_ep, tol)
+                                                    n_ep, tol, sat)
             if fs[F_ERR] != 0.0:
                 break
         elif fs[F_ACC_T] >= cv[C_PROP_DT] * (1.0 - 1e-9):
@@ -912,7 +1195,7 @@ def fuse(imu, nav, meas, ws, out, rec, ep, n_ep):
                 for i in range(nx):
                     for j in range(nx):
                         Pm[i, j] = P[i, j]
-                n_ep = _store_epoch(tk, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep)
+                n_ep = _store_epoch(tk, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]))
         if fs[F_NSAMP_OUT] >= per_out and n_out < out_t.shape[0]:
             fs[F_NSAMP_OUT] = 0.0
             out_t[n_out] = tk

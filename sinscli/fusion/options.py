@@ -6,6 +6,7 @@ Every key with its default and unit is in :data:`FUSION_DEFAULTS` (and documente
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -79,6 +80,28 @@ FUSION_DEFAULTS = {
     },
     "scale_factor_tau": 10.0,        # s: correlation time of unestimated scale-factor/misalignment noise
     "smoother_interval": 1.0,        # s: the smoother stores an epoch at least this often
+    "raw": {                         # raw GNSS observations (--gnss-raw: tightly coupled; docs/raw_gnss.md)
+        "systems": None,             # letters of GECJ; null: every one observed
+        "elevation_mask": 15.0,      # deg
+        "code_sigma": 0.3,           # m: a = b of sigma^2 = a^2 + b^2 / sin^2 el, scaled up below cn0_ref
+        "doppler_sigma": 0.1,        # m/s: range-rate sigma at the zenith and cn0_ref
+        "cn0_ref": 45.0,             # dB-Hz: C/N0 under which the variances grow as 10^((cn0_ref - C/N0)/10)
+        "iono": "auto",              # auto | klobuchar | iflc | off (auto: ionosphere-free where two frequencies)
+        "tropo": True,               # Saastamoinen + DO-229 mapping
+        "use_ura": True,             # the broadcast URA in the pseudorange variance
+        "iono_var": 0.5,             # the Klobuchar residual's 1-sigma as a share of its delay
+        "tropo_sigma": 0.1,          # m: troposphere residual at the zenith (times the mapping function)
+        "smooth_code": 0.0,          # s: carrier smoothing (Hatch) of the pseudoranges; 0: raw
+    },
+    "clock": {                       # the receiver clock states (raw GNSS), defaults of a TCXO
+        "h0": 2.0e-19,               # s: white frequency noise, Allan h_0 (Brown & Hwang table 9.1, TCXO)
+        "h_2": 2.0e-20,              # 1/s: random-walk frequency noise, Allan h_-2
+        "bias_sigma": 30.0,          # m: 1-sigma of the clock bias after its first estimate from the data
+        "drift_sigma": 1.0,          # m/s: the same of the drift
+        "isb_sigma": 10.0,           # m: the same of each inter-system bias
+        "isb_walk": 0.001,           # m/sqrt(s): random walk of the inter-system biases
+        "jump": 10000.0,             # m: an epoch's clock this far (and 10 sigma) from the filter's: a clock jump
+    },
 }
 
 # --vehicle / fusion.vehicle: the constraints a user of the platform expects, under the keys the user
@@ -150,6 +173,39 @@ class FusionOptions:
     adapt_decay: float = 600.0
     scale_factor_tau: float = 10.0
     smoother_interval: float = 1.0
+    raw_systems: str | None = None           # raw GNSS (--gnss-raw): letters of GECJ
+    raw_elevation_mask: float = 15.0         # deg
+    raw_code_sigma: float = 0.3              # m
+    raw_doppler_sigma: float = 0.1           # m/s
+    raw_cn0_ref: float = 45.0                # dB-Hz
+    raw_iono: str = "auto"
+    raw_tropo: bool = True
+    raw_use_ura: bool = True
+    raw_iono_var: float = 0.5
+    raw_tropo_sigma: float = 0.1             # m
+    raw_smooth_code: float = 0.0             # s
+    clock_h0: float = 2.0e-19                # s
+    clock_h_2: float = 2.0e-20               # 1/s
+    clock_bias_sigma: float = 30.0           # m
+    clock_drift_sigma: float = 1.0           # m/s
+    clock_isb_sigma: float = 10.0            # m
+    clock_isb_walk: float = 0.001            # m/sqrt(s)
+    clock_jump: float = 10000.0              # m
+
+    def spp_options(self):
+        """The options vector of :func:`sinscli.gnss.spp.solve_epochs` / :func:`sinscli.gnss.tc.tc_records`
+        from the ``fusion.raw`` keys."""
+        from ..gnss.spp import spp_options  # the raw-GNSS path (gnss/ numba kernels) only with --gnss-raw
+        return spp_options(elev_mask_deg=self.raw_elevation_mask, iono=self.raw_iono, tropo=self.raw_tropo,
+                           code_a=self.raw_code_sigma, code_b=self.raw_code_sigma, cn0_ref=self.raw_cn0_ref,
+                           doppler_sigma=self.raw_doppler_sigma, iono_var=self.raw_iono_var,
+                           tropo_sigma=self.raw_tropo_sigma, use_ura=self.raw_use_ura)
+
+    def clock_densities(self):
+        """``(S_f, S_g)``: the clock bias (m^2/s) and drift ((m/s)^2/s) noise densities of the Allan
+        coefficients, ``S_f = c^2 h_0 / 2``, ``S_g = c^2 2 pi^2 h_-2`` (Brown & Hwang 9.3)."""
+        c2 = 299792458.0 ** 2
+        return c2 * self.clock_h0 / 2.0, c2 * 2.0 * math.pi ** 2 * self.clock_h_2
 
 
 # the one validator family (sinscli.schema), keys under ``fusion.``
@@ -253,4 +309,34 @@ def build_fusion_options(section, src: str, base_dir=None, vehicle: str | None =
     kw["adapt_decay"] = _num(src, "adapt.decay", ad["decay"], gt=0.0, le=MAX_TIME)
     kw["scale_factor_tau"] = _num(src, "scale_factor_tau", d["scale_factor_tau"], ge=0.0, le=MAX_TIME)
     kw["smoother_interval"] = _num(src, "smoother_interval", d["smoother_interval"], gt=0.0, le=MAX_TIME)
+    _raw_clock(src, d, kw)
     return FusionOptions(**kw)
+
+
+def _raw_clock(src, d, kw) -> None:
+    """The ``fusion.raw`` and ``fusion.clock`` keys into ``kw``."""
+    rw = d["raw"]
+    if rw["systems"] is not None:
+        if not isinstance(rw["systems"], str) or not rw["systems"] or any(c not in "GECJ" for c in rw["systems"]):
+            _fail(src, "raw.systems", f"expected letters of GECJ, got {rw['systems']!r}")
+        kw["raw_systems"] = rw["systems"]
+    kw["raw_elevation_mask"] = _num(src, "raw.elevation_mask", rw["elevation_mask"], ge=0.0, le=90.0)
+    kw["raw_code_sigma"] = _num(src, "raw.code_sigma", rw["code_sigma"], gt=0.0, le=MAX_POS)
+    kw["raw_doppler_sigma"] = _num(src, "raw.doppler_sigma", rw["doppler_sigma"], gt=0.0, le=MAX_VEL)
+    kw["raw_cn0_ref"] = _num(src, "raw.cn0_ref", rw["cn0_ref"], ge=0.0, le=100.0)
+    if rw["iono"] not in ("auto", "klobuchar", "iflc", "off"):
+        _fail(src, "raw.iono", f"expected auto, klobuchar, iflc or off, got {rw['iono']!r}")
+    kw["raw_iono"] = rw["iono"]
+    kw["raw_tropo"] = _bool(src, "raw.tropo", rw["tropo"])
+    kw["raw_use_ura"] = _bool(src, "raw.use_ura", rw["use_ura"])
+    kw["raw_iono_var"] = _num(src, "raw.iono_var", rw["iono_var"], ge=0.0, le=10.0)
+    kw["raw_tropo_sigma"] = _num(src, "raw.tropo_sigma", rw["tropo_sigma"], ge=0.0, le=MAX_POS)
+    kw["raw_smooth_code"] = _num(src, "raw.smooth_code", rw["smooth_code"], ge=0.0, le=3600.0)
+    ck = d["clock"]
+    kw["clock_h0"] = _num(src, "clock.h0", ck["h0"], ge=0.0, le=1e-12)
+    kw["clock_h_2"] = _num(src, "clock.h_2", ck["h_2"], ge=0.0, le=1e-12)
+    kw["clock_bias_sigma"] = _num(src, "clock.bias_sigma", ck["bias_sigma"], gt=0.0, le=MAX_POS)
+    kw["clock_drift_sigma"] = _num(src, "clock.drift_sigma", ck["drift_sigma"], gt=0.0, le=MAX_VEL)
+    kw["clock_isb_sigma"] = _num(src, "clock.isb_sigma", ck["isb_sigma"], gt=0.0, le=MAX_POS)
+    kw["clock_isb_walk"] = _num(src, "clock.isb_walk", ck["isb_walk"], ge=0.0, le=MAX_VEL)
+    kw["clock_jump"] = _num(src, "clock.jump", ck["jump"], gt=0.0, le=MAX_POS)

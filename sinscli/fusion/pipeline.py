@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import chi2
 
 from ..errors import SinsError
+from ..gnss.signals import SYS_CHARS
 from ..nav import strapdown as sd
 from ..nav.earth import gravity, local_en
 from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
@@ -28,8 +28,9 @@ from ..units import UG_DECIMAL
 from . import kernel as kn
 from .model import BA, BG, PHI, SA, SG, V
 from .noise import apply_data_noise
-from .summary import (FusionSummary, clock, exit_fixes, fix_residuals, ground_vehicle_hint, heading_course_check,
-                      outages, standstill_intervals)
+from .raw import satellite_counts
+from .summary import (FusionSummary, RawSummary, clock, exit_fixes, few_satellite_spans, fix_residuals,
+                      ground_vehicle_hint, heading_course_check, outages, standstill_intervals)
 from .options import FusionOptions
 from .standstill import StandstillDetector, gnss_still
 from .smoother import smooth_rows
@@ -39,11 +40,12 @@ log = logging.getLogger("sins")
 DEFAULT_SENSOR = "mems"
 REQUIRED_TERMS = {"gyro": ("arw", "bias_sigma", "bias_instability", "bias_tau"),
                   "accel": ("vrw", "bias_sigma", "bias_instability", "bias_tau")}
-PRIO = {kn.MT_COURSE: 0, kn.MT_GNSS_POS: 1, kn.MT_GNSS_VEL: 2, kn.MT_ZUPT: 3, kn.MT_ZARU: 4, kn.MT_NHC: 5,
-        kn.MT_ODOM: 6}
-AXES = np.array(["e", "n", "u", "x", "y", "z"])
+PRIO = {kn.MT_COURSE: 0, kn.MT_CLOCK: 1, kn.MT_GNSS_POS: 2, kn.MT_PR: 2, kn.MT_GNSS_VEL: 3, kn.MT_DOP: 3,
+        kn.MT_ZUPT: 4, kn.MT_ZARU: 5, kn.MT_NHC: 6, kn.MT_ODOM: 7}
+PRIO_OF_KIND = np.array([PRIO[k] for k in range(len(kn.MEAS_NAMES))])     # the same, indexed by kind
+AXES = np.array(["e", "n", "u", "x", "y", "z", "los"])
 INNOVATION_DTYPE = np.dtype([("time", "f8"), ("type", "U16"), ("axis", "U8"), ("innovation", "f8"),
-                             ("sigma", "f8"), ("nis", "f8"), ("accepted", "?")])
+                             ("sigma", "f8"), ("nis", "f8"), ("accepted", "?"), ("sat", "U4")])
 SIGMA_COLUMNS = ["pos_e_std", "pos_n_std", "pos_u_std", "vel_e_std", "vel_n_std", "vel_u_std",
                  "roll_std", "pitch_std", "heading_std"]
 BIAS_COLUMNS = ["gyro_bias_x", "gyro_bias_y", "gyro_bias_z", "accel_bias_x", "accel_bias_y", "accel_bias_z"]
@@ -133,6 +135,7 @@ def _fill_unknown_terms(sens: dict, src: str) -> list:
 
 def chi2_gate(p: float, m: int) -> float:
     """The chi-square gate of an ``m``-dimensional innovation: the ``p`` quantile of chi2(m) (scipy.stats)."""
+    from scipy.stats import chi2   # 0.3-0.6 s of import: only when a fused run builds its gates, not at import
     return float(chi2.ppf(p, m))
 
 
@@ -257,7 +260,7 @@ def course_rows(gnss: GnssLog, fopts: FusionOptions, sp: np.ndarray, t_min: floa
 def sort_rows(rows: np.ndarray) -> np.ndarray:
     if len(rows) == 0:
         return rows.reshape(0, kn.MW)
-    prio = np.vectorize(PRIO.get)(rows[:, 1].astype(int))
+    prio = PRIO_OF_KIND[rows[:, 1].astype(int)]
     return rows[np.lexsort((prio, rows[:, 0]))]
 
 
@@ -300,7 +303,7 @@ class Fusion:
     def __init__(self, init: NavState, nav: NavOptions, fopts: FusionOptions, gnss: GnssLog,
                  init_sigma: dict | None = None, body_vel=None, smooth: bool = False, src: str = "config",
                  init_bias: dict | None = None, data_noise=None, t_log0: float | None = None,
-                 drift_base: float = 1.0, r_base=None):
+                 drift_base: float = 1.0, r_base=None, raw=None):
         nav.check()
         if nav.attitude not in ("quat", "dcm") or nav.frame != "enu":
             raise SinsError(f"--gnss: the fusion filter runs with --attitude quat or dcm in the ENU frame, "
@@ -324,6 +327,16 @@ class Fusion:
             self.la, nx = nx, nx + 3
         if "time_offset" in fopts.estimate:
             self.td, nx = nx, nx + 1
+        # raw GNSS (tightly coupled, sinscli.fusion.raw): the receiver clock bias and drift, an inter-system
+        # bias per extra constellation
+        self.raw = raw
+        self.clk = -1
+        self.isb = {}
+        if raw is not None:
+            self.clk, nx = nx, nx + 2
+            for s_ in raw.isb_systems:
+                self.isb[s_], nx = nx, nx + 1
+        self.sat = raw.sat if raw is not None else np.zeros((0, kn.SW))
         self.ncore, self.nx = ncore, nx
         c = np.asarray(init.Cbn, dtype=float)
         self.method = nav.method_code()
@@ -345,6 +358,12 @@ class Fusion:
         self.fs[kn.F_LEVER:kn.F_LEVER + 3] = self.lever
         self.fs[kn.F_TPREV] = init.time
         self.fs[kn.F_T_EPOCH] = init.time
+        if raw is not None:                 # the clock from the first epoch's data, brought back to the start
+            b0, d0 = raw.clock0
+            self.fs[kn.F_CLK] = b0 - d0 * (raw.t0 - init.time)
+            self.fs[kn.F_CLK + 1] = d0
+            for s_, v in raw.isb0.items():
+                self.fs[kn.F_ISB + s_] = v
         if init_bias:
             self.fs[kn.F_BG:kn.F_BG + 3] = init_bias.get("gyro", np.zeros(3))
             self.fs[kn.F_BA:kn.F_BA + 3] = init_bias.get("accel", np.zeros(3))
@@ -357,7 +376,10 @@ class Fusion:
         t_min = init.time + time_tolerance(init.time)
         self.course = course_rows(gnss, fopts, gnss.position_sigma(fopts.gnss_pos_sigma), t_min) if len(gnss) \
             else CourseRows(np.zeros((0, kn.MW)))
-        rows = [gnss_rows(gnss, fopts, t_min)]
+        if raw is None:
+            rows = [gnss_rows(gnss, fopts, t_min)]
+        else:                               # the satellites' measurements; the fixes give the course only
+            rows = [raw.rows[raw.rows[:, 0] > t_min], self.course.rows]
         if body_vel is not None and fopts.odometry and len(body_vel.time):
             # the log's sigma (a wheel-odometry controller's covariance is often a placeholder: 1e-3) no
             # smaller than the floor (wheel slip of a skid-steered vehicle, ~10 % at 1 m/s); or the config's
@@ -372,7 +394,7 @@ class Fusion:
         self._t_nhc = init.time
         self._t_end_gnss = t_end
         self.inn_parts, self.ev_parts = [], []
-        self.epochs = EpochStore(nx, kn.epoch_width(ncore, nx)) if smooth else None
+        self.epochs = EpochStore(nx, kn.epoch_width(ncore, nx, self.clk)) if smooth else None
         self.smoother_guard = None
         self.forward_rows = []          # kept for the smoother: (trajectory, variances, sensor estimates)
         self.applied = 0
@@ -428,6 +450,14 @@ class Fusion:
         lat_axes = [i for i in range(3) if i != fwd]
         cv[kn.C_NHC_AX], cv[kn.C_NHC_AX + 1] = lat_axes
         cv[kn.C_FWD] = fwd
+        cv[kn.C_CLK] = self.clk
+        cv[kn.C_ISB:kn.C_ISB + 7] = -1.0
+        for s_, k in self.isb.items():
+            cv[kn.C_ISB + s_] = k
+        cv[kn.C_QCLK], cv[kn.C_QCLK + 1] = f.clock_densities()
+        cv[kn.C_QISB] = f.clock_isb_walk ** 2
+        cv[kn.C_CLK_JUMP] = f.clock_jump
+        cv[kn.C_CLK_P0] = f.clock_bias_sigma
         return cv
 
     def _initial_covariance(self, s: dict):
@@ -455,6 +485,11 @@ class Fusion:
             P[self.la:self.la + 3, self.la:self.la + 3] = np.eye(3) * f.lever_arm_sigma ** 2
         if self.td >= 0:
             P[self.td, self.td] = f.time_offset_sigma ** 2
+        if self.clk >= 0:
+            P[self.clk, self.clk] = max(f.clock_bias_sigma, self.raw.clock0_sigma[0]) ** 2
+            P[self.clk + 1, self.clk + 1] = f.clock_drift_sigma ** 2
+            for k in self.isb.values():
+                P[k, k] = f.clock_isb_sigma ** 2
         return P
 
     # ------------------------------------------------------------------ running
@@ -551,7 +586,8 @@ class Fusion:
         else:
             arrays, n0 = EpochStore.EMPTY, 0
         n, used, n_inn, n_evs, n_ep = kn.fuse((time, dth, dv), (self.st, self.fs, self.cv, self.P, self.cflu), meas,
-                                              (self.mats, self.vecs, self.s3), out, (inn, evs), arrays, n0)
+                                              (self.mats, self.vecs, self.s3), out, (inn, evs), arrays, n0,
+                                              self.sat)
         if self.smooth:
             self.epochs.n = n_ep
         if used < nm:                       # rows at the block's very end go with the next block
@@ -593,6 +629,9 @@ class Fusion:
         elif kind == kn.EV_REACQUIRE:
             log.info("fusion: outage exit at %s beyond the gate (NIS %.3g): position covariance widened, fix "
                      "accepted", c, e[2])
+        elif kind == kn.EV_CLOCK_JUMP:
+            log.info("fusion: receiver clock jump of %.6g m (%.4g ms) at %s: the clock bias state reset", e[2],
+                     e[2] / 299792.458, c)
 
     def _columns(self, var, bias) -> dict:
         """docs/formats.md aided-trajectory columns from the row variances and the sensor estimates (SI)."""
@@ -623,6 +662,12 @@ class Fusion:
         rec["sigma"] = inn[:, 4]
         rec["nis"] = inn[:, 5]
         rec["accepted"] = inn[:, 6] > 0
+        rec["sat"] = ""
+        if self.raw is not None and len(inn):
+            names = self.raw.sat_names()
+            k = inn[:, 11].astype(int)
+            mine = k >= 0
+            rec["sat"][mine] = names[k[mine]]
         return rec
 
     def events(self) -> np.ndarray:
@@ -635,7 +680,8 @@ class Fusion:
         bias = np.concatenate([r[2] for r in self.forward_rows])
         self.forward_rows = []
         self.smoother_guard = smooth_rows(traj.time, traj.lat, traj.lon, traj.height, traj.vel_n, traj.Cbn, var,
-                                          bias, self.epochs.trimmed(), self.ncore, self.nx, int(self.cv[kn.C_FWD]))
+                                          bias, self.epochs.trimmed(), self.ncore, self.nx, int(self.cv[kn.C_FWD]),
+                                          self.clk)
         traj.extra = self._columns(var, bias)
         return traj
 
@@ -660,6 +706,9 @@ class Fusion:
         s.outages = outages(self.gnss.time[inside], f.outage)
         s.standstill = standstill_intervals(rec, f.standstill_window)
         s.residuals = fix_residuals(traj, self.gnss, self.fs[kn.F_LEVER:kn.F_LEVER + 3], inside, f.outage)
+        if self.raw is not None:
+            s.raw = self._raw_summary(rec, t1)
+            s.outages = []                  # the fixes' gaps are no outage of a tightly coupled filter
         if len(traj):
             s.final_sigma = {k: float(traj.extra[k][-1]) for k in SIGMA_COLUMNS}
         # the sensor model and where its terms came from
@@ -711,6 +760,35 @@ class Fusion:
             if hint:
                 s.hints.append(hint)
         return s
+
+    def _raw_summary(self, rec, t1: float) -> RawSummary:
+        """What the tightly coupled run did with the satellites (:class:`sinscli.fusion.summary.RawSummary`)."""
+        raw = self.raw
+        inside = (raw.epoch_time > self.init.time) & (raw.epoch_time <= t1 + time_tolerance(t1))
+        n = raw.epoch_nsat[inside]
+        rs = RawSummary(epochs=int(inside.sum()), few=int(((n > 0) & (n < 4)).sum()), none=int((n == 0).sum()))
+        rs.few_spans = few_satellite_spans(raw.epoch_time[inside], n)
+        m = (rec["type"] == "pseudorange") | (rec["type"] == "doppler")
+        sats = rec["sat"][m]
+        letters = np.array([x[:1] for x in sats])
+        rs.per_system = satellite_counts(letters, rec["type"][m], rec["accepted"][m])
+        for c in rs.per_system:
+            rs.satellites[c] = int(len(np.unique(sats[letters == c])))
+        for t, unit in (("pseudorange", "m"), ("doppler", "m/s")):
+            a = rec[(rec["type"] == t) & rec["accepted"]]
+            if len(a):
+                rs.rms[t] = float(np.sqrt(np.mean(a["innovation"] ** 2)))
+        c, P = self.clk, self.P
+        rs.clock = (float(self.fs[kn.F_CLK]), math.sqrt(P[c, c]), float(self.fs[kn.F_CLK + 1]),
+                    math.sqrt(P[c + 1, c + 1]))
+        ref = SYS_CHARS[raw.ref]
+        for s_, k in self.isb.items():
+            rs.isb.append((f"{SYS_CHARS[s_]}-{ref}", float(self.fs[kn.F_ISB + s_]), math.sqrt(P[k, k])))
+        ev = self.events()
+        rs.jumps = int(np.sum(ev[:, 1] == kn.EV_CLOCK_JUMP)) if len(ev) else 0
+        rs.ref = ref
+        rs.notes = list(raw.notes)
+        return rs
 
     def _adaptation_lines(self, ev, s: FusionSummary) -> None:
         """Every adaptation of the run with its cause (:mod:`sinscli.fusion.kernel`)."""
@@ -899,14 +977,15 @@ def fuse_blocks(blocks, fusion: Fusion, progress=None):
 
 def run_fusion(imu: ImuLog, init: NavState, gnss: GnssLog, fopts: FusionOptions | None = None,
                nav: NavOptions | None = None, smooth: bool = False, init_sigma=None, body_vel=None,
-               init_bias=None, data_noise=None):
+               init_bias=None, data_noise=None, raw=None):
     """Fuse a whole in-memory log; returns ``(trajectory, innovations, summary, fusion)``.  With adaptation
-    on, the passes of :func:`calibrated_run` (one for a consistent log)."""
+    on, the passes of :func:`calibrated_run` (one for a consistent log).  ``raw``: tightly coupled on these
+    raw GNSS rows (:func:`sinscli.fusion.raw.raw_measurements`; ``gnss`` then its single-point fixes)."""
     fopts = fopts or FusionOptions()
 
     def make(**kw):
         return Fusion(init, nav or NavOptions(), fopts, gnss, init_sigma=init_sigma, body_vel=body_vel,
-                      init_bias=init_bias, data_noise=data_noise, t_log0=imu.t0, **kw)
+                      init_bias=init_bias, data_noise=data_noise, t_log0=imu.t0, raw=raw, **kw)
 
     f, chunks = calibrated_run(lambda **kw: make(smooth=smooth, **kw), lambda f: list(fuse_blocks([imu], f)))
     traj = concat(chunks)

@@ -57,10 +57,10 @@ def _unpack(packed, k, nx, M):
 
 
 @njit(cache=True)
-def _phi(ftk, ncore, nx, Phi):
+def _phi(ftk, ncore, nx, Phi, clk=-1):
     """The transition matrix between two epochs from its stored form
     (:func:`sinscli.fusion.kernel._store_epoch`): the navigation rows over the core states, then the
-    diagonal of the other rows."""
+    diagonal of the other rows, then with a receiver clock (bias state ``clk``) its bias-drift entry."""
     for i in range(nx):
         for j in range(nx):
             Phi[i, j] = 0.0
@@ -72,10 +72,12 @@ def _phi(ftk, ncore, nx, Phi):
     for i in range(9, nx):
         Phi[i, i] = ftk[u]
         u += 1
+    if clk >= 0:
+        Phi[clk, clk + 1] = ftk[u]
 
 
 @njit(cache=True)
-def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx):
+def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk=-1):
     """Smoothed errors ``d (E, nx)`` (of the corrected nominal at each epoch), the ``NPS`` smoothed
     covariance entries of each epoch ``ps (E, NPS)`` and the guard's record ``guard (4,)``: pivots
     clipped (not PSD beyond rounding), the most negative pivot relative to its diagonal, gains solved
@@ -125,7 +127,7 @@ def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx):
             continue
         guard[3] += 1.0
         _unpack(ep_pm, k + 1, nx, Pm)
-        _phi(ep_ft[k + 1], ncore, nx, Phi)
+        _phi(ep_ft[k + 1], ncore, nx, Phi, clk)
         for i in range(nx):                   # rows of Phi that are diagonal (sensor states)
             diag_row[i] = True
             for j in range(nx):
@@ -247,11 +249,12 @@ def apply_corrections(t_rows, lat, lon, h, vel, cbn, var, bias, ep_t, d, ps, ep_
                       var[n, NVAR - 1] >= 0.0)
 
 
-def smooth_rows(time, lat, lon, h, vel, cbn, var, bias, epochs, ncore, nx, fwd):
-    """Smooth the forward output rows in place (``epochs``: the stored arrays, in time order)."""
+def smooth_rows(time, lat, lon, h, vel, cbn, var, bias, epochs, ncore, nx, fwd, clk=-1):
+    """Smooth the forward output rows in place (``epochs``: the stored arrays, in time order; ``clk`` the
+    receiver clock's bias state, -1 none)."""
     if epochs is None or len(epochs[0]) == 0:
         return np.zeros(4)
     ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset = epochs
-    d, ps, guard = rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx)
+    d, ps, guard = rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk)
     apply_corrections(time, lat, lon, h, vel, cbn, var, bias, ep_t, d, ps, ep_x, ncore, nx, fwd)
     return guard

@@ -214,6 +214,69 @@ def ground_vehicle_hint(gnss: GnssLog) -> str | None:
             f"range {climb:.0f} m): {which}")
 
 
+def few_satellite_spans(t: np.ndarray, nsat: np.ndarray) -> list:
+    """Stretches of consecutive raw epochs with fewer than 4 satellites: ``(start, length s, least count)``."""
+    out = []
+    few = nsat < 4
+    k = 0
+    while k < len(t):
+        if not few[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < len(t) and few[j + 1]:
+            j += 1
+        step = float(t[j + 1] - t[j]) if j + 1 < len(t) else (float(t[j] - t[j - 1]) if j > 0 else 0.0)
+        out.append((float(t[k]), float(t[j] - t[k]) + step, int(nsat[k:j + 1].min())))
+        k = j + 1
+    return out
+
+
+@dataclass
+class RawSummary:
+    """What a tightly coupled run did with the raw GNSS epochs (``sins navigate --gnss-raw``)."""
+    epochs: int = 0                                     # raw epochs inside the run
+    few: int = 0                                        # epochs with 1-3 usable satellites
+    none: int = 0                                       # epochs without a usable satellite
+    few_spans: list = field(default_factory=list)       # (start, length, least count) of stretches under 4
+    per_system: dict = field(default_factory=dict)      # letter -> (pr used, rejected, range rate used, rejected)
+    satellites: dict = field(default_factory=dict)      # letter -> distinct satellites measured
+    rms: dict = field(default_factory=dict)             # "pseudorange" (m), "doppler" (m/s): accepted innovations
+    clock: tuple = ()                                   # bias m, its sigma, drift m/s, its sigma (final)
+    isb: list = field(default_factory=list)             # ("E-G", m, sigma m)
+    ref: str = "G"
+    jumps: int = 0
+    notes: list = field(default_factory=list)
+
+    def lines(self, t0: float) -> list[str]:
+        out = [f"fusion: raw GNSS (tightly coupled): {self.epochs} epochs; per constellation satellites, "
+               f"pseudoranges used/rejected, range rates used/rejected: " + "; ".join(
+                   f"{c} {self.satellites.get(c, 0)} sats, {a}/{b}, {d}/{e}"
+                   for c, (a, b, d, e) in self.per_system.items())]
+        few = f"fusion: {self.few} epoch(s) with 1-3 satellites, {self.none} with none"
+        if self.few_spans:
+            spans = [f"{clock(a, t0)} for {d:.3g} s ({k})" for a, d, k in self.few_spans]
+            more = f" and {len(spans) - 4} more" if len(spans) > 4 else ""
+            few += ": " + ", ".join(spans[:4]) + more
+        out.append(few + (" (each satellite is used on its own: no fix needed)" if self.few else ""))
+        if self.rms:
+            out.append("fusion: innovation RMS of the accepted " + ", ".join(
+                f"pseudoranges {v:.3g} m" if k == "pseudorange" else f"range rates (Doppler) {v:.3g} m/s"
+                for k, v in self.rms.items()))
+        if self.clock:
+            b, sb, d, sd = self.clock
+            txt = (f"fusion: receiver clock ({self.ref}) at the end: bias {b:.6g} m ({b / 299.792458:.6g} us) "
+                   f"+- {sb:.2g} m, drift {d:.4g} m/s ({d / 0.299792458:.4g} ns/s) +- {sd:.2g} m/s")
+            for name, v, sv in self.isb:
+                txt += f"; inter-system bias {name} {v:.3g} m ({v / 0.299792458:.3g} ns) +- {sv:.2g} m"
+            if self.jumps:
+                txt += f"; {self.jumps} clock jump(s) reset the bias"
+            out.append(txt)
+        for n in self.notes:
+            out.append(f"fusion: raw GNSS: {n}")
+        return out
+
+
 @dataclass
 class FusionSummary:
     """What a fused run did (filled by :meth:`sinscli.fusion.pipeline.Fusion.summary`)."""
@@ -241,6 +304,7 @@ class FusionSummary:
     hints: list = field(default_factory=list)
     heading_check: HeadingCheck | None = None
     smoothed: str = ""
+    raw: RawSummary | None = None                       # tightly coupled runs
 
     # compatibility with callers of the first summary
     @property
@@ -261,20 +325,27 @@ class FusionSummary:
         for note in self.sensor_notes:
             out.append(f"fusion: sensor model: {note}")
         r = self.residuals
-        fx = f"fusion: GNSS fixes {self.fixes_used} of {self.fixes_total} used"
-        if self.fixes_rejected:
-            fx += f", {self.fixes_rejected} rejected ({self.rejected_outside} outside outages)"
-        if self.reacquired:
-            fx += f"; {self.reacquired} outage exit(s) reacquired by widening the covariance"
-        out.append(fx)
+        if self.raw is not None:
+            out.extend(self.raw.lines(c))
+        else:
+            fx = f"fusion: GNSS fixes {self.fixes_used} of {self.fixes_total} used"
+            if self.fixes_rejected:
+                fx += f", {self.fixes_rejected} rejected ({self.rejected_outside} outside outages)"
+            if self.reacquired:
+                fx += f"; {self.reacquired} outage exit(s) reacquired by widening the covariance"
+            out.append(fx)
+        what, take = (("epochs whose pseudoranges were all rejected", "the satellite") if self.raw is not None
+                      else ("rejected fixes", "the fix"))
         if self.rejection_runs:
-            out.append(f"fusion: {len(self.rejection_runs)} run(s) of consecutive rejected fixes (the filter diverged "
-                       f"or the GNSS jumped), each ended by widening the covariance and taking the fix: "
+            out.append(f"fusion: {len(self.rejection_runs)} run(s) of consecutive {what} (the filter diverged "
+                       f"or the GNSS jumped), each ended by widening the covariance and taking {take}: "
                        + self._list([f"{clock(a, c)}..{clock(b, c).split(' ')[0]}" for a, b, _ in self.rejection_runs]))
-        res = f"fusion: residual RMS against the fixes outside outages {r.h:.3g} m horizontal, {r.u:.3g} m vertical"
-        if r.n_exit:
-            res += f"; first fix after each outage {r.exit_h:.3g} m (max {r.exit_max:.3g} m)"
-        out.append(res)
+        if self.raw is None:
+            res = (f"fusion: residual RMS against the fixes outside outages {r.h:.3g} m horizontal, {r.u:.3g} m "
+                   f"vertical")
+            if r.n_exit:
+                res += f"; first fix after each outage {r.exit_h:.3g} m (max {r.exit_max:.3g} m)"
+            out.append(res)
         other = [f"{k} {a}/{a + b}" for k, (a, b) in self.counts.items() if k != "gnss_pos"]
         if other:
             out.append("fusion: other measurements used/total: " + ", ".join(other))

@@ -262,6 +262,61 @@ def _dops(x, el, az, use, sysv, nsat, clk_of, m):
 
 
 @njit(cache=True)
+def epoch_arrays(nsat):
+    """The per-satellite arrays of one epoch that :func:`epoch_satellites` and :func:`_pseudorange_rows` fill:
+    ``(sysv, kk, sx, dts, ddts, use, iono_used, el, az, rows)``."""
+    return (np.empty(nsat, np.int64), np.full(nsat, -1, np.int64), np.zeros((nsat, 6)), np.zeros(nsat),
+            np.zeros(nsat), np.zeros(nsat, np.bool_), np.zeros(nsat, np.bool_), np.full(nsat, np.nan),
+            np.full(nsat, np.nan), np.zeros(nsat, np.int64))
+
+
+@njit(cache=True)
+def epoch_satellites(eph, opts, sys_on, t, a0, nsat, rsys, rprn, p1, p2, b1, f1, f2, sysv, kk, sx, dts, ddts, use,
+                     iono_used, rec_status):
+    """The satellites of one epoch (records ``a0 .. a0 + nsat`` received at ``t``, receiver clock time): per
+    satellite its system ``sysv``, ephemeris row ``kk`` (:func:`select_ephemeris`; Galileo I/NAV for E1/E5b,
+    F/NAV for E5a), state at transmission ``sx`` (ECEF position, velocity), clock ``dts`` and drift ``ddts``
+    (:func:`transmit_state`), ``use`` and ``iono_used`` (the ionosphere-free combination, only for a system all
+    of whose satellites in the epoch have two frequencies: a receiver's inter-frequency code bias would otherwise
+    enter as a per-satellite error); ``rec_status`` of the records left out.  Shared by single-point positioning
+    and the tightly coupled filter's measurement rows (:mod:`sinscli.gnss.tc`)."""
+    for i in range(nsat):
+        r = a0 + i
+        s = int(rsys[r])
+        sysv[i] = s
+        if s < 0 or not sys_on[s]:
+            rec_status[r] = SYSTEM_OFF
+            continue
+        if not (p1[r] == p1[r]) or f1[r] <= 0.0:
+            rec_status[r] = NO_OBS
+            continue
+        pref = 0
+        if s == SYS_GAL:
+            pref = 0b010 if b1[r] == 5 else 0b101
+        k = select_ephemeris(eph, s, int(rprn[r]), t, max_age(s), pref)
+        if k < 0:
+            rec_status[r] = NO_EPH
+            continue
+        kk[i] = k
+        t_tx, xs, ys, zs, vxs, vys, vzs, dt_s, ddt_s = transmit_state(eph, k, t, p1[r])
+        sx[i, 0], sx[i, 1], sx[i, 2] = xs, ys, zs
+        sx[i, 3], sx[i, 4], sx[i, 5] = vxs, vys, vzs
+        dts[i] = dt_s
+        ddts[i] = ddt_s
+        use[i] = True
+        iono_used[i] = opts[O_IONO] == IONO_IFLC and p2[r] == p2[r] and f2[r] > 0.0 and f2[r] != f1[r]
+    for s in range(N_SYS):
+        all_two = True
+        for i in range(nsat):
+            if use[i] and sysv[i] == s and not iono_used[i]:
+                all_two = False
+        if not all_two:
+            for i in range(nsat):
+                if sysv[i] == s:
+                    iono_used[i] = False
+
+
+@njit(cache=True)
 def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, f1, f2, cn0, dop,
                  x_init):
     """Single-point position and Doppler velocity of every epoch.
@@ -312,16 +367,7 @@ def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, 
         nsat = start[e + 1] - a0
         if nsat <= 0:
             continue
-        sysv = np.empty(nsat, np.int64)
-        kk = np.full(nsat, -1, np.int64)
-        sx = np.zeros((nsat, 6))
-        dts = np.zeros(nsat)
-        ddts = np.zeros(nsat)
-        use = np.zeros(nsat, np.bool_)
-        iono_used = np.zeros(nsat, np.bool_)
-        el = np.full(nsat, np.nan)
-        az = np.full(nsat, np.nan)
-        rows = np.zeros(nsat, np.int64)
+        sysv, kk, sx, dts, ddts, use, iono_used, el, az, rows = epoch_arrays(nsat)
         pp1 = p1[a0:a0 + nsat]
         pp2 = p2[a0:a0 + nsat]
         bb1 = b1[a0:a0 + nsat]
@@ -330,46 +376,8 @@ def solve_epochs(eph, ion, opts, chi2_tab, sys_on, t_rx, start, rsys, rprn, p1, 
         ff2 = f2[a0:a0 + nsat]
         cc = cn0[a0:a0 + nsat]
         t = t_rx[e]
-        for i in range(nsat):
-            r = a0 + i
-            s = int(rsys[r])
-            sysv[i] = s
-            if s < 0 or not sys_on[s]:
-                rec_status[r] = SYSTEM_OFF
-                continue
-            if not (pp1[i] == pp1[i]) or ff1[i] <= 0.0:
-                rec_status[r] = NO_OBS
-                continue
-            pref = 0
-            if s == SYS_GAL:
-                pref = 0b010 if bb1[i] == 5 else 0b101
-            k = select_ephemeris(eph, s, int(rprn[r]), t, max_age(s), pref)
-            if k < 0:
-                rec_status[r] = NO_EPH
-                continue
-            kk[i] = k
-            t_tx, xs, ys, zs, vxs, vys, vzs, dt_s, ddt_s = transmit_state(eph, k, t, pp1[i])
-            sx[i, 0] = xs
-            sx[i, 1] = ys
-            sx[i, 2] = zs
-            sx[i, 3] = vxs
-            sx[i, 4] = vys
-            sx[i, 5] = vzs
-            dts[i] = dt_s
-            ddts[i] = ddt_s
-            use[i] = True
-            iono_used[i] = opts[O_IONO] == IONO_IFLC and pp2[i] == pp2[i] and ff2[i] > 0.0 and ff2[i] != ff1[i]
-        # the ionosphere-free combination only for a system all of whose satellites have two frequencies in
-        # this epoch: a receiver's inter-frequency code bias would otherwise enter as a per-satellite error
-        for s in range(N_SYS):
-            all_two = True
-            for i in range(nsat):
-                if use[i] and sysv[i] == s and not iono_used[i]:
-                    all_two = False
-            if not all_two:
-                for i in range(nsat):
-                    if sysv[i] == s:
-                        iono_used[i] = False
+        epoch_satellites(eph, opts, sys_on, t, a0, nsat, rsys, rprn, p1, p2, b1, f1, f2, sysv, kk, sx, dts, ddts,
+                         use, iono_used, rec_status)
         cand = use.copy()
         for a in range(3 + N_SYS):
             x[a] = 0.0

@@ -1,8 +1,8 @@
-"""Shared CSV machinery: fast exact reading/writing with pyarrow, and precise error messages.
+"""Shared CSV machinery: fast exact reading with pyarrow, writing, and precise error messages.
 
 Reading parses every float exactly (pyarrow's parser is correctly rounded);
-writing uses pyarrow's shortest round-trip float formatting, so every float
-reads back to the identical float64 (docs/formats.md).
+writing uses the compiled shortest round-trip float formatter (``floatfmt``, Ryu),
+so every float reads back to the identical float64 (docs/formats.md).
 """
 from __future__ import annotations
 
@@ -280,11 +280,13 @@ def float64_table(columns: dict[str, np.ndarray]) -> pa.Table:
     return pa.Table.from_arrays(arrays, names=list(columns))
 
 
-def _format_csv(table: pa.Table, options: pacsv.WriteOptions) -> pa.Buffer:
-    """CSV text of ``table`` (no header) by pyarrow's C++ writer; it releases the GIL, so tasks run in parallel."""
-    sink = pa.BufferOutputStream()
-    pacsv.write_csv(table, sink, write_options=options)
-    return sink.getvalue()
+def _format_csv(rows: np.ndarray, suffix: np.ndarray) -> memoryview:
+    """CSV text (no header) of ``rows`` (float64, C-contiguous, shape (rows, columns)), each ended by ``suffix`` and a
+    newline, by the compiled shortest round-trip formatter (``floatfmt.format_rows``); it releases the GIL,
+    so slices are formatted on threads at once."""
+    from .floatfmt import format_rows, row_bytes    # numba: loaded by the first writer, not by the readers
+    out = np.empty(rows.shape[0] * row_bytes(rows.shape[1], suffix.shape[0]), np.uint8)
+    return memoryview(out[:format_rows(rows, suffix, out)])
 
 
 class CsvTableWriter:
@@ -294,9 +296,10 @@ class CsvTableWriter:
     equally long 1-D arrays with the same keys each time.  Every chunk passes
     :func:`sinscli.io.atomic.check_finite` (``sigmas``: the 1-sigma columns, which must be positive).
 
-    Floats are formatted by pyarrow's C++ CSV writer, which writes the shortest text that reads back to
-    the identical float64 (``tests/test_io_csv_roundtrip.py`` checks hard cases and random bit
-    patterns).  Formatting runs on :func:`writer_threads` threads in slices of :data:`FORMAT_ROWS`
+    Floats are formatted by the compiled Ryu formatter (``floatfmt``), which writes the shortest text that
+    reads back to the identical float64, in the layout pyarrow's writer had (``tests/test_io_csv_roundtrip.py``,
+    ``tests/test_io_floatfmt.py``: hard cases and random bit patterns against Python's ``repr`` and pyarrow,
+    byte for byte).  Formatting runs on :func:`writer_threads` threads in slices of :data:`FORMAT_ROWS`
     rows, while the caller computes the next chunk; the slices are written in order, and at most
     ``2 * threads`` slices wait in memory.
     """
@@ -313,22 +316,20 @@ class CsvTableWriter:
         self._pending = collections.deque()
         self._fh = open(path, "wb")
         self._fh.write((",".join(self.columns + list(self.text_columns)) + "\n").encode())
-        self._opts = pacsv.WriteOptions(include_header=False, quoting_style="none", batch_size=1 << 14)
+        self._suffix = np.frombuffer("".join("," + t for t in self.text_columns.values()).encode(), np.uint8)
 
     def write(self, data: dict[str, np.ndarray]) -> None:
         check_finite(self.path, {c: data[c] for c in self.columns}, data.get("time"), self._rows + 1, self.sigmas)
-        table = float64_table({c: data[c] for c in self.columns})
-        for name, text in self.text_columns.items():
-            codes = np.zeros(table.num_rows, np.int8)
-            table = table.append_column(name, pa.DictionaryArray.from_arrays(
-                pa.Array.from_buffers(pa.int8(), codes.shape[0], [None, pa.py_buffer(codes)]),
-                pa.array([text], pa.string())))
-        self._rows += table.num_rows
+        rows = np.empty((len(data[self.columns[0]]), len(self.columns)), np.float64)   # row slices: contiguous
+        for k, c in enumerate(self.columns):
+            rows[:, k] = data[c]
+        n = rows.shape[0]
+        self._rows += n
         if self._pool is None:
-            self._fh.write(_format_csv(table, self._opts))
+            self._fh.write(_format_csv(rows, self._suffix))
             return
-        for a in range(0, table.num_rows, FORMAT_ROWS):
-            self._pending.append(self._pool.submit(_format_csv, table.slice(a, FORMAT_ROWS), self._opts))
+        for a in range(0, n, FORMAT_ROWS):
+            self._pending.append(self._pool.submit(_format_csv, rows[a:a + FORMAT_ROWS], self._suffix))
             self._drain(2 * self._threads)
 
     def _drain(self, keep: int) -> None:

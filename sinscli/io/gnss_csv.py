@@ -9,6 +9,7 @@ import numpy as np
 
 from ..config import GNSS_NAMES, GnssSection, Limits
 from ..errors import SinsError
+from ..nav.earth import lla_to_ecef
 from ..types import GnssLog
 from .atomic import atomic_path, output_lon_lat
 from . import limits as limits_mod
@@ -83,6 +84,32 @@ def write_gnss_csv(path, gnss: GnssLog) -> None:
                 data[c] = arr[:, i]
     with atomic_path(path) as tmp:
         write_table_csv(tmp, data, sigmas=GROUPS["std_pos"] + GROUPS["std_vel"])
+
+
+INIT_FIX_SLACK_M = 1000.0     # m: an init and the nearest fix farther apart than this plus the travel allowed
+
+
+def check_init_against_gnss(init, gnss: GnssLog, speed_limit: float, init_src: str) -> None:
+    """SinsError (one line naming the init) when the initial position is farther from the GNSS fix nearest
+    in time than a platform could have travelled: ``INIT_FIX_SLACK_M`` plus 3 of the fix's sigmas plus the
+    ``limits.speed`` times the time between them (straight-line ECEF distance).  An init 10,000 km above
+    the fixes is a wrong file or a wrong datum: the filter would otherwise fight it until its covariance
+    broke."""
+    if len(gnss) == 0:
+        return
+    k = int(np.argmin(np.abs(np.asarray(gnss.time, dtype=float) - float(init.time))))
+    fix = lla_to_ecef(np.radians(float(gnss.lat[k])), np.radians(float(gnss.lon[k])), float(gnss.height[k]))
+    ini = lla_to_ecef(float(init.lat), float(init.lon), float(init.height))
+    d = float(np.linalg.norm(fix - ini))
+    sig = 0.0
+    if gnss.std_pos is not None and np.all(np.isfinite(gnss.std_pos[k])):
+        sig = float(np.linalg.norm(gnss.std_pos[k]))
+    dt = abs(float(gnss.time[k]) - float(init.time))
+    bound = INIT_FIX_SLACK_M + 3.0 * sig + float(speed_limit) * dt
+    if d > bound:
+        raise SinsError(f"{init_src}: the initial position is {d:,.0f} m from the GNSS fix at t = {float(gnss.time[k])!r} s "
+                        f"({gnss.source}), more than the {bound:,.0f} m a platform within limits.speed could cover in "
+                        f"{dt:.3g} s: check the init's position and height against the GNSS log")
 
 
 def check_gnss_against_imu(gnss: GnssLog, t_imu0: float, t_imu1: float) -> None:

@@ -112,6 +112,25 @@ def lla_to_ecef(lat, lon, h, m=np):
                      (rn * (1.0 - E2) + h) * s], axis=-1)
 
 
+@njit(cache=True)
+def geodetic_to_ecef(lat, lon, h):
+    """ECEF position ``(x, y, z)`` (m) of one geodetic point (radians, metres), for kernels: the formula of
+    :func:`lla_to_ecef` on scalars (a tuple, nothing allocated)."""
+    s = np.sin(lat)
+    _, rn = radii(s)
+    c = np.cos(lat)
+    return (rn + h) * c * np.cos(lon), (rn + h) * c * np.sin(lon), (rn * (1.0 - E2) + h) * s
+
+
+@njit(cache=True)
+def enu_axes(lat, lon):
+    """The ENU axes at (lat, lon) (radians) in ECEF, as three row tuples ``(east, north, up)``: the rows of
+    ``C_e^n`` (:func:`enu_rotation` on scalars, for kernels)."""
+    sl, cl = np.sin(lat), np.cos(lat)
+    so, co = np.sin(lon), np.cos(lon)
+    return (-so, co, 0.0), (-sl * co, -sl * so, cl), (cl * co, cl * so, sl)
+
+
 def ecef_to_lla(xyz, m=np):
     """ECEF metres (..., 3) to geodetic ``(lat, lon, h)`` (radians, metres); ``m`` as for :func:`lla_to_ecef`.
 

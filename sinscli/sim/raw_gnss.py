@@ -4,7 +4,8 @@ satellite of a broadcast navigation file, for a receiver on a given trajectory.
 The geometry is exact: the time of transmission solves ``t_tx = t - |R_z(w_e (t - t_tx)) r_s(t_tx) - r(t)|/c``
 (the Earth's rotation during the flight in closed form, not the first-order Sagnac term of the solver), the
 satellite orbit and clock are the broadcast ones (so they are the truth), the range rate is the central
-difference of that exact range over +-1/16 s (exact in float64 GPS seconds; truncation < 1e-6 m/s).  The receiver clock is ``b0 + d0 (t - t0)`` plus a random walk; epochs are
+difference of that exact range over +-1/16 s (exact in float64 GPS seconds; truncation < 1e-6 m/s).  The receiver clock is ``b0 + d0 (t - t0)`` plus a random walk of the drift
+(``clock_walk``) and of the bias (``clock_bias_walk``, white frequency noise); epochs are
 tagged with the receiver's clock time (``t + dt_r``), as a free-running receiver writes them.  Ionosphere =
 Klobuchar x (1 + ``iono_error``), troposphere = Saastamoinen/DO-229 x (1 + ``tropo_error``); code noise
 follows the solver's own elevation / C/N0 model (:func:`sinscli.gnss.spp.code_variance`) with C/N0 =
@@ -24,7 +25,8 @@ from numba import njit
 from ..errors import SinsError
 from ..gnss import spp as S
 from ..gnss.corrections import klobuchar, tropo_delay
-from ..gnss.ephemeris import NavData, max_age, select_ephemeris
+from ..gnss import ephemeris as E
+from ..gnss.ephemeris import NavData, finish_table, max_age, select_ephemeris
 from ..gnss.model import azel, ecef_to_geodetic, group_delay
 from ..gnss.observations import ObsData
 from ..gnss.orbits import earth_rate, sat_state
@@ -52,6 +54,7 @@ DEFAULTS = {
     "clock_bias": 1.0e-4,        # s at the start
     "clock_drift": 2.0e-8,       # s/s
     "clock_walk": 0.0,           # random walk of the drift, (s/s)/sqrt(s)
+    "clock_bias_walk": 0.0,      # random walk of the bias (white frequency noise), s/sqrt(s)
     "system_bias": {},           # receiver inter-system bias per system letter, s (e.g. {E: 5.0e-9})
     "iono_error": 0.0,           # relative error of the Klobuchar model (the residual the solver sees)
     "tropo_error": 0.0,
@@ -77,7 +80,7 @@ def check_config(cfg: dict | None, src: str = "raw_gnss") -> dict:
         v = out[k]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
             raise SinsError(f"{src}: {k}: expected a positive number; got {v!r}")
-    for k in ("clock_bias", "clock_drift", "clock_walk", "iono_error", "tropo_error", "elevation_mask",
+    for k in ("clock_bias", "clock_drift", "clock_walk", "clock_bias_walk", "iono_error", "tropo_error", "elevation_mask",
               "cn0_zenith", "cn0_horizon"):
         v = out[k]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -202,6 +205,8 @@ def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> Ra
     dt = np.diff(t_true, prepend=t_true[0])
     drift = cfg["clock_drift"] + np.cumsum(rng.standard_normal(ne) * cfg["clock_walk"] * np.sqrt(dt))
     bias = cfg["clock_bias"] + np.concatenate([[0.0], np.cumsum(0.5 * (drift[1:] + drift[:-1]) * dt[1:])])
+    if cfg["clock_bias_walk"]:                # drawn only when asked: the other draws stay those of a seed
+        bias = bias + np.cumsum(rng.standard_normal(ne) * cfg["clock_bias_walk"] * np.sqrt(dt))
     geo = [_geometry(nav.eph, np.asarray(ion, dtype=np.float64), t_true, t_true + bias, pos, vel, sys_list, prn_list,
                      np.ascontiguousarray(freqs[:, f]), np.ascontiguousarray(bands[:, f])) for f in range(nfreq)]
     rho, rdot, el, az, dts, ddts, _, iono_l1, trop, ok = geo[0]
@@ -271,6 +276,20 @@ def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> Ra
                           "approx_xyz": [float(v) for v in pos[0]], "interval": 1.0 / float(cfg["rate"])},
                   source="<simulated>")
     return RawSim(obs, nav, t_true, pos, vel, bias, drift, counts, cfg)
+
+
+def with_second_constellation(nav: NavData, sys_letter: str = "E") -> NavData:
+    """``nav`` plus a synthetic second Keplerian constellation for tests and benchmarks: its GPS orbits turned by
+    60 deg in node and 1 rad in mean anomaly, labelled with ``sys_letter`` (Galileo I/NAV by default, group
+    delays 2 and 3 ns), so that a receiver sees two systems with their own clock offsets."""
+    other = nav.eph[nav.eph[:, E.SYS] == SYS_GPS].copy()
+    other[:, E.SYS] = sys_index(sys_letter)
+    other[:, E.SOURCE] = 513 if sys_index(sys_letter) == SYS_GAL else 0
+    other[:, E.OMEGA0] += math.radians(60.0)
+    other[:, E.M0] += 1.0
+    other[:, E.TGD1], other[:, E.TGD2] = 2e-9, 3e-9
+    return NavData(eph=finish_table(np.concatenate([nav.eph, other])), ion_gps=nav.ion_gps,
+                   source=f"{nav.source} + synthetic {sys_letter}")
 
 
 def load_nav_for_sim(cfg: dict) -> NavData:
@@ -356,4 +375,5 @@ def write_raw(sim: RawSim, outdir) -> list[Path]:
     return [outdir / "obs.rnx", outdir / "nav.rnx", outdir / "gnss_truth.csv"]
 
 
-__all__ = ["simulate_raw", "static_receiver", "from_trajectory", "write_raw", "check_config", "SYS_CHARS"]
+__all__ = ["simulate_raw", "static_receiver", "from_trajectory", "write_raw", "check_config", "SYS_CHARS",
+           "with_second_constellation"]
