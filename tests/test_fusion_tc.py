@@ -507,7 +507,7 @@ def test_navigation_yaml_documents_raw_and_clock():
     """configs/navigation.yaml's fusion.raw and fusion.clock keys are the options' defaults, every one of them."""
     from sinscli.config import load_config
     from sinscli.fusion.options import FUSION_DEFAULTS
-    cfg = load_config(ROOT / "configs" / "navigation.yaml")["fusion"]
+    cfg = load_config(ROOT / "configs" / "navigation.yaml").fusion
     for sec in ("raw", "clock"):
         assert cfg[sec] == FUSION_DEFAULTS[sec], sec
     a, b = build_fusion_options(cfg, "nav.yaml"), build_fusion_options(None, "defaults")
