@@ -44,6 +44,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator
+from multiprocessing import resource_tracker
 
 from .. import __version__
 from ..errors import SinsError
@@ -133,7 +134,6 @@ def _start_resource_tracker_quietly() -> None:
     unlinks the semaphores they held, as it should, but warned about them ("leaked semaphore objects",
     "No such file or directory") on the user's terminal after sins's last line (the ``[SIGINT-group-pool]``
     case of tests/test_batch_interrupt.py, intermittently).  The clean-up stays; only its warnings go."""
-    from multiprocessing import resource_tracker
     if getattr(resource_tracker._resource_tracker, "_fd", None) is not None:
         return
     saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
