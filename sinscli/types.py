@@ -24,9 +24,41 @@ class ImuLog:
     t0: float | None = None     # start of the first interval, s
     source: str = "<memory>"    # file (and topic) name for messages
     kind: str = "increments"    # "increments" or "rates" (what the file held)
+    # the file's resolution: the smallest step between distinct values of the gyro and the accelerometer
+    # columns (the largest of the three axes), in SI units of what the file held (rad/s and m/s^2 for rates,
+    # rad and m/s for increments); 0 where not known (:func:`value_step`)
+    resolution: tuple = (0.0, 0.0)
 
     def __len__(self) -> int:
         return int(self.time.shape[0])
+
+
+def value_step(values) -> float:
+    """The resolution of sampled values ``(N, k)``: per column the smallest gap between two distinct values
+    (gaps under 1e-9 of the column's largest magnitude are rounding, not steps), the largest of the columns;
+    0 when a column holds fewer than two distinct values."""
+    v = np.asarray(values, dtype=float)
+    if v.ndim == 1:
+        v = v[:, None]
+    out = 0.0
+    for c in range(v.shape[1]):
+        u = np.unique(v[:, c][np.isfinite(v[:, c])])
+        if u.size < 2:
+            continue
+        d = np.diff(u)
+        d = d[d > 1e-9 * max(float(np.max(np.abs(u))), 1e-300)]
+        if d.size:
+            out = max(out, float(d.min()))
+    return out
+
+
+def merged_resolution(parts) -> tuple:
+    """The resolution of consecutive blocks: per sensor the smallest positive step among them."""
+    out = []
+    for k in range(2):
+        steps = [p[k] for p in parts if p[k] > 0.0]
+        out.append(min(steps) if steps else 0.0)
+    return tuple(out)
 
 
 @dataclass

@@ -58,7 +58,7 @@ def select(imu: ImuLog, start: float | None, end: float | None) -> ImuLog:
     k0 = 0 if start is None else int(np.searchsorted(t, start + tol, side="right"))
     k1 = t.shape[0] if end is None else int(np.searchsorted(t, end + tol, side="right"))
     t0 = imu.t0 if k0 == 0 else float(t[k0 - 1])
-    return ImuLog(t[k0:k1], imu.dtheta_b[k0:k1], imu.dvel_b[k0:k1], t0, imu.source, imu.kind)
+    return ImuLog(t[k0:k1], imu.dtheta_b[k0:k1], imu.dvel_b[k0:k1], t0, imu.source, imu.kind, imu.resolution)
 
 
 def check_static(imu: ImuLog, rate_limit: float, accel_limit: float, block: float) -> None:

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..config import ACCEL_UNITS, ANGLE_UNITS, GYRO_UNITS, IMU_NAMES, VEL_UNITS, ImuSection, Limits, mounting_matrix
 from ..errors import SinsError
-from ..types import ImuLog
+from ..types import ImuLog, merged_resolution, value_step
 from . import limits as limits_mod
 from .atomic import atomic_path
 from .csvcore import STREAM_BLOCK, iter_numeric_columns, name_list, read_header, write_table_csv
@@ -163,7 +163,8 @@ def iter_imu_csv(path, cfg: ImuSection | None = None, allow_gaps=False, block_by
             if time.shape[0] < 2:
                 continue
             tend, dtheta, dvel, t0 = rates_to_increments(time, gyro, accel)
-            imu = ImuLog(tend, dtheta, dvel, t0=t0, source=str(path), kind="rates")
+            imu = ImuLog(tend, dtheta, dvel, t0=t0, source=str(path), kind="rates",
+                         resolution=(value_step(gyro), value_step(accel)))
         else:
             dtheta = np.column_stack([data[c] for c in INC_COLS[:3]]) * ANGLE_UNITS[units["dtheta"]]
             dvel = np.column_stack([data[c] for c in INC_COLS[3:]]) * VEL_UNITS[units["dvel"]]
@@ -173,7 +174,8 @@ def iter_imu_csv(path, cfg: ImuSection | None = None, allow_gaps=False, block_by
             if prev_time is None:
                 dt[0] = dt[1] if dt.shape[0] > 1 else np.inf
             limits_mod.check_imu_increments(path, dt, dtheta, dvel, lim, value_cols, line, dtheta_unit=units["dtheta"])
-            imu = ImuLog(time, dtheta, dvel, t0=None, source=str(path), kind="increments")
+            imu = ImuLog(time, dtheta, dvel, t0=None, source=str(path), kind="increments",
+                         resolution=(value_step(dtheta), value_step(dvel)))
         yield apply_mounting(imu, c_sb)
     if form == "rates" and rows < 2:
         raise SinsError(f"{path}: a rate log needs at least 2 rows to form increments")
@@ -186,7 +188,8 @@ def concat_imu(blocks) -> ImuLog:
         return blocks[0]
     first = blocks[0]
     return ImuLog(np.concatenate([b.time for b in blocks]), np.vstack([b.dtheta_b for b in blocks]),
-                  np.vstack([b.dvel_b for b in blocks]), t0=first.t0, source=first.source, kind=first.kind)
+                  np.vstack([b.dvel_b for b in blocks]), t0=first.t0, source=first.source, kind=first.kind,
+                  resolution=merged_resolution([b.resolution for b in blocks]))
 
 
 def read_imu_csv(path, cfg: ImuSection | None = None, allow_gaps=False) -> ImuLog:

@@ -99,7 +99,8 @@ def clip_imu(imu: ImuLog, end: float | None) -> ImuLog:
     if end is None:
         return imu
     n = int(np.searchsorted(imu.time, end + time_tolerance(end), side="right"))
-    return ImuLog(imu.time[:n], imu.dtheta_b[:n], imu.dvel_b[:n], t0=imu.t0, source=imu.source, kind=imu.kind)
+    return ImuLog(imu.time[:n], imu.dtheta_b[:n], imu.dvel_b[:n], t0=imu.t0, source=imu.source, kind=imu.kind,
+                  resolution=imu.resolution)
 
 
 def clip_blocks(blocks, end: float | None):
@@ -149,7 +150,7 @@ def from_start(imu: ImuLog, start: float | None) -> ImuLog:
     if k == 0:
         return imu
     return ImuLog(imu.time[k:], imu.dtheta_b[k:], imu.dvel_b[k:], t0=float(imu.time[k - 1]), source=imu.source,
-                  kind=imu.kind)
+                  kind=imu.kind, resolution=imu.resolution)
 
 
 def cut_track(track, w: Window, source: str) -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import SinsError
-from ...types import ImuLog
+from ...types import ImuLog, value_step
 from .. import limits as limits_mod
 from ..imu_csv import TimeChecker, rates_to_increments
 from .containers import choose_topic, guard, open_log
@@ -75,4 +75,5 @@ def read_imu(path, topic=None, time_source="header", start=None, end=None, bulk=
         raise SinsError(f"{where}: message {k} has a non-finite angular_velocity or linear_acceleration")
     limits_mod.check_imu_rates(where, gyro, accel, limits_mod.resolve(limits), IMU_FIELDS, 0, "message")
     time_end, dtheta, dvel, t0 = rates_to_increments(t, np.ascontiguousarray(gyro), np.ascontiguousarray(accel))
-    return ImuLog(time=time_end, dtheta_b=dtheta, dvel_b=dvel, t0=t0, source=f"{path}:{topic}", kind="rates")
+    return ImuLog(time=time_end, dtheta_b=dtheta, dvel_b=dvel, t0=t0, source=f"{path}:{topic}", kind="rates",
+                  resolution=(value_step(gyro), value_step(accel)))
