@@ -31,6 +31,19 @@ MIN_WINDOW = 3.0           # s: shorter intervals at rest are not used
 TAU_MIN = 0.25             # s: the shortest cluster time fitted (five periods of a 20 Hz vibration: its Allan
                            # variance is in its 1/tau^2 regime from there)
 G_NOMINAL = G0             # the detector's gravity (its 0.3 m/s^2 tolerance covers every latitude)
+SEPARATION = 2.0           # standard errors of N^2 above zero for the fit to tell white noise apart
+TRUE_REST_ANGLE = 1.0e-3   # rad (0.06 deg): the RMS rotation of the bounded motion at rest (the gyro's 1/tau^2
+                           # term Q) under which the rest is a true rest: an engine's vibration turns the mount by
+                           # hundredths of a degree, a hand holding a device by tenths to degrees
+
+
+def white_floor(step: float, dt: float, kind: str) -> float:
+    """The white-noise density (unit/sqrt(s)) that a resolution of ``step`` sets at sample interval ``dt``:
+    a rounding error uniform over one step (variance ``step^2 / 12``) on every sample (Widrow & Kollar 2008,
+    "Quantization Noise", ch. 4), ``step sqrt(dt / 12)`` for rates and ``step / sqrt(12 dt)`` for increments."""
+    if step <= 0.0 or dt <= 0.0:
+        return 0.0
+    return step * np.sqrt(dt / 12.0) if kind == "rates" else step / np.sqrt(12.0 * dt)
 
 
 def rest_intervals(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> list[tuple[float, float]]:
@@ -53,7 +66,10 @@ def rest_intervals(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> list[tupl
 
 
 def _fit(tau, m, avar, rel, trapezoid):
-    """``(Q, N, B)`` of one axis (see the module docstring)."""
+    """``(Q, N, B, separated)`` of one axis (see the module docstring): ``separated`` when the white-noise
+    coefficient ``N^2`` stands :data:`SEPARATION` standard errors clear of zero (the weighted least squares'
+    covariance over the coefficients the fit keeps), i.e. when the fit tells white noise apart from the
+    vibration and quantization (``1/tau^2``) and flicker terms."""
     white = (1.0 - 0.75 / m) / tau if trapezoid else 1.0 / tau
     A = np.column_stack([3.0 / tau ** 2, white, np.ones_like(tau)])
     scale = np.maximum(avar, 1e-300) * 2.0 * rel
@@ -61,7 +77,14 @@ def _fit(tau, m, avar, rel, trapezoid):
         coef, _ = _nnls_small(A / scale[:, None], avar / scale)
         model = A @ coef
         scale = np.where(model > 0, model, avar) * 2.0 * rel
-    return np.sqrt(coef)
+    separated = False
+    act = np.nonzero(coef > 0)[0]
+    if coef[1] > 0 and act.size <= tau.size:
+        Aw = A[:, act] / scale[:, None]
+        cov = np.linalg.pinv(Aw.T @ Aw)
+        k = int(np.nonzero(act == 1)[0][0])
+        separated = bool(coef[1] >= SEPARATION * np.sqrt(max(cov[k, k], 0.0)))
+    return (*np.sqrt(coef), separated)
 
 
 def noise_from_rest(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> RestNoise | None:
@@ -113,5 +136,10 @@ def noise_from_rest(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> RestNois
     trap = imu.kind == "rates"
     fits = np.array([_fit(tau, ms[use].astype(float), avar[:, c], rel, trap) for c in range(6)])
     rest_s = float(sum(t[j - 1] - t[i] for i, j in spans))
+    kind = "rates" if trap else "increments"
     return RestNoise(rest_seconds=rest_s, windows=len(spans), gyro_white=fits[:3, 1], accel_white=fits[3:, 1],
-                     gyro_q=fits[:3, 0], accel_q=fits[3:, 0], gyro_mean=sum_th / sum_dt, accel_mean=sum_dv / sum_dt)
+                     gyro_q=fits[:3, 0], accel_q=fits[3:, 0], gyro_mean=sum_th / sum_dt, accel_mean=sum_dv / sum_dt,
+                     gyro_separated=fits[:3, 3] > 0, accel_separated=fits[3:, 3] > 0,
+                     gyro_floor=white_floor(imu.resolution[0], tau0, kind),
+                     accel_floor=white_floor(imu.resolution[1], tau0, kind),
+                     true_rest=bool(np.max(fits[:3, 0]) < TRUE_REST_ANGLE))

@@ -4,27 +4,30 @@
 :func:`sinscli.allan.rest.noise_from_rest`: the Allan variance of each axis inside the windows, fitted
 with white noise plus a ``1/tau^2`` term that takes an engine's vibration and quantization):
 
-* the white-noise densities ``N`` of the gyros (ARW, rad/sqrt(s)) and accelerometers (VRW, m/s/sqrt(s));
+* the white-noise densities ``N`` of the gyros (ARW, rad/sqrt(s)) and accelerometers (VRW, m/s/sqrt(s)),
+  with per axis whether the fit told them apart from the other terms, and the floor the log's own
+  resolution sets (a white noise is never taken below it);
 * the ``1/tau^2`` coefficient ``Q`` (vibration at 20-40 Hz averages out as ``1/tau^2`` once a window holds
-  a few of its periods: it is motion of the mount, bounded, not a random walk);
+  a few of its periods: it is motion of the mount, bounded, not a random walk); a rest whose gyro ``Q``
+  (the RMS rotation of that motion) is under a few hundredths of a degree is a true rest;
 * the mean rate and specific force at rest (a bias magnitude, earth rate and gravity included).
 
-:func:`apply_data_noise` puts them in the filter model (docs/fusion.md): the white noise replaces the
-description's where it is missing or off by more than 2x either way, the bias variances are raised to
-the magnitudes the rest shows, and every change is a note for the summary.  No I/O.
+:func:`apply_data_noise` puts them in the filter model (docs/fusion.md).  A description is the user's
+claim: the data may widen a term it proves wrong, never narrow one; without a description the data's
+white noise replaces the default preset's.  No I/O.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..nav.earth import OMEGA_IE
 from ..units import DEG, UG_DECIMAL
 
-FACTOR = 2.0            # a description's white noise off by more than this (either way) yields to the data
-CREDIBILITY = 3.0       # off by more than this, the description's other terms are taken off by as much
+FACTOR = 2.0            # a description's white noise under the data's by more than this yields to the data
+CREDIBILITY = 3.0       # under it by more than this (at a true rest): the description's other terms are widened too
 
 
 @dataclass(frozen=True)
@@ -38,54 +41,96 @@ class RestNoise:
     accel_q: np.ndarray         # (3,) m/s
     gyro_mean: np.ndarray       # (3,) mean rate at rest, rad/s (bias + earth rate)
     accel_mean: np.ndarray      # (3,) mean specific force at rest, m/s^2 (bias + gravity)
+    gyro_separated: np.ndarray = field(default_factory=lambda: np.ones(3, bool))    # (3,) the fit told N apart
+    accel_separated: np.ndarray = field(default_factory=lambda: np.ones(3, bool))
+    gyro_floor: float = 0.0     # rad/sqrt(s): the white noise the log's resolution sets (0: not known)
+    accel_floor: float = 0.0    # m/s/sqrt(s)
+    true_rest: bool = True      # the sensor did not turn at rest beyond a mount's vibration
 
     def rate_mean_var(self, span):
         """Variance (rad/s)^2 of the mean rate over a window of ``span`` s at rest, per axis: the Allan
         variance's terms at tau = span (white noise and the vibration/quantization term)."""
         span = np.asarray(span, dtype=float)[..., None]
-        return self.gyro_white ** 2 / span + 3.0 * self.gyro_q ** 2 / span ** 2
+        white = np.maximum(self.gyro_white, self.gyro_floor)
+        return white ** 2 / span + 3.0 * self.gyro_q ** 2 / span ** 2
+
+    def white(self, which: str):
+        """``(N, floor)`` of ``which`` ("gyro" | "accel"): the largest white noise among the axes the fit told
+        apart, raised to the resolution's floor; N is None when no axis was told apart."""
+        n, sep, floor = ((self.gyro_white, self.gyro_separated, self.gyro_floor) if which == "gyro"
+                         else (self.accel_white, self.accel_separated, self.accel_floor))
+        if not np.any(sep):
+            return None, floor
+        return max(float(np.max(n[sep])), floor), floor
 
 
 def _deg_h(x) -> str:
     return f"{x * 3600.0 / DEG:.3g} deg/h"
 
 
-def apply_data_noise(model, dn: RestNoise, g: float):
+def apply_data_noise(model, dn: RestNoise, g: float, handheld: bool = False):
     """The filter model (:class:`sinscli.fusion.pipeline.FilterModel`) corrected by the rest noise
-    (``g`` the local gravity, m/s^2); returns ``(model, notes)``."""
+    (``g`` the local gravity, m/s^2; ``handheld``: the platform is a pedestrian's device, whose rest is never
+    a true rest); returns ``(model, notes)``.
+
+    * White noise: where the fit told it apart (:meth:`RestNoise.white`), raised to the log's resolution
+      floor, it replaces the default preset's when no description was given, and raises a description's
+      that is more than :data:`FACTOR` under it; it never lowers a description's.  Where the fit could not
+      tell it apart from vibration or quantization, the description's (or the preset's) value is kept, said
+      in one line.
+    * A description whose white noise is more than :data:`CREDIBILITY` under the data's at a true rest (not
+      handheld, the sensor not turning beyond a mount's vibration) is not this sensor's: its terms no static
+      log can check (bias instability, scale factor, misalignment, turn-on bias) are widened by as much.
+      Never narrowed.
+    * Bias magnitudes: the turn-on gyro bias variance is raised to the rest's mean rate (less the earth
+      rate), the accelerometer's along the vertical to ``| |f| - g |``; never lowered.
+    """
     notes = []
     arw2, vrw2 = model.arw2.copy(), model.vrw2.copy()
-    k2 = {}                     # the description's credibility: data / description, in variance
-    for which, name, cur, data, unit, scale in (("gyro", "gyro white noise (ARW)", arw2, dn.gyro_white ** 2,
-                                                 "deg/sqrt(h)", 60.0 / DEG),
-                                                ("accelerometer", "accelerometer white noise (VRW)", vrw2,
-                                                 dn.accel_white ** 2, "ug/sqrt(Hz)", 1.0 / UG_DECIMAL)):
-        # the largest axis for all three: a fit may give one axis no white noise at all (its variance all in
-        # the vibration and flicker terms), which no filter should believe
-        data = np.full(3, data.max())
-        r = np.sqrt(data / np.maximum(cur, 1e-300))
-        k2[which] = float(r.max() ** 2) if r.max() > 1.0 else float(r.min() ** 2)
-        if model.default or np.any(r > FACTOR) or np.any(r < 1.0 / FACTOR):
-            was = "no description" if model.default else f"the description's {np.sqrt(cur.max()) * scale:.3g}"
-            notes.append(f"{name} {np.sqrt(data.max()) * scale:.3g} {unit} from {dn.rest_seconds:.0f} s at rest "
-                         f"({was})")
+    k2 = {}                     # data / description, in variance, where the data raised the description
+    for which, key, name, cur, unit, scale in (("gyro", "gyro", "gyro white noise (ARW)", arw2, "deg/sqrt(h)",
+                                                60.0 / DEG),
+                                               ("accelerometer", "accel", "accelerometer white noise (VRW)", vrw2,
+                                                "ug/sqrt(Hz)", 1.0 / UG_DECIMAL)):
+        n, floor = dn.white(key)
+        was = "no description: the default preset's" if model.default else "the description's"
+        if n is None:
+            notes.append(f"{name}: the fit of {dn.rest_seconds:.0f} s at rest could not tell white noise apart "
+                         f"from vibration and quantization: {was} {math.sqrt(cur.max()) * scale:.3g} {unit} kept")
+            continue
+        data = n * n
+        r = math.sqrt(data / max(float(cur.max()), 1e-300))
+        # the sensor's own white noise, less what the log's resolution adds (a rounding error on every sample
+        # is white too): only that part says whether the description is this sensor's
+        own = math.sqrt(max(n * n - floor * floor, 0.0) / max(float(cur.max()), 1e-300))
+        if model.default or r > FACTOR:
+            note = (f"{name} {n * scale:.3g} {unit} from {dn.rest_seconds:.0f} s at rest ({was} "
+                    f"{math.sqrt(cur.max()) * scale:.3g})")
+            if n == floor and floor > 0.0:
+                note += ": the floor of the log's resolution"
+            notes.append(note)
+            if not model.default:
+                k2[which] = own * own
             cur[:] = data
-    # a description whose white noise is off by more than CREDIBILITY (3x) in sigma is not this sensor's: its
-    # terms no static log can check (bias instability, scale factor, misalignment, turn-on bias) are taken
-    # off by as much (a vendor states them alike; a description 10x optimistic in one is so in all)
     upd = {}
-    if not model.default:
-        kg, ka = k2["gyro"], k2["accelerometer"]
-        if not 1.0 / CREDIBILITY ** 2 <= kg <= CREDIBILITY ** 2:
+    if not model.default and dn.true_rest and not handheld:
+        kg, ka = k2.get("gyro", 1.0), k2.get("accelerometer", 1.0)
+        if kg > CREDIBILITY ** 2:
             upd.update(q_bg=model.q_bg * kg, sfmis_g=model.sfmis_g * kg, p0_bg=model.p0_bg * kg,
                        p0_sg=model.p0_sg * kg)
-            notes.append(f"the description's gyro white noise is {math.sqrt(kg):.2g}x off the log's: its bias, "
-                         f"instability, scale factor and misalignment taken {math.sqrt(kg):.2g}x too")
-        if not 1.0 / CREDIBILITY ** 2 <= ka <= CREDIBILITY ** 2:
+            notes.append(f"the description's gyro white noise is {math.sqrt(kg):.2g}x under the log's at a true "
+                         f"rest: its bias, instability, scale factor and misalignment widened {math.sqrt(kg):.2g}x "
+                         f"too")
+        if ka > CREDIBILITY ** 2:
             upd.update(q_ba=model.q_ba * ka, sfmis_a=model.sfmis_a * ka, p0_ba=model.p0_ba * ka,
                        p0_sa=model.p0_sa * ka)
-            notes.append(f"the description's accelerometer white noise is {math.sqrt(ka):.2g}x off the log's: its "
-                         f"bias, instability, scale factor and misalignment taken {math.sqrt(ka):.2g}x too")
+            notes.append(f"the description's accelerometer white noise is {math.sqrt(ka):.2g}x under the log's "
+                         f"at a true rest: its bias, instability, scale factor and misalignment widened "
+                         f"{math.sqrt(ka):.2g}x too")
+    elif max(k2.values(), default=1.0) > CREDIBILITY ** 2 and not model.default:
+        notes.append("the rest was not a true rest (" + ("a handheld device" if handheld else
+                     "the sensor turned by more than a mount's vibration") + "): the description's bias, "
+                     "instability, scale factor and misalignment kept")
     model = replace(model, **upd)
     # bias magnitudes: the mean rate at rest is the bias plus the earth rate's projection (<= 15 deg/h)
     p0_bg = model.p0_bg.copy()
