@@ -79,9 +79,9 @@ def _phi(ftk, ncore, nx, Phi, clk=-1):
 @njit(cache=True)
 def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk=-1):
     """Smoothed errors ``d (E, nx)`` (of the corrected nominal at each epoch), the ``NPS`` smoothed
-    covariance entries of each epoch ``ps (E, NPS)`` and the guard's record ``guard (4,)``: pivots
+    covariance entries of each epoch ``ps (E, NPS)`` and the guard's record ``guard (6,)``: pivots
     clipped (not PSD beyond rounding), the most negative pivot relative to its diagonal, gains solved
-    with a ridge, epochs smoothed.
+    with a ridge, epochs smoothed, the epochs of the first clipped pivot and of the worst (-1: none).
 
     The covariance in factored Joseph form (module docstring): with ``J = I - C Phi`` and
     ``N = Q + P^s_{k+1} = P^-_{k+1} + P^s_{k+1} - Phi P^+_k Phi^T``,
@@ -96,7 +96,8 @@ def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk=-1):
     E = ep_x.shape[0]
     d = np.zeros((E, nx))
     ps = np.zeros((E, NPS))
-    guard = np.zeros(4)
+    guard = np.zeros(6)
+    guard[4] = -1.0
     if E == 0:
         return d, ps, guard
     Ps = np.empty((nx, nx))          # P^s_{k+1}, then P^s_k
@@ -128,6 +129,7 @@ def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk=-1):
         guard[3] += 1.0
         _unpack(ep_pm, k + 1, nx, Pm)
         _phi(ep_ft[k + 1], ncore, nx, Phi, clk)
+        _hold_out(Pp, Pm, Ps, Phi, nx)
         for i in range(nx):                   # rows of Phi that are diagonal (sensor states)
             diag_row[i] = True
             for j in range(nx):
@@ -176,13 +178,11 @@ def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk=-1):
                         B[i, j] -= c * Phi[kk, j]
             B[i, i] += 1.0
         cl, worst = ldl_psd(Pp, nx, L, Dg, tol)
-        guard[0] += cl
-        guard[1] = min(guard[1], worst)
+        _guard(guard, k, cl, worst)
         times_lower(B, L, nx, G)              # G = J L1
         gram_add(G, Dg, nx, Ps, True)
         cl, worst = ldl_psd(N, nx, L, Dg, tol)
-        guard[0] += cl
-        guard[1] = min(guard[1], worst)
+        _guard(guard, k, cl, worst)
         for i in range(nx):                   # A <- C
             for j in range(nx):
                 A[i, j] = CT[j, i]
@@ -190,6 +190,37 @@ def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk=-1):
         gram_add(G, Dg, nx, Ps, False)
         _keep(ps, k, Ps)
     return d, ps, guard
+
+
+@njit(cache=True)
+def _guard(guard, k, clipped, worst):
+    """Count the pivots clipped at epoch ``k``; keep the worst and the epochs of the first and the worst."""
+    if clipped == 0:
+        return
+    guard[0] += clipped
+    if worst < guard[1]:
+        guard[1] = worst
+        guard[5] = k
+    guard[4] = k          # walking backwards: the last written is the first in time
+
+
+@njit(cache=True)
+def _hold_out(Pp, Pm, Ps, Phi, nx):
+    """A state held out of the filter at these epochs (zero variance before or after the update: the
+    heading before the GNSS course gives it) is left out of the smoothing step: its rows and columns are
+    zero in the covariances and in the transition matrix, so that no factor sees the propagation's
+    couplings of a state the filter does not carry."""
+    for i in range(nx):
+        if Pp[i, i] <= 0.0 or Pm[i, i] <= 0.0:
+            for j in range(nx):
+                Pp[i, j] = 0.0
+                Pp[j, i] = 0.0
+                Pm[i, j] = 0.0
+                Pm[j, i] = 0.0
+                Ps[i, j] = 0.0
+                Ps[j, i] = 0.0
+                Phi[i, j] = 0.0
+                Phi[j, i] = 0.0
 
 
 @njit(cache=True)
@@ -253,7 +284,9 @@ def smooth_rows(time, lat, lon, h, vel, cbn, var, bias, epochs, ncore, nx, fwd, 
     """Smooth the forward output rows in place (``epochs``: the stored arrays, in time order; ``clk`` the
     receiver clock's bias state, -1 none)."""
     if epochs is None or len(epochs[0]) == 0:
-        return np.zeros(4)
+        g = np.zeros(6)
+        g[4] = g[5] = -1.0
+        return g
     ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset = epochs
     d, ps, guard = rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk)
     apply_corrections(time, lat, lon, h, vel, cbn, var, bias, ep_t, d, ps, ep_x, ncore, nx, fwd)
