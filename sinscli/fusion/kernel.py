@@ -121,12 +121,15 @@ CV = Layout("fusion config", [
     ("C_QISB", 1),            # inter-system bias random walk density, m^2/s
     ("C_CLK_JUMP", 1),        # m: an epoch's clock this far from the filter's (and 10 sigma) is a clock jump
     ("C_CLK_P0", 1),          # m: the clock bias 1-sigma after a jump
-], total=77)
+    ("C_FADE_ALPHA", 1),      # weight of a fix in the consistency statistics (1 / window); 0: the test off
+    ("C_FADE_THR", 1),        # their mean NIS per component over which the filter is too confident
+    ("C_FADE_MAX", 1),        # the largest covariance factor of one widening
+], total=80)
 (C_NX, C_NCORE, C_LA, C_TD, C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT, C_GATE, C_ROBUST,
  C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA, C_SF_TAU, C_REJ_RUN, C_RADAPT_N,
  C_RADAPT_MAX, C_RADAPT_BAND, C_RBASE, C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT,
  C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD, C_CLK, C_ISB, C_QCLK, C_QISB, C_CLK_JUMP,
- C_CLK_P0) = CV.offsets(*(name for name, _ in CV.fields))
+ C_CLK_P0, C_FADE_ALPHA, C_FADE_THR, C_FADE_MAX) = CV.offsets(*(name for name, _ in CV.fields))
 CV_SIZE = CV.total
 
 # the filter's scalars (read and written by the kernel, carried between blocks)
@@ -157,19 +160,24 @@ FS = Layout("fusion filter scalars", [
     ("F_EP_T", 1),            # the current raw epoch: its time, pseudoranges accepted and rejected
     ("F_EP_ACC", 1), ("F_EP_REJ", 1),
     ("F_EP_NREJ", 1), ("F_EP_T0", 1),   # consecutive epochs whose pseudoranges were all rejected, and the first
-], total=200)
+    ("F_CL", 1), ("F_CD", 1),           # consistency of the GNSS fixes: weighted means of NIS/m and of the
+                                        # consecutive innovations' differences (_consistency)
+    ("F_CZ", 3), ("F_CS", 3), ("F_CT", 1),   # the previous fix: innovation, variances, time
+    ("F_CJ", 1),              # a jump of the fixes since the last one taken cleanly (no widening then)
+    ("F_CN", 1),              # fixes in the statistics since they last restarted
+], total=211)
 (F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD, F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA, F_ACC_T, F_ACC_DV,
  F_ACC_DTH, F_W, F_HAVE_W, F_LPW, F_LPF, F_F, F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH, F_ERR,
  F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC, F_CLK, F_ISB, F_EP_T, F_EP_ACC, F_EP_REJ, F_EP_NREJ,
- F_EP_T0) = FS.offsets(*(name for name, _ in FS.fields))
+ F_EP_T0, F_CL, F_CD, F_CZ, F_CS, F_CT, F_CJ, F_CN) = FS.offsets(*(name for name, _ in FS.fields))
 FS_SIZE = FS.total
 
 ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
 # events: (time, code, a, b)
 EV_REJECTION_RUN, EV_HEADING_INIT, EV_RSCALE, EV_REACQUIRE, EV_QSCALE, EV_EXIT = 1.0, 2.0, 3.0, 4.0, 5.0, 6.0
-EV_CLOCK_JUMP = 7.0
+EV_CLOCK_JUMP, EV_WIDEN = 7.0, 8.0
 EV_NAMES = {1: "rejection_run", 2: "heading_init", 3: "r_scale", 4: "reacquire", 5: "drift_q_scale", 6: "outage_exit",
-            7: "clock_jump"}
+            7: "clock_jump", 8: "widen"}
 
 # workspace: matrices (nx, nx) and rows (nx,)
 WM = Layout("fusion workspace matrices", [("W_F", 1), ("W_W", 1), ("W_PM", 1), ("W_A", 1), ("W_L", 1), ("W_PHI", 1)])
@@ -869,6 +877,73 @@ def _exit_drift_scale(ratio, r_share, fs, cv, evs, n_evs, t):
 
 
 @njit(cache=True)
+def _inflate(P, Pm, nx, ncore, lam, store):
+    """Widen the core states' covariance (navigation and sensor errors) by ``lam`` >= 1:
+    ``P <- P + (lam - 1) E P E^T`` with ``E`` the core block's selector, a positive semi-definite increment
+    (a principal block of P embedded with zeros), so that the filter stays positive definite; with ``store``
+    the smoother's prior ``Pm`` of this epoch gets the same increment, so that ``Q = P^- - Phi P^+ Phi^T``
+    stays positive semi-definite (the widening is process noise of the interval, not a break in the
+    chain).  The fading-memory widening of Fagin (1964) and Sorenson & Sacks (1971, eq. 9), restricted to
+    the states the mechanization drives."""
+    f = lam - 1.0
+    if f <= 0.0:
+        return
+    for i in range(ncore):
+        for j in range(ncore):
+            d = f * P[i, j]
+            if store:
+                Pm[i, j] += d
+            P[i, j] += d
+
+
+@njit(cache=True)
+def _consistency(z, S, m, nis, fs, cv, t):
+    """The consistency test of the GNSS fixes (docs/fusion.md, "A filter too sure of itself").
+
+    Two weighted means (weight ``alpha`` per fix, ``1/alpha`` fixes' memory) are kept: of the NIS per
+    component ``min(NIS, gate) / m`` (1 for a consistent filter) and of the consecutive innovations'
+    differences ``(1/m) sum_i min(dz_i^2 / (S_ii + S_ii,prev), gate_1)`` (also 1: consecutive innovations
+    of a consistent filter are independent).  A filter whose covariance is too small while the fixes agree
+    with one another shows the first far above 1 and the second not: its innovations drift away smoothly
+    (a bias beyond its prior, a process noise too small, a time-correlated GNSS error taken for white).
+    Measurement noise too small shows in both (the measurement-noise adaptation's business); a fix that
+    jumped shows in the differences (a component beyond ``gate_1``): after a jump, no widening until a fix
+    is taken cleanly again (the jumped fixes stay rejected until the covariance grows honestly).
+
+    Returns the factor ``L`` (> 1) by which the innovation covariance was too small when the first mean is
+    over ``C_FADE_THR`` (the chi-square quantile 1 - 1e-4 of its equivalent degrees of freedom), the second
+    is not and the means hold at least ``1/alpha`` fixes; then they restart.  Else 0."""
+    a = cv[C_FADE_ALPHA]
+    g1 = cv[C_GATE]
+    prev = fs[F_CT] > -np.inf and t - fs[F_CT] <= cv[C_OUTAGE_DT]
+    dl = 1.0
+    if prev:
+        dl = 0.0
+        for i in range(m):
+            d = z[i] - fs[F_CZ + i]
+            v = d * d / (S[i, i] + fs[F_CS + i])
+            if v > g1:
+                fs[F_CJ] = 1.0
+            dl += min(v, g1)
+        dl /= m
+    for i in range(m):
+        fs[F_CZ + i] = z[i]
+        fs[F_CS + i] = S[i, i]
+    fs[F_CT] = t
+    fs[F_CL] += a * (min(nis, cv[C_GATE + m - 1]) / m - fs[F_CL])
+    fs[F_CD] += a * (dl - fs[F_CD])
+    fs[F_CN] += 1.0
+    thr = cv[C_FADE_THR]
+    if fs[F_CJ] == 0.0 and fs[F_CN] * a >= 1.0 and fs[F_CL] > thr and fs[F_CD] < thr:
+        lam = fs[F_CL]
+        fs[F_CL] = 1.0
+        fs[F_CD] = 1.0
+        fs[F_CN] = 0.0
+        return lam
+    return 0.0
+
+
+@njit(cache=True)
 def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
     """Apply one measurement row at the current time (the state is at its time).  Returns counters."""
     nx = int(cv[C_NX])
@@ -915,14 +990,33 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
         _decay_drift_scale(fs, cv, t)
     if k >= 0 and not exit_fix:
         n_evs = _adapt_r(kind, z, r, S, m, fs, cv, evs, n_evs, t)
+    store = cv[C_SMOOTH_DT] > 0.0
+    ncore = int(cv[C_NCORE])
+    if kind == MT_GNSS_POS and not exit_fix and cv[C_FADE_ALPHA] > 0.0:
+        lam_s = _consistency(z, S, m, nis, fs, cv, t)
+        if lam_s > 0.0:
+            # the covariance that makes the innovation covariance lam_s times larger: (lam_s tr S - tr R) / tr HPH
+            trs, trr = 0.0, 0.0
+            for a in range(m):
+                trs += S[a, a]
+                trr += r[a]
+            lam = min(max((lam_s * trs - trr) / max(trs - trr, 1e-300), 1.0), cv[C_FADE_MAX])
+            _inflate(P, mats[W_PM], nx, ncore, lam, store)
+            n_evs = _event(evs, n_evs, t, EV_WIDEN, lam_s, lam)
+            innovation_covariance(P, nx, H, r, m, HP, S)
+            nis = nis_of(S, z, m, Si)
+            nis_report = nis
+            hph = (S[0, 0] - r[0], S[1, 1] - r[1], S[2, 2] - r[2])
+            acc = nis < gate
     if exit_fix:
         # the dead-reckoning prediction tested: its horizontal innovation against its variance
         ratio = (z[0] * z[0] + z[1] * z[1]) / (S[0, 0] + S[1, 1])
         n_evs = _exit_drift_scale(ratio, (r[0] + r[1]) / (S[0, 0] + S[1, 1]), fs, cv, evs, n_evs, t)
+        fs[F_CT] = -np.inf                      # the consistency statistics start again after an outage
         if not acc:
-            # reacquisition: the dead reckoning's covariance was too small by about the ratio (_widen_nav)
+            # reacquisition: the dead reckoning's covariance was too small by about the ratio (_inflate)
             n_evs = _event(evs, n_evs, t, EV_REACQUIRE, nis, ratio)
-            _widen_nav(P, nx, ratio)
+            _inflate(P, mats[W_PM], nx, ncore, ratio, store)
             innovation_covariance(P, nx, H, r, m, HP, S)
             nis_of(S, z, m, Si)
             acc = True                          # a reacquired fix is taken (the widening made room)
@@ -932,14 +1026,15 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
         fs[F_NREJ] += 1.0
         if fs[F_NREJ] >= cv[C_REJ_RUN]:
             # a run of rejected fixes: the filter diverged (or the GNSS jumped and stays): the navigation
-            # block widened by the fix's horizontal innovation against its variance (_widen_nav), the fix taken
+            # block widened by the fix's horizontal innovation against its variance (_inflate), the fix taken
             n_evs = _event(evs, n_evs, t, EV_REJECTION_RUN, fs[F_TREJ0], fs[F_NREJ])
-            _widen_nav(P, nx, max((z[0] * z[0] + z[1] * z[1]) / (S[0, 0] + S[1, 1]), nis / m))
+            _inflate(P, mats[W_PM], nx, ncore, max((z[0] * z[0] + z[1] * z[1]) / (S[0, 0] + S[1, 1]), nis / m),
+                     store)
             innovation_covariance(P, nx, H, r, m, HP, S)
             nis_of(S, z, m, Si)
             acc = True
             fs[F_NREJ] = 0.0
-            fs[F_RESET] = 1.0
+            fs[F_CJ] = 0.0
     elif kind == MT_PR and _epoch_rejected(fs, cv, t, acc):
         # every pseudorange of rej_run consecutive epochs rejected: the filter diverged (or the receiver's
         # ranges jumped and stay): the navigation block and the clock bias widened by this satellite's NIS
@@ -964,6 +1059,8 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
             nis_of(S, z, m, Si)
     if acc and kind == MT_GNSS_POS:
         fs[F_NREJ] = 0.0
+        if nis < cv[C_ROBUST + m - 1] or cv[C_ROBUST + m - 1] <= 0.0:
+            fs[F_CJ] = 0.0                      # taken cleanly: a jump before it is over
     if kind == MT_PR:
         if acc:
             fs[F_EP_ACC] += 1.0

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +24,7 @@ from ..nav.pipeline import BLOCK, NavOptions, concat, stream_blocks
 from ..nav.rotation import conv_to_flu
 from ..sensors import G0, SensorDescription, load_sensor, read_sensor
 from ..types import GnssLog, ImuLog, NavState, Trajectory, time_tolerance
-from ..units import UG_DECIMAL
+from ..units import DEG, UG_DECIMAL
 from . import kernel as kn
 from .model import BA, BG, PHI, SA, SG, V
 from .noise import apply_data_noise
@@ -303,7 +303,7 @@ class Fusion:
     def __init__(self, init: NavState, nav: NavOptions, fopts: FusionOptions, gnss: GnssLog,
                  init_sigma: dict | None = None, body_vel=None, smooth: bool = False, src: str = "config",
                  init_bias: dict | None = None, data_noise=None, t_log0: float | None = None,
-                 drift_base: float = 1.0, r_base=None, raw=None):
+                 drift_base: float = 1.0, r_base=None, raw=None, bias_var=None):
         nav.check()
         if nav.attitude not in ("quat", "dcm") or nav.frame != "enu":
             raise SinsError(f"--gnss: the fusion filter runs with --attitude quat or dcm in the ENU frame, "
@@ -315,8 +315,13 @@ class Fusion:
         self.data_notes = []
         if data_noise is not None and fopts.noise_from_data:
             self.model, self.data_notes = apply_data_noise(self.model, data_noise,
-                                                           float(gravity(math.sin(init.lat), init.height)))
+                                                           float(gravity(math.sin(init.lat), init.height)),
+                                                           handheld=fopts.vehicle == "pedestrian")
         self.data_noise = data_noise
+        self.bias_var = None if bias_var is None else np.asarray(bias_var, dtype=float)
+        if self.bias_var is not None:      # a calibration pass found the turn-on bias priors too small
+            self.model = replace(self.model, p0_bg=np.maximum(self.model.p0_bg, self.bias_var[:3]),
+                                 p0_ba=np.maximum(self.model.p0_ba, self.bias_var[3:]))
         # an unestimated gyro scale factor (0.5 % for a consumer IMU) biases the lever arm by centimetres
         # through the turns that make it observable: estimating the lever arm estimates the scale factors
         ncore = 21 if "lever_arm" in fopts.estimate else fopts.states
@@ -355,6 +360,8 @@ class Fusion:
         self.fs[kn.F_T_QS] = init.time
         self.fs[kn.F_RS:kn.F_RS + 3 * kn.NK] = self.r_base
         self.fs[kn.F_T_FIX] = -np.inf
+        self.fs[kn.F_CT] = -np.inf
+        self.fs[kn.F_CL] = self.fs[kn.F_CD] = 1.0
         self.fs[kn.F_LEVER:kn.F_LEVER + 3] = self.lever
         self.fs[kn.F_TPREV] = init.time
         self.fs[kn.F_T_EPOCH] = init.time
@@ -396,6 +403,7 @@ class Fusion:
         self.inn_parts, self.ev_parts = [], []
         self.epochs = EpochStore(nx, kn.epoch_width(ncore, nx, self.clk)) if smooth else None
         self.smoother_guard = None
+        self.guard_times = None
         self.forward_rows = []          # kept for the smoother: (trajectory, variances, sensor estimates)
         self.applied = 0
         self.heading_known = bool(self.fs[kn.F_HEAD_KNOWN] > 0)
@@ -458,6 +466,14 @@ class Fusion:
         cv[kn.C_QISB] = f.clock_isb_walk ** 2
         cv[kn.C_CLK_JUMP] = f.clock_jump
         cv[kn.C_CLK_P0] = f.clock_bias_sigma
+        # the consistency test of the fixes (kernel._consistency): weight 1/window per fix; its mean of NIS/m
+        # behaves as chi2(nu)/nu with nu = 3 (2 - a)/a (an exponentially weighted mean of chi2(3)/3): the
+        # 1 - 1e-4 quantile is its threshold
+        a = 1.0 / f.adapt_window
+        nu = 3.0 * (2.0 - a) / a
+        cv[kn.C_FADE_ALPHA] = a if f.adapt else 0.0
+        cv[kn.C_FADE_THR] = chi2_gate(1.0 - 1e-4, nu) / nu
+        cv[kn.C_FADE_MAX] = f.adapt_max_scale
         return cv
 
     def _initial_covariance(self, s: dict):
@@ -547,12 +563,13 @@ class Fusion:
 
     def _zaru_sigma(self, span):
         """The ZARU 1-sigma of windows ``span`` s long: the spread of a window's mean rate at rest, from the
-        log's own standstill (white noise and vibration, :func:`apply_data_noise`) when known, else the
-        ARW's ``ARW / sqrt(span)``."""
+        log's own standstill (white noise and vibration, :func:`apply_data_noise`) when known, never under the
+        model's ``ARW / sqrt(span)``."""
         dn = self.data_noise
+        white = self.model.arw2.max() / span
         if dn is not None and self.fopts.noise_from_data:
-            return np.sqrt(np.max(dn.rate_mean_var(span), axis=-1))
-        return np.sqrt(self.model.arw2.max() / span)
+            return np.sqrt(np.maximum(np.max(dn.rate_mean_var(span), axis=-1), white))
+        return np.sqrt(white)
 
     def feed(self, imu: ImuLog) -> Trajectory | None:
         self._source = imu.source
@@ -629,6 +646,9 @@ class Fusion:
         elif kind == kn.EV_REACQUIRE:
             log.info("fusion: outage exit at %s beyond the gate (NIS %.3g): position covariance widened, fix "
                      "accepted", c, e[2])
+        elif kind == kn.EV_WIDEN:
+            log.info("fusion: GNSS fixes at %s consistent with one another but %.3g x the filter's predicted "
+                     "variance: covariance widened x%.3g", c, e[2], e[3])
         elif kind == kn.EV_CLOCK_JUMP:
             log.info("fusion: receiver clock jump of %.6g m (%.4g ms) at %s: the clock bias state reset", e[2],
                      e[2] / 299792.458, c)
@@ -679,9 +699,13 @@ class Fusion:
         var = np.concatenate([r[1] for r in self.forward_rows])
         bias = np.concatenate([r[2] for r in self.forward_rows])
         self.forward_rows = []
+        epochs = self.epochs.trimmed()
         self.smoother_guard = smooth_rows(traj.time, traj.lat, traj.lon, traj.height, traj.vel_n, traj.Cbn, var,
-                                          bias, self.epochs.trimmed(), self.ncore, self.nx, int(self.cv[kn.C_FWD]),
-                                          self.clk)
+                                          bias, epochs, self.ncore, self.nx, int(self.cv[kn.C_FWD]), self.clk)
+        g = self.smoother_guard
+        ep_t = epochs[0]
+        # the epochs (after the smoothing step's start k: its prior at k + 1) of the first and worst clipped pivot
+        self.guard_times = tuple(float(ep_t[min(int(i) + 1, len(ep_t) - 1)]) for i in g[4:6]) if g[4] >= 0 else None
         traj.extra = self._columns(var, bias)
         return traj
 
@@ -744,9 +768,13 @@ class Fusion:
                                f"(to add to the GNSS stamps: gnss.time_offset)")
         if self.smooth:
             g = self.smoother_guard
+            where = ""
+            if g is not None and g[0] and self.guard_times is not None:
+                where = (f" from {clock(self.guard_times[0], t0)}, the worst at {clock(self.guard_times[1], t0)}: "
+                         f"the filter's covariance before that update was not its propagation plus process noise")
             s.smoothed = "smoothed (RTS, factored Joseph form)" + (
-                f"; guard: {int(g[0])} pivot(s) clipped (worst {g[1]:.2g} of its diagonal), {int(g[2])} gain(s) "
-                f"with a ridge, over {int(g[3])} epochs" if g is not None and (g[0] or g[2]) else "")
+                f"; guard: {int(g[0])} pivot(s) clipped (worst {g[1]:.2g} of its diagonal){where}, {int(g[2])} "
+                f"gain(s) with a ridge, over {int(g[3])} epochs" if g is not None and (g[0] or g[2]) else "")
         if len(traj) and self.fs[kn.F_HEAD_KNOWN] > 0.0 and f.vehicle != "aircraft":
             hc = heading_course_check(traj, self.gnss, int(self.cv[kn.C_FWD]), traj.extra.get("heading_std"))
             self.heading_check = s.heading_check = hc
@@ -806,6 +834,13 @@ class Fusion:
                 f"{self._axis_name(3 * kn.K_OF_KIND.index(i // 3) + i % 3)} noise variance x{self.r_base[i]:.3g} from "
                 f"the start: calibrated by a first pass on the log's innovations (their variance and their "
                 f"correlation from one measurement to the next)")
+        if self.bias_var is not None:
+            d = 3600.0 / DEG
+            sg, sa = np.sqrt(self.model.p0_bg), np.sqrt(self.model.p0_ba)
+            s.adaptations.append(
+                f"turn-on bias 1-sigma gyro [{sg[0] * d:.3g}, {sg[1] * d:.3g}, {sg[2] * d:.3g}] deg/h, accelerometer "
+                f"[{sa[0] / UG_DECIMAL:.3g}, {sa[1] / UG_DECIMAL:.3g}, {sa[2] / UG_DECIMAL:.3g}] ug from the start: a "
+                f"first pass over the log estimated biases beyond {BIAS_OUTSIDE:g} sigma of the sensor model's")
         if self.drift_base != 1.0:
             s.adaptations.append(
                 f"drift process noise (bias instability, scale factor, misalignment) x{self.drift_base:.3g} from "
@@ -818,6 +853,12 @@ class Fusion:
                 f"x{q[:, 3].max():.3g} ({len(q)} change(s) from {clock(float(q[0, 0]), t0)}: outage exits whose "
                 f"innovation was {q[:, 2].min():.3g}-{q[:, 2].max():.3g}x its predicted variance), decaying to 1 "
                 f"with {self.fopts.adapt_decay:g} s")
+        w = ev[ev[:, 1] == kn.EV_WIDEN]
+        if len(w):
+            s.adaptations.append(
+                f"covariance widened {len(w)} time(s) x{w[:, 3].min():.3g} to x{w[:, 3].max():.3g} (first at "
+                f"{clock(float(w[0, 0]), t0)}): GNSS fixes consistent with one another drifted away from the "
+                f"filter's prediction by {w[:, 2].min():.3g}-{w[:, 2].max():.3g}x its variance")
         rq = ev[ev[:, 1] == kn.EV_REACQUIRE]
         s.reacquired = len(rq)
 
@@ -879,6 +920,22 @@ class Fusion:
 
 UNOBSERVED = 0.3            # an estimated parameter whose sigma stays over this share of its prior: not observed
 EXIT_QUANTILE = 4.605170185988091 / 2.0     # the 99 % quantile of chi-square(2) / 2: an exit's ratio
+EXIT_FAR = 18.420680743952364 / 2.0         # its 1 - 1e-4 quantile
+BIAS_OUTSIDE = 3.0          # a first pass's bias estimate beyond this many prior sigmas: the prior was wrong
+
+
+def bias_var_from(fusion: Fusion):
+    """The turn-on bias variances (gyro rad^2/s^2, accelerometer m^2/s^4 per body axis, ``(6,)``) a pass over
+    the log implies, or None: where its final bias estimate stands beyond :data:`BIAS_OUTSIDE` sigmas of the
+    prior the pass ran with, the prior was not this sensor's (a phone's gyro with a turn-on bias of degrees
+    per second described as a tactical one: its innovations drift away until the consistency test widens
+    the covariance, and only then can the estimate move), and the square of the estimate becomes that
+    axis' prior variance; the next pass then starts honest."""
+    m = fusion.model
+    p0 = np.concatenate([m.p0_bg, m.p0_ba])
+    est = np.asarray(fusion.fs[kn.F_BG:kn.F_BA + 3], dtype=float) ** 2
+    out = np.where(est > BIAS_OUTSIDE ** 2 * p0, est, p0)
+    return out if np.any(out != p0) else None
 
 
 def drift_base_from(fusion: Fusion, min_exits: int = 3) -> float:
@@ -889,13 +946,15 @@ def drift_base_from(fusion: Fusion, min_exits: int = 3) -> float:
     ``[1/max, max]`` (``adapt.max_bias_scale``).  With fewer than ``min_exits`` such exits, or within a
     factor 2 of ``b``, ``b`` itself.  Aiming the worst exit at the 99 % quantile keeps every outage
     inside its 3 sigma when the description is optimistic, and lowers a pessimistic one (whose exits all
-    fall far inside) without letting any exit out."""
+    fall far inside) without letting any exit out.  With fewer exits the base is only raised, and only by
+    an exit beyond the 1 - 1e-4 quantile (:data:`EXIT_FAR`): one exit that far out is evidence enough that
+    the drift terms were optimistic; a few exits well inside are not evidence that they were pessimistic."""
     b0 = fusion.drift_base
     ev = fusion.events()
     ex = ev[ev[:, 1] == kn.EV_EXIT] if len(ev) else ev
     r = ex[ex[:, 3] < 0.25, 2] if len(ex) else np.zeros(0)
     r = r[r > 0]
-    if len(r) < min_exits:
+    if not len(r) or (len(r) < min_exits and r.max() <= EXIT_FAR):
         return b0
     base = b0 * float(r.max()) / EXIT_QUANTILE
     if 0.5 * b0 < base < 2.0 * b0:
@@ -904,7 +963,7 @@ def drift_base_from(fusion: Fusion, min_exits: int = 3) -> float:
     return float(min(max(base, 1.0 / m), m))
 
 
-MAX_CORRELATION_FACTOR = 10.0
+MAX_CORRELATION_FACTOR = 100.0
 
 
 def r_base_from(fusion: Fusion, min_n: int = 30) -> np.ndarray:
@@ -947,21 +1006,27 @@ def r_base_from(fusion: Fusion, min_n: int = 30) -> np.ndarray:
 
 
 def calibrated_run(make, run, passes: int = 3):
-    """Run the log through ``make(drift_base=b, r_base=rb)`` (a :class:`Fusion`; ``run(f)`` feeds it the
-    log and returns its chunks), then again with the drift process noise (:func:`drift_base_from`) and the
-    measurement noise (:func:`r_base_from`) its innovations imply, until a pass confirms its own (at most
-    ``passes``; a consistent log costs one).  Returns ``(fusion, chunks)`` of the last pass."""
-    base, rb = 1.0, None
+    """Run the log through ``make(drift_base=b, r_base=rb, bias_var=bv)`` (a :class:`Fusion`; ``run(f)``
+    feeds it the log and returns its chunks), then again with the turn-on bias priors
+    (:func:`bias_var_from`), the drift process noise (:func:`drift_base_from`) and the measurement noise
+    (:func:`r_base_from`, from the first pass whose bias priors held) its innovations imply, until a pass
+    confirms its own (at most ``passes``; a consistent log costs one).  Returns ``(fusion, chunks)`` of the
+    last pass."""
+    base, rb, bv = 1.0, None, None
     for i in range(passes):
-        f = make(drift_base=base, r_base=rb)
+        f = make(drift_base=base, r_base=rb, bias_var=bv)
         chunks = run(f)
         if not f.fopts.adapt or i == passes - 1:
             break
+        new_bv = bias_var_from(f)
         new_base = drift_base_from(f) if has_outages(f.gnss, f.fopts) else base
-        new_rb = r_base_from(f) if i == 0 else f.r_base
-        if new_base == base and np.array_equal(new_rb, f.r_base):
+        # the measurement noise from a pass whose bias priors held (else its innovations hold the filter's
+        # own excursion), once
+        new_rb = r_base_from(f) if rb is None and new_bv is None else f.r_base
+        if new_bv is None and new_base == base and np.array_equal(new_rb, f.r_base):
             break
-        base, rb = new_base, new_rb
+        base, rb = new_base, (rb if new_bv is not None else new_rb)
+        bv = new_bv if new_bv is not None else bv
     return f, chunks
 
 
