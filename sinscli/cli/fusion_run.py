@@ -153,7 +153,7 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         def run(f):                             # each calibration pass restarts the bar
             bar.update(-bar.pos if hasattr(bar, "pos") else 0)
             return list(fuse_blocks(blocks(), f, progress=bar.update))
-        fusion, chunks = calibrated_run(lambda **kw: make(smooth=smooth, **kw), run)
+        fusion, chunks = calibrated_run(make, run, smooth)
         traj = concat(chunks)
     if smooth:
         traj = fusion.smoothed()

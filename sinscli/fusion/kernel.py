@@ -86,7 +86,7 @@ SAT_POS, SAT_VEL, SAT_SYS, SAT_PRN, SAT_EL = SAT.offsets(*(name for name, _ in S
 NK = 4
 K_OF_KIND = (0, 1, -1, -1, 2, 3, -1, -1, -1, -1)   # gnss_pos, gnss_vel, -, -, nhc, odom, -, raw: -
 ADAPT_NAMES = ("gnss_pos", "gnss_vel", "nhc", "odom")
-NX_MAX = 30                                 # 21 + lever arm (3) + time offset (1) + clock (2) + 3 ISB
+NX_MAX = 33                                 # 21 + lever arm (3) + time offset (1) + clock (2) + 3 ISB, or + GNSS error (3)
 
 # configuration vector (read-only in the kernel)
 CV = Layout("fusion config", [
@@ -124,12 +124,15 @@ CV = Layout("fusion config", [
     ("C_FADE_ALPHA", 1),      # weight of a fix in the consistency statistics (1 / window); 0: the test off
     ("C_FADE_THR", 1),        # their mean NIS per component over which the filter is too confident
     ("C_FADE_MAX", 1),        # the largest covariance factor of one widening
-], total=80)
+    ("C_GE", 1),              # the first of the GNSS position error states (E, N, U; Gauss-Markov), or -1
+    ("C_GE_VAR", 3),          # their steady-state variances, m^2
+    ("C_GE_TAU", 3),          # their correlation times, s
+], total=87)
 (C_NX, C_NCORE, C_LA, C_TD, C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT, C_GATE, C_ROBUST,
  C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA, C_SF_TAU, C_REJ_RUN, C_RADAPT_N,
  C_RADAPT_MAX, C_RADAPT_BAND, C_RBASE, C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT,
  C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD, C_CLK, C_ISB, C_QCLK, C_QISB, C_CLK_JUMP,
- C_CLK_P0, C_FADE_ALPHA, C_FADE_THR, C_FADE_MAX) = CV.offsets(*(name for name, _ in CV.fields))
+ C_CLK_P0, C_FADE_ALPHA, C_FADE_THR, C_FADE_MAX, C_GE, C_GE_VAR, C_GE_TAU) = CV.offsets(*(name for name, _ in CV.fields))
 CV_SIZE = CV.total
 
 # the filter's scalars (read and written by the kernel, carried between blocks)
@@ -165,11 +168,12 @@ FS = Layout("fusion filter scalars", [
     ("F_CZ", 3), ("F_CS", 3), ("F_CT", 1),   # the previous fix: innovation, variances, time
     ("F_CJ", 1),              # a jump of the fixes since the last one taken cleanly (no widening then)
     ("F_CN", 1),              # fixes in the statistics since they last restarted
-], total=211)
+    ("F_GE", 3),              # the GNSS position error estimate (E, N, U, m): the fixes are the antenna plus it
+], total=217)
 (F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD, F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA, F_ACC_T, F_ACC_DV,
  F_ACC_DTH, F_W, F_HAVE_W, F_LPW, F_LPF, F_F, F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH, F_ERR,
  F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC, F_CLK, F_ISB, F_EP_T, F_EP_ACC, F_EP_REJ, F_EP_NREJ,
- F_EP_T0, F_CL, F_CD, F_CZ, F_CS, F_CT, F_CJ, F_CN) = FS.offsets(*(name for name, _ in FS.fields))
+ F_EP_T0, F_CL, F_CD, F_CZ, F_CS, F_CT, F_CJ, F_CN, F_GE) = FS.offsets(*(name for name, _ in FS.fields))
 FS_SIZE = FS.total
 
 ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
@@ -265,6 +269,10 @@ def feedback(st, fs, cv, x, nx, method):
             fs[F_LEVER + i] -= x[la + i]
     if td >= 0:
         fs[F_TD] -= x[td]
+    ge = int(cv[C_GE])
+    if ge >= 0:
+        for i in range(3):
+            fs[F_GE + i] -= x[ge + i]
     for i in range(nx):
         fs[F_XACC + i] += x[i]
 
@@ -349,6 +357,8 @@ def _do_propagate(st, fs, cv, P, mats, store):
         transition_step(mats[W_PHI], W, fb, T, ncore, itg, ita)
     if int(cv[C_CLK]) >= 0:
         _propagate_clock(P, nx, cv, fs, T, mats[W_PHI], store)
+    if int(cv[C_GE]) >= 0:
+        _propagate_gnss_error(P, nx, cv, fs, T, mats[W_PHI], store)
     fs[F_ACC_T] = 0.0
     for i in range(3):
         fs[F_ACC_DV + i] = 0.0
@@ -381,6 +391,27 @@ def _propagate_clock(P, nx, cv, fs, T, Phi, store):
             P[k, k] += cv[C_QISB] * T
     if store:
         Phi[c, d] += T
+
+
+@njit(cache=True)
+def _propagate_gnss_error(P, nx, cv, fs, T, Phi, store):
+    """The GNSS position error states over ``T`` s: a first-order Gauss-Markov process per axis (Brown &
+    Hwang 2012, "Introduction to Random Signals and Applied Kalman Filtering", 4th ed., sec. 9.x: colored
+    measurement noise by state augmentation; Gelb 1974, table 3.8-1), ``e' = -e / tau + w`` with the steady
+    variance ``s^2``: ``phi = exp(-T / tau)``, ``Qd = s^2 (1 - phi^2)``.  The estimate decays as ``e *= phi``;
+    uncoupled from the other states in F, so ``P <- Phi P Phi^T`` scales its rows and columns; with ``store``
+    the smoother's transition matrix gets the same ``phi``."""
+    g = int(cv[C_GE])
+    for a in range(3):
+        k = g + a
+        d = np.exp(-T / cv[C_GE_TAU + a])
+        fs[F_GE + a] *= d
+        for j in range(nx):
+            P[k, j] *= d
+            P[j, k] *= d
+        P[k, k] += cv[C_GE_VAR + a] * (1.0 - d * d)
+        if store:
+            Phi[k, k] *= d
 
 
 @njit(cache=True)
@@ -710,6 +741,11 @@ def _model(row, kind, st, fs, cv, nx, H, z, r, sat):
         for i in range(3):
             H[i, R + i] = 1.0
         skew_into(H, 0, PHI, l_n, 1.0)
+        ge = int(cv[C_GE])
+        if ge >= 0:                         # the fix is the antenna plus the GNSS error: predicted with its estimate
+            for i in range(3):
+                z[i] += fs[F_GE + i]
+                H[i, ge + i] = 1.0
         if la >= 0:
             for i in range(3):
                 for j in range(3):

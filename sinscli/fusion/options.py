@@ -40,6 +40,11 @@ FUSION_DEFAULTS = {
     "gnss_pos_sigma": [1.5, 1.5, 3.0],   # m E N U, for fixes without std columns
     "gnss_vel_sigma": [0.1, 0.1, 0.2],   # m/s E N U, for velocities without std columns
     "use_gnss_velocity": True,       # use the log's GNSS velocity when it has one
+    "gnss_error": {                  # the fixes' time-correlated error as Gauss-Markov states (docs/fusion.md)
+        "tau": "auto",               # s (horizontal, vertical or one for both); auto: from a first pass's
+                                     # innovations when they are correlated; 0: the fixes' errors taken as white
+        "sigma": None,               # m [horizontal, vertical]: its steady 1-sigma; null: from the first pass
+    },
     "lever_arm": None,               # antenna in body axes, m; null: gnss.lever_arm
     "estimate": [],                  # parameters estimated as filter states: lever_arm, time_offset
     "estimate_sigma": {"lever_arm": 0.5, "time_offset": 0.1},    # m, s: their initial 1-sigma
@@ -135,6 +140,8 @@ class FusionOptions:
     gnss_pos_sigma: np.ndarray = field(default_factory=lambda: np.array([1.5, 1.5, 3.0]))
     gnss_vel_sigma: np.ndarray = field(default_factory=lambda: np.array([0.1, 0.1, 0.2]))
     use_gnss_velocity: bool = True
+    gnss_error_tau: np.ndarray | None = None     # s [horizontal, vertical]; None: auto; zeros: off
+    gnss_error_sigma: np.ndarray | None = None   # m [horizontal, vertical]; None: from the data
     lever_arm: np.ndarray | None = None
     estimate: tuple = ()
     lever_arm_sigma: float = 0.5
@@ -257,6 +264,14 @@ def build_fusion_options(section, src: str, base_dir=None, vehicle: str | None =
     kw["gnss_pos_sigma"] = _vec(src, "gnss_pos_sigma", d["gnss_pos_sigma"], 3, gt=0.0, le=MAX_POS)
     kw["gnss_vel_sigma"] = _vec(src, "gnss_vel_sigma", d["gnss_vel_sigma"], 3, gt=0.0, le=MAX_VEL)
     kw["use_gnss_velocity"] = _bool(src, "use_gnss_velocity", d["use_gnss_velocity"])
+    ge = d["gnss_error"]
+    if ge["tau"] != "auto":
+        tau = ge["tau"] if isinstance(ge["tau"], (list, tuple)) else [ge["tau"], ge["tau"]]
+        kw["gnss_error_tau"] = _vec(src, "gnss_error.tau", tau, 2, ge=0.0, le=MAX_TIME)
+        if np.count_nonzero(kw["gnss_error_tau"]) == 1:
+            _fail(src, "gnss_error.tau", f"expected both correlation times > 0 or both 0, got {list(tau)}")
+    if ge["sigma"] is not None:
+        kw["gnss_error_sigma"] = _vec(src, "gnss_error.sigma", ge["sigma"], 2, gt=0.0, le=MAX_POS)
     if d["lever_arm"] is not None:
         kw["lever_arm"] = _vec(src, "lever_arm", d["lever_arm"], 3, ge=-MAX_LEVER_ARM, le=MAX_LEVER_ARM)
     est = d["estimate"]

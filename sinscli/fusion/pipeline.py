@@ -30,7 +30,7 @@ from .model import BA, BG, PHI, SA, SG, V
 from .noise import apply_data_noise
 from .raw import satellite_counts
 from .summary import (FusionSummary, RawSummary, clock, exit_fixes, few_satellite_spans, fix_residuals,
-                      ground_vehicle_hint, heading_course_check, outages, standstill_intervals)
+                      ground_vehicle_hint, heading_course_check, lever_arm_check, outages, standstill_intervals)
 from .options import FusionOptions
 from .standstill import StandstillDetector, gnss_still
 from .smoother import smooth_rows
@@ -303,7 +303,7 @@ class Fusion:
     def __init__(self, init: NavState, nav: NavOptions, fopts: FusionOptions, gnss: GnssLog,
                  init_sigma: dict | None = None, body_vel=None, smooth: bool = False, src: str = "config",
                  init_bias: dict | None = None, data_noise=None, t_log0: float | None = None,
-                 drift_base: float = 1.0, r_base=None, raw=None, bias_var=None):
+                 drift_base: float = 1.0, r_base=None, raw=None, bias_var=None, gnss_gm=None):
         nav.check()
         if nav.attitude not in ("quat", "dcm") or nav.frame != "enu":
             raise SinsError(f"--gnss: the fusion filter runs with --attitude quat or dcm in the ENU frame, "
@@ -342,6 +342,12 @@ class Fusion:
             for s_ in raw.isb_systems:
                 self.isb[s_], nx = nx, nx + 1
         self.sat = raw.sat if raw is not None else np.zeros((0, kn.SW))
+        # the fixes' time-correlated error (loosely coupled): (sigma_h, sigma_v, tau_h, tau_v), given or found by a
+        # calibration pass (gnss_gm_from)
+        self.gnss_gm = gnss_gm if gnss_gm is not None else configured_gm(fopts)
+        self.ge = -1
+        if self.gnss_gm is not None and raw is None:
+            self.ge, nx = nx, nx + 3
         self.ncore, self.nx = ncore, nx
         c = np.asarray(init.Cbn, dtype=float)
         self.method = nav.method_code()
@@ -411,6 +417,7 @@ class Fusion:
         self._block_t0 = init.time
         self.t_log0 = init.time if t_log0 is None else float(t_log0)
         self.heading_check = None
+        self.lever_check = None
 
     # ------------------------------------------------------------------ set-up
     def _config_vector(self):
@@ -474,6 +481,11 @@ class Fusion:
         cv[kn.C_FADE_ALPHA] = a if f.adapt else 0.0
         cv[kn.C_FADE_THR] = chi2_gate(1.0 - 1e-4, nu) / nu
         cv[kn.C_FADE_MAX] = f.adapt_max_scale
+        cv[kn.C_GE] = self.ge
+        if self.ge >= 0:
+            sh, sv, th, tv = self.gnss_gm
+            cv[kn.C_GE_VAR:kn.C_GE_VAR + 3] = (sh * sh, sh * sh, sv * sv)
+            cv[kn.C_GE_TAU:kn.C_GE_TAU + 3] = (th, th, tv)
         return cv
 
     def _initial_covariance(self, s: dict):
@@ -501,6 +513,9 @@ class Fusion:
             P[self.la:self.la + 3, self.la:self.la + 3] = np.eye(3) * f.lever_arm_sigma ** 2
         if self.td >= 0:
             P[self.td, self.td] = f.time_offset_sigma ** 2
+        if self.ge >= 0:
+            sh, sv = self.gnss_gm[:2]
+            P[self.ge:self.ge + 3, self.ge:self.ge + 3] = np.diag([sh * sh, sh * sh, sv * sv])
         if self.clk >= 0:
             P[self.clk, self.clk] = max(f.clock_bias_sigma, self.raw.clock0_sigma[0]) ** 2
             P[self.clk + 1, self.clk + 1] = f.clock_drift_sigma ** 2
@@ -518,10 +533,9 @@ class Fusion:
         bias[0] = self.fs[:kn.NBIAS]
         traj = Trajectory(np.array([s.time]), np.array([s.lat]), np.array([s.lon]), np.array([s.height]),
                           np.asarray(s.vel_n, float)[None, :].copy(), np.asarray(s.Cbn, float)[None].copy())
+        traj.extra = self._columns(var, bias)      # the filter's rows (a smoothed pass may end as the final one)
         if self.smooth:
             self.forward_rows.append((traj, var, bias))
-        else:
-            traj.extra = self._columns(var, bias)
         return traj
 
     def _measurement_rows(self, imu_t, dth, dv, t_start):
@@ -621,10 +635,9 @@ class Fusion:
         out_t, out_pos, out_vel, out_cbn, out_var, out_bias = out
         traj = Trajectory(out_t[:n], out_pos[:n, 0], out_pos[:n, 1], out_pos[:n, 2], out_vel[:n], out_cbn[:n])
         var, bias = out_var[:n], out_bias[:n]
+        traj.extra = self._columns(var, bias)      # the filter's rows (a smoothed pass may end as the final one)
         if self.smooth:
             self.forward_rows.append((traj, var, bias))
-        else:
-            traj.extra = self._columns(var, bias)
         return traj
 
     def _log_event(self, e):
@@ -693,12 +706,18 @@ class Fusion:
     def events(self) -> np.ndarray:
         return np.vstack(self.ev_parts) if self.ev_parts else np.zeros((0, 4))
 
-    def smoothed(self) -> Trajectory:
-        """The RTS-smoothed trajectory at the forward output rows (the forward rows are consumed)."""
+    def smoothed(self, keep: bool = False) -> Trajectory:
+        """The RTS-smoothed trajectory at the forward output rows (the forward rows are consumed, unless
+        ``keep``: a calibration pass's look at its smoothed track)."""
         traj = concat([r[0] for r in self.forward_rows])
         var = np.concatenate([r[1] for r in self.forward_rows])
         bias = np.concatenate([r[2] for r in self.forward_rows])
-        self.forward_rows = []
+        if keep:
+            traj = Trajectory(traj.time.copy(), traj.lat.copy(), traj.lon.copy(), traj.height.copy(),
+                              traj.vel_n.copy(), traj.Cbn.copy())
+            var, bias = var.copy(), bias.copy()
+        else:
+            self.forward_rows = []
         epochs = self.epochs.trimmed()
         self.smoother_guard = smooth_rows(traj.time, traj.lat, traj.lon, traj.height, traj.vel_n, traj.Cbn, var,
                                           bias, epochs, self.ncore, self.nx, int(self.cv[kn.C_FWD]), self.clk)
@@ -783,11 +802,36 @@ class Fusion:
                     f"the heading is {hc.median_offset:+.1f} deg off the GNSS course on {hc.segments} straight "
                     f"segments (beyond 3 sigma on {100 * hc.beyond_3sigma:.0f} %, sigma {hc.median_sigma:.2g} deg): "
                     f"the IMU's mounting yaw is likely off by that much (imu.mounting, or imu.mounting: auto)")
+        if self.la < 0 and self.raw is None:
+            self._lever_check(rec, traj, s)
         if f.vehicle == "none":
             hint = ground_vehicle_hint(self.gnss)
             if hint:
                 s.hints.append(hint)
         return s
+
+    def _lever_check(self, rec, traj: Trajectory, s: FusionSummary) -> None:
+        """A warning when the innovations of the accepted fixes (outage exits left out) turn with the attitude as a
+        wrong lever arm makes them (:func:`sinscli.fusion.summary.lever_arm_check`)."""
+        m = (rec["type"] == "gnss_pos") & rec["accepted"]
+        g = rec[m]
+        if len(g) < 3 or len(g) % 3:
+            return
+        t = g["time"][0::3]
+        z = np.column_stack([g["innovation"][0::3], g["innovation"][1::3], g["innovation"][2::3]])
+        keep = ~np.isin(t, self.gnss.time[exit_fixes(self.gnss.time, self.fopts.outage)])
+        lc = lever_arm_check(t[keep], z[keep], traj)
+        if lc is None or not lc.contradicted.any():
+            return
+        self.lever_check = lc
+        bad = [a for a, c in zip("xyz", lc.contradicted) if c]
+        est = self.lever - lc.error
+        s.warnings.append(
+            f"the fixes' innovations turn with the attitude as a lever arm error of [{lc.error[0]:+.2f}, "
+            f"{lc.error[1]:+.2f}, {lc.error[2]:+.2f}] m (1-sigma [{lc.sigma[0]:.2g}, {lc.sigma[1]:.2g}, "
+            f"{lc.sigma[2]:.2g}] m, body axes) would: the antenna is nearer [{est[0]:.2f}, {est[1]:.2f}, "
+            f"{est[2]:.2f}] m than the {[round(float(v), 3) for v in self.lever]} m used along {', '.join(bad)} "
+            f"(gnss.lever_arm, or fusion.estimate: [lever_arm])")
 
     def _raw_summary(self, rec, t1: float) -> RawSummary:
         """What the tightly coupled run did with the satellites (:class:`sinscli.fusion.summary.RawSummary`)."""
@@ -834,6 +878,13 @@ class Fusion:
                 f"{self._axis_name(3 * kn.K_OF_KIND.index(i // 3) + i % 3)} noise variance x{self.r_base[i]:.3g} from "
                 f"the start: calibrated by a first pass on the log's innovations (their variance and their "
                 f"correlation from one measurement to the next)")
+        if self.ge >= 0:
+            sh, sv, th, tv = self.gnss_gm
+            src = ("fusion.gnss_error" if configured_gm(self.fopts) is not None else
+                   "found by a first pass: the innovations of the fixes were correlated from one fix to the next")
+            s.adaptations.append(
+                f"the fixes' time-correlated error estimated as states (Gauss-Markov, 1-sigma {sh:.3g} m horizontal, "
+                f"{sv:.3g} m vertical, correlation time {th:.3g} s / {tv:.3g} s): {src}")
         if self.bias_var is not None:
             d = 3600.0 / DEG
             sg, sa = np.sqrt(self.model.p0_bg), np.sqrt(self.model.p0_ba)
@@ -1005,28 +1056,229 @@ def r_base_from(fusion: Fusion, min_n: int = 30) -> np.ndarray:
     return out
 
 
-def calibrated_run(make, run, passes: int = 3):
-    """Run the log through ``make(drift_base=b, r_base=rb, bias_var=bv)`` (a :class:`Fusion`; ``run(f)``
-    feeds it the log and returns its chunks), then again with the turn-on bias priors
-    (:func:`bias_var_from`), the drift process noise (:func:`drift_base_from`) and the measurement noise
-    (:func:`r_base_from`, from the first pass whose bias priors held) its innovations imply, until a pass
-    confirms its own (at most ``passes``; a consistent log costs one).  Returns ``(fusion, chunks)`` of the
-    last pass."""
-    base, rb, bv = 1.0, None, None
-    for i in range(passes):
-        f = make(drift_base=base, r_base=rb, bias_var=bv)
+def configured_gm(fopts: FusionOptions):
+    """``(sigma_h, sigma_v, tau_h, tau_v)`` of the GNSS error states the config sets in full
+    (``fusion.gnss_error`` with both ``tau`` > 0 and ``sigma``), else None (off, or to be found by
+    :func:`gnss_gm_from`)."""
+    tau, sig = fopts.gnss_error_tau, fopts.gnss_error_sigma
+    if tau is None or sig is None or not np.all(tau > 0):
+        return None
+    return (float(sig[0]), float(sig[1]), float(tau[0]), float(tau[1]))
+
+
+GM_MIN_RHO = 0.5        # a lag-1 correlation of the fixes' innovations over this (and significant): a correlated error
+GM_MAX_LAG = 400        # fixes: the longest lag of the autocorrelation fitted
+
+
+def _acf_gm(t, z, min_n):
+    """``(tau s, share)`` of a first-order Gauss-Markov part in innovations ``z`` at times ``t`` (nearly regular):
+    the autocorrelation ``r(k) = share * exp(-k dt / tau)`` fitted (least squares on ``log r``, lags from 1 to
+    where ``r`` first falls under 0.1), or None when the lag-1 correlation is under :data:`GM_MIN_RHO` or not
+    significant at 3 sigma."""
+    n = len(z)
+    if n < min_n:
+        return None
+    dt = float(np.median(np.diff(t)))
+    if not dt > 0.0:
+        return None
+    zc = z - z.mean()
+    v = float(np.mean(zc * zc))
+    if not v > 0.0:
+        return None
+    lags, r = [], []
+    for k in range(1, min(GM_MAX_LAG, n // 4)):
+        rk = float(np.mean(zc[:-k] * zc[k:])) / v
+        if rk < 0.1:
+            break
+        lags.append(k)
+        r.append(rk)
+    if not r or r[0] < max(GM_MIN_RHO, 3.0 / math.sqrt(n)):
+        return None
+    if len(r) < 2:                          # one lag only: the correlation time from it
+        tau = -dt / math.log(min(r[0], 1.0 - 1e-9))
+        return tau, 1.0
+    x, y = np.asarray(lags, float) * dt, np.log(np.asarray(r))
+    slope, icpt = np.polyfit(x, y, 1)
+    if not slope < 0.0:
+        return None
+    return float(-1.0 / slope), float(min(math.exp(icpt), 1.0))
+
+
+def gnss_gm_from(fusion: Fusion, min_n: int = 60):
+    """The GNSS error states (``(sigma_h, sigma_v, tau_h, tau_v)``) a pass over the log implies, or None: where
+    the innovations of its fixes (outage exits left out) are correlated from one fix to the next
+    (:func:`_acf_gm`), their correlated share of the innovations' mean square is the steady variance and the
+    fitted decay its correlation time; the horizontal axes pooled, the vertical on its own (an axis without a
+    correlated part gets the other's time and 1/10 of its stated sigma).  Off when the config set
+    ``fusion.gnss_error.tau: 0``, when the pass already had them, and for a tightly coupled run."""
+    f = fusion.fopts
+    if fusion.ge >= 0 or fusion.raw is not None or (f.gnss_error_tau is not None and not np.all(f.gnss_error_tau > 0)):
+        return None
+    inn = np.vstack(fusion.inn_parts) if fusion.inn_parts else np.zeros((0, kn.NREC))
+    x = inn[(inn[:, 1] == kn.MT_GNSS_POS) & (inn[:, 9] == 0)]
+    fits, ms, rs = [], [], []
+    for a in range(3):
+        y = x[x[:, 10] == a]
+        fits.append(_acf_gm(y[:, 0], y[:, 3], min_n) if len(y) else None)
+        ms.append(float(np.mean(y[:, 3] ** 2)) if len(y) else 0.0)
+        rs.append(float(np.mean(y[:, 8])) if len(y) else 0.0)
+    if all(fi is None for fi in fits):
+        return None
+    out = []
+    white = np.ones(3)
+    for axes in ((0, 1), (2,)):
+        got = [a for a in axes if fits[a] is not None]
+        if got:
+            var = float(np.mean([fits[a][1] * ms[a] for a in got]))
+            tau = float(np.exp(np.mean([math.log(fits[a][0]) for a in got])))
+            for a in got:               # the rest of the innovations' mean square is the white noise's
+                white[a] = _white_scale((1.0 - fits[a][1]) * ms[a], rs[a])
+        else:
+            var, tau = None, None
+        out.append((var, tau))
+    taus = [tau for _, tau in out if tau is not None]
+    res = []
+    for (var, tau), axes in zip(out, ((0, 1), (2,))):
+        if var is None:
+            var, tau = 0.01 * float(np.mean([rs[a] for a in axes])), float(np.exp(np.mean(np.log(taus))))
+        if f.gnss_error_tau is not None:
+            tau = float(f.gnss_error_tau[0 if axes == (0, 1) else 1])
+        res.append((math.sqrt(max(var, 1e-12)), tau))
+    if f.gnss_error_sigma is not None:
+        res = [(float(f.gnss_error_sigma[0]), res[0][1]), (float(f.gnss_error_sigma[1]), res[1][1])]
+    return (res[0][0], res[1][0], res[0][1], res[1][1]), white
+
+
+WHITE_MIN = 0.01        # the fixes' white noise kept at least this share of their stated variance
+
+
+def _white_scale(var_white: float, r_stated: float) -> float:
+    """The fixes' white-noise variance as a scale of their stated variance (the rest of their error is in the
+    Gauss-Markov states): at least :data:`WHITE_MIN`, at most 1 (the receiver's sigma holds both parts)."""
+    return float(min(max(var_white / max(r_stated, 1e-300), WHITE_MIN), 1.0))
+
+
+EM_STEPS = 2            # re-estimations of the GNSS error states from a smoothed pass, at most
+EM_CHANGE = 0.25        # a re-estimated sigma within this share of the pass's (and tau within 2x): converged
+
+
+def gnss_gm_mstep(fusion: Fusion, traj: Trajectory):
+    """The GNSS error states re-estimated from a pass that carried them, smoothed (``traj``): the fixes minus
+    the smoothed antenna track are the fixes' errors as the model now sees them (a smoother that knows the
+    errors are correlated does not follow them as a filter of white fixes does), their mean square less the
+    white noise's is the steady variance, the 1/e time of their autocorrelation the correlation time (the
+    maximization step of Shumway & Stoffer 1982, "An approach to time series smoothing and forecasting using
+    the EM algorithm", J. Time Series Analysis 3(4), with the smoothed residuals for the expectation).
+    Returns the new ``(sigma_h, sigma_v, tau_h, tau_v)``, or None when every sigma is within
+    :data:`EM_CHANGE` of the pass's and every tau within 2x."""
+    from .summary import antenna_offsets        # the summary's residual geometry
+    f, g = fusion.fopts, fusion.gnss
+    if fusion.ge < 0 or len(traj) < 2:
+        return None
+    t0, t1 = float(traj.time[0]), float(traj.time[-1])
+    sel = (g.time >= t0) & (g.time <= t1) & ~exit_fixes(g.time, f.outage)
+    if sel.sum() < 60:
+        return None
+    res = -antenna_offsets(traj, g, fusion.fs[kn.F_LEVER:kn.F_LEVER + 3], sel)
+    t = g.time[sel]
+    k = kn.K_OF_KIND[kn.MT_GNSS_POS]
+    rw = g.position_sigma(f.gnss_pos_sigma)[sel] ** 2 * fusion.r_base[3 * k:3 * k + 3][None, :]
+    old = fusion.gnss_gm
+    new = []
+    white = np.ones(3)
+    for axes, s_old, t_old in (((0, 1), old[0], old[2]), ((2,), old[1], old[3])):
+        vs, taus = [], []
+        for a in axes:
+            r = res[:, a]
+            ms = float(np.mean(r * r))
+            share = _lag1(r)           # the correlated share of the residuals' mean square
+            vs.append(share * ms)
+            white[a] = _white_scale((1.0 - share) * ms, float(np.mean(rw[:, a])))
+            tau = _efold(t, r)
+            if tau is not None:
+                taus.append(tau)
+        var = max(float(np.mean(vs)), (0.1 * s_old) ** 2)
+        tau = float(np.exp(np.mean(np.log(taus)))) if taus else t_old
+        new.append((math.sqrt(var), tau))
+    if f.gnss_error_tau is not None:
+        new = [(new[0][0], float(f.gnss_error_tau[0])), (new[1][0], float(f.gnss_error_tau[1]))]
+    if f.gnss_error_sigma is not None:
+        new = [(float(f.gnss_error_sigma[0]), new[0][1]), (float(f.gnss_error_sigma[1]), new[1][1])]
+    out = (new[0][0], new[1][0], new[0][1], new[1][1])
+    same = all(abs(a / b - 1.0) <= EM_CHANGE for a, b in zip(out[:2], old[:2])) and \
+        all(0.5 <= a / b <= 2.0 for a, b in zip(out[2:], old[2:]))
+    return None if same else (out, white)
+
+
+def _lag1(r) -> float:
+    """The lag-1 autocorrelation of ``r`` (about its mean), within [0, 1]."""
+    rc = r - r.mean()
+    v = float(np.mean(rc * rc))
+    return float(min(max(np.mean(rc[:-1] * rc[1:]) / v, 0.0), 1.0)) if v > 0.0 and len(r) > 2 else 0.0
+
+
+def _efold(t, r):
+    """The lag (s) at which the autocorrelation of ``r`` (sampled at nearly regular ``t``) falls to 1/e of its
+    value at one sample (linear between lags), or None when it never does within a quarter of the record."""
+    n = len(r)
+    dt = float(np.median(np.diff(t)))
+    rc = r - r.mean()
+    v = float(np.mean(rc * rc))
+    if not (v > 0.0 and dt > 0.0):
+        return None
+    a1 = float(np.mean(rc[:-1] * rc[1:])) / v
+    if a1 <= 0.0:
+        return None
+    prev = a1
+    for lag in range(2, n // 4):
+        a = float(np.mean(rc[:-lag] * rc[lag:])) / v
+        if a < a1 / math.e:
+            return dt * (lag - 1 + (prev - a1 / math.e) / max(prev - a, 1e-12))
+        prev = a
+    return None
+
+
+def calibrated_run(make, run, smooth: bool = False, passes: int = 3):
+    """Run the log through ``make(smooth=.., drift_base=b, r_base=rb, bias_var=bv, gnss_gm=gm)`` (a
+    :class:`Fusion`; ``run(f)`` feeds it the log and returns its chunks), then again with the turn-on bias
+    priors (:func:`bias_var_from`), the drift process noise (:func:`drift_base_from`), the measurement noise
+    (:func:`r_base_from`) and the fixes' correlated error (:func:`gnss_gm_from`, from the first pass whose bias
+    priors held) its innovations imply, and with the correlated error re-estimated from a smoothed pass
+    (:func:`gnss_gm_mstep`, at most :data:`EM_STEPS` times), until a pass confirms its own (at most
+    ``passes`` plus the re-estimations; a consistent log costs one).  Returns ``(fusion, chunks)`` of the last
+    pass (smoothed when ``smooth``)."""
+    base, rb, bv, gm = 1.0, None, None, None
+    em = 0
+    for i in range(passes + EM_STEPS):
+        # a pass with found GNSS error states is smoothed for their re-estimation
+        f = make(smooth=smooth or (gm is not None and em < EM_STEPS), drift_base=base, r_base=rb, bias_var=bv,
+                 gnss_gm=gm)
         chunks = run(f)
-        if not f.fopts.adapt or i == passes - 1:
+        if not f.fopts.adapt or i == passes + EM_STEPS - 1:
             break
         new_bv = bias_var_from(f)
         new_base = drift_base_from(f) if has_outages(f.gnss, f.fopts) else base
-        # the measurement noise from a pass whose bias priors held (else its innovations hold the filter's
-        # own excursion), once
-        new_rb = r_base_from(f) if rb is None and new_bv is None else f.r_base
-        if new_bv is None and new_base == base and np.array_equal(new_rb, f.r_base):
+        # the measurement noise (and the fixes' correlated error) from a pass whose bias priors held (else its
+        # innovations hold the filter's own excursion), once; then the correlated error re-estimated
+        new_gm, new_rb = None, f.r_base
+        k = 3 * kn.K_OF_KIND[kn.MT_GNSS_POS]
+        if rb is None and new_bv is None:
+            got = gnss_gm_from(f)
+            new_rb = r_base_from(f)
+            if got is not None:             # the fixes' correlated error is now a state: their white R the rest
+                new_gm, new_rb[k:k + 3] = got
+        elif new_bv is None and gm is not None and f.smooth and em < EM_STEPS:
+            em += 1
+            got = gnss_gm_mstep(f, f.smoothed(keep=True))
+            if got is not None:
+                new_gm, white = got
+                new_rb = new_rb.copy()
+                new_rb[k:k + 3] = white
+        if new_bv is None and new_gm is None and new_base == base and np.array_equal(new_rb, f.r_base):
             break
         base, rb = new_base, (rb if new_bv is not None else new_rb)
         bv = new_bv if new_bv is not None else bv
+        gm = new_gm if new_gm is not None else gm
     return f, chunks
 
 
@@ -1052,7 +1304,7 @@ def run_fusion(imu: ImuLog, init: NavState, gnss: GnssLog, fopts: FusionOptions 
         return Fusion(init, nav or NavOptions(), fopts, gnss, init_sigma=init_sigma, body_vel=body_vel,
                       init_bias=init_bias, data_noise=data_noise, t_log0=imu.t0, raw=raw, **kw)
 
-    f, chunks = calibrated_run(lambda **kw: make(smooth=smooth, **kw), lambda f: list(fuse_blocks([imu], f)))
+    f, chunks = calibrated_run(make, lambda f: list(fuse_blocks([imu], f)), smooth)
     traj = concat(chunks)
     if smooth:
         traj = f.smoothed()
