@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
-from sinscli.evaluate.fusion import errors_at
+from sinscli.evaluate.fusion import errors_at, outage_mask
 from sinscli.io.trajectory import read_trajectory
 from sinscli.sensors import preset_text
 from sinscli.sim.run import simulate, write_sim
@@ -68,9 +68,7 @@ def _outage_metrics(traj, truth, st):
     horizontal RMS outside them (after the first minute)."""
     m, dr, dv, phi = errors_at(traj, truth)
     t = traj.time[m] - truth.time[0]
-    inside = np.zeros(len(t), bool)
-    for a, b in st["gnss"]["outages"]:
-        inside |= (t >= a) & (t < b)
+    inside = outage_mask(t, st["gnss"]["outages"])
     h = np.hypot(dr[:, 0], dr[:, 1])
     x = {k: v[m] for k, v in traj.extra.items()}
     cov = [float(np.mean(np.abs(dr[inside, i]) <= 3.0 * x[c][inside])) for i, c in enumerate(("pos_e_std",
