@@ -26,6 +26,7 @@ from ..nav.rotation import conv_to_flu
 from ..sensors import ACCEL_UNITS, GYRO_UNITS
 from ..units import G0, MG, UG
 from ..types import BodyVelLog
+from . import pinned as pm
 from .environment import environment_rates
 from .errors import apply_imu_errors, quantize
 from .recorder import round_to_step, runs_of
@@ -82,15 +83,14 @@ def realism_sizes(sc, td, dropped, rtk, n_instants: int) -> dict:
     float and wrong-fix epochs."""
     out = {}
     if td.flex_theta is not None:
-        th = np.degrees(td.flex_theta)
+        th = td.flex_theta * (180.0 / np.pi)
         out["mount_flex"] = {"max_angle_deg": np.abs(th).max(axis=0).tolist(),
                              "rms_angle_deg": np.sqrt(np.mean(th * th, axis=0)).tolist()}
     if sc.sideslip != 0.0:
         idx = td.imu_idx
-        v_b = np.einsum("nji,nj->ni", td.cbn[idx], td.vel_n[idx])
-        speed = np.linalg.norm(v_b, axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            beta = np.where(speed > 0.5, np.degrees(np.arctan2(np.abs(v_b[:, 1]), np.abs(v_b[:, 0]))), 0.0)
+        v_b = pm.matmul(np.swapaxes(td.cbn[idx], -1, -2), td.vel_n[idx][:, :, None])[:, :, 0]     # C_n^b v^n
+        speed = np.sqrt(v_b[:, 0] * v_b[:, 0] + v_b[:, 1] * v_b[:, 1] + v_b[:, 2] * v_b[:, 2])
+        beta = np.where(speed > 0.5, pm.arctan2(np.abs(v_b[:, 1]), np.abs(v_b[:, 0])) * (180.0 / np.pi), 0.0)
         out["sideslip"] = {"max_lateral_velocity_m_s": float(np.abs(v_b[:, 1]).max()),
                            "max_slip_angle_deg": float(beta.max())}
     if dropped is not None:
