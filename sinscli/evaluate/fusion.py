@@ -53,3 +53,18 @@ def errors_at(traj: Trajectory, truth: Trajectory):
 
 def horizontal_rms(dr) -> float:
     return float(np.sqrt(np.mean(dr[:, 0] ** 2 + dr[:, 1] ** 2)))
+
+
+def outage_mask(t_rel: np.ndarray, outages) -> np.ndarray:
+    """Rows whose time since the start ``t_rel`` (s) lies inside one of the ``[start, end)`` windows."""
+    inside = np.zeros(len(t_rel), bool)
+    for a, b in outages:
+        inside |= (t_rel >= a) & (t_rel < b)
+    return inside
+
+
+def outage_rms(traj: Trajectory, truth: Trajectory, outages) -> float:
+    """Horizontal position RMS (m) of the rows of ``traj`` inside the GNSS outages ``[start, end)`` (s since
+    the truth's first time), against the truth interpolated there (:func:`errors_at`)."""
+    m, dr, _, _ = errors_at(traj, truth)
+    return horizontal_rms(dr[outage_mask(traj.time[m] - truth.time[0], outages)])

@@ -13,7 +13,9 @@ local radii), or first-order Gauss-Markov with correlation times ``pos_tau``,
 across outages).  Outages drop the fixes in ``[start, end)`` (s since the
 start).  The ``std_*`` columns carry ``reported_*_sigma`` when given (a
 receiver whose claim differs from its noise), else the true sigma; the
-stamps are the true times plus ``time_offset``.
+stamps are the true times plus ``time_offset``.  RTK float windows and wrong
+fixes (:mod:`.rtk`) add their errors to the position, and the float epochs
+their larger sigma to ``std_*``.
 """
 from __future__ import annotations
 
@@ -52,8 +54,10 @@ def antenna_truth(lat, lon, h, vel_n, cbn, w_nb_b, lever_b):
     return lat_a, lon_a, h_a, v_a
 
 
-def make_gnss(tau, t0, lat, lon, h, vel_n, cfg: dict, rng: np.random.Generator | None, source: str) -> GnssLog:
-    """A :class:`GnssLog` (degrees) from antenna truth, with noise drawn from ``rng`` (None: none)."""
+def make_gnss(tau, t0, lat, lon, h, vel_n, cfg: dict, rng: np.random.Generator | None, source: str,
+              rtk=None) -> GnssLog:
+    """A :class:`GnssLog` (degrees) from antenna truth, with noise drawn from ``rng`` (None: none) and the
+    RTK float and wrong-fix errors ``rtk`` (:class:`sinscli.sim.rtk.RtkErrors`, with ``rng`` only)."""
     n = tau.size
     pos_sig = np.asarray(cfg["pos_noise"], dtype=float)
     vel_sig = np.asarray(cfg["vel_noise"], dtype=float)
@@ -61,6 +65,8 @@ def make_gnss(tau, t0, lat, lon, h, vel_n, cfg: dict, rng: np.random.Generator |
     if rng is not None:
         e_pos = _noise(rng.standard_normal((n, 3)), tau, pos_sig, cfg.get("pos_tau"))
         e_vel = _noise(rng.standard_normal((n, 3)), tau, vel_sig, cfg.get("vel_tau"))
+        if rtk is not None:
+            e_pos = e_pos + rtk.error
         rm, rn = radii_py(pm.sin(lat))
         lat += e_pos[:, 1] / (rm + h)
         lon += e_pos[:, 0] / ((rn + h) * pm.cos(lat))
@@ -73,6 +79,8 @@ def make_gnss(tau, t0, lat, lon, h, vel_n, cfg: dict, rng: np.random.Generator |
             std_pos = np.tile(pos_sig if rep_pos is None else rep_pos, (n, 1))
         if cfg["velocity"] and (rep_vel is not None or np.any(vel_sig > 0)):
             std_vel = np.tile(vel_sig if rep_vel is None else rep_vel, (n, 1))
+        if rtk is not None and rtk.reported is not None:
+            std_pos[rtk.floating] = rtk.reported            # a float solution says so; a wrong fix does not
     offset = cfg.get("time_offset", 0.0) if rng is not None else 0.0
     return GnssLog(time=(t0 + tau) + offset, lat=np.degrees(lat), lon=np.degrees(lon), height=h,
                    vel_n=vel if cfg["velocity"] else None, std_pos=std_pos, std_vel=std_vel, source=source)

@@ -19,7 +19,11 @@ from . import truth as truth_mod
 from .errors import apply_imu_errors, gnss_seedseq
 from .gnss import antenna_truth, gnss_times, make_gnss
 from .imu_synth import GRAVITY_MODELS
-from .logs import ImuRates, imu_rates, imu_stamps, odometry_log, sim_record, write_imu_log, write_odometry, write_record
+from .environment import environment_increments, sensor_moments
+from .logs import (DROP_STREAM, RTK_STREAM, ImuRates, stream, imu_rates, imu_stamps, odometry_log, quantize_increments,
+                   realism_sizes, sim_record, write_imu_log, write_odometry, write_record)
+from .recorder import dropped_instants
+from .rtk import rtk_errors
 from .scenario import Scenario, load_scenario
 from .segments import expand
 from .vibration import Vibration, draw_vibration
@@ -46,6 +50,8 @@ class SimResult:
     imu_stamps: np.ndarray | None = None    # (N+1,) the written IMU stamps of instants 0..N (jitter, offset)
     odometry: BodyVelLog | None = None  # odometry: body velocity as written
     record: dict = field(default_factory=dict)      # what sim_truth.yaml holds
+    imu_dropped: np.ndarray | None = None   # imu.dropped: the instants (0..N) whose rows imu.csv leaves out
+    realism: dict = field(default_factory=dict)     # sizes of the realism terms for the record (flex, slip, ...)
 
 
 @dataclass
@@ -75,6 +81,9 @@ def prepare(scenario, perfect: bool = False, duration: float | None = None) -> P
     if sc.gait is not None:
         for prim in prims:
             prim.gait = sc.gait
+    if sc.sideslip != 0.0:
+        for prim in prims:
+            prim.sideslip = sc.sideslip
     sensor = {} if perfect else load_sensor(sc.sensor, sc.sensor_overrides, sc.source, sc.base_dir)
     n_imu = int(np.floor(sc.duration * sc.imu_rate + 1e-9))
     tau_g = gnss_times(n_imu / sc.imu_rate, sc.gnss["rate"], sc.gnss["outages"], sc.t0)
@@ -98,7 +107,8 @@ def simulate(scenario, seed: int | None = None, perfect: bool = False, *, durati
     seed = seed if seed is not None else (sc.seed if sc.seed is not None else DEFAULT_SEED)
     td = truth_mod.generate(p.prims, sc.lat0, sc.lon0, sc.h0, sc.imu_rate, p.n_imu, extra_times=p.tau_gnss,
                             nodes=nodes, gravity=GRAVITY_MODELS[sc.gravity], progress=progress, t0=sc.t0,
-                            vibration=p.vibration, rates=sc.imu_output == "rates")
+                            vibration=p.vibration, rates=sc.imu_output == "rates", flex=sc.flex,
+                            moments=sc.environment.rectification is not None and not perfect)
     return assemble(sc, td, p.tau_gnss, {} if perfect else p.sensor, seed, perfect, p.vibration)
 
 
@@ -117,26 +127,47 @@ def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: d
     c_out = c_flu_conv.T if sc.mounting is None else pm.matmul(c_flu_conv.T, sc.mounting)  # rows: FLU body -> sensor
     dtheta = pm.matmul(td.dtheta_b, c_out)
     dvel = pm.matmul(td.dvel_b, c_out)
+    if not perfect and sc.environment.active():
+        f2 = sensor_moments(td.ff_b, c_out) if sc.environment.rectification is not None else None
+        dtheta, dvel = environment_increments(sc.environment, dtheta, dvel, tau, f2)
     realized = {}
     if sensor and (sensor.get("gyro") or sensor.get("accel")):
         dtheta, dvel, realized = apply_imu_errors(dtheta, dvel, np.diff(tau), sensor, seed)
+    if not perfect and sc.quantization is not None and sc.imu_output == "increments":
+        dtheta, dvel = quantize_increments(dtheta, dvel, sc.quantization, sc.imu_rate)
     imu = ImuLog(time=sc.t0 + tau[1:], dtheta_b=dtheta, dvel_b=dvel, t0=sc.t0,
                  source=f"simulate:{sc.name}", kind="increments")
-    rates = imu_rates(sc, td, c_out, sensor, seed) if sc.imu_output == "rates" else None
+    rates = imu_rates(sc, td, c_out, sensor, seed, perfect) if sc.imu_output == "rates" else None
+    stamps = imu_stamps(sc, tau, seed, perfect)
+    dropped = None
+    if not perfect and sc.dropped is not None:
+        dropped = dropped_instants(tau.size, sc.dropped["fraction"], sc.dropped["run"], stream(seed, DROP_STREAM),
+                                   f"{sc.source}: key imu.dropped")
+        keep = np.ones(tau.size, dtype=bool)
+        keep[dropped] = False
+        if rates is not None:
+            rates = ImuRates(rates.time[keep], rates.gyro[keep], rates.accel[keep])
+        else:
+            imu = replace(imu, time=imu.time[keep[1:]], dtheta_b=imu.dtheta_b[keep[1:]], dvel_b=imu.dvel_b[keep[1:]])
+        stamps = None if stamps is None else stamps[keep]
     gi = np.searchsorted(td.tau, tau_g)
     lever_flu = pm.matmul(conv_to_flu(conv), sc.gnss["lever_arm"])
     lat_a, lon_a, h_a, v_a = antenna_truth(td.lat[gi], td.lon[gi], td.h[gi], td.vel_n[gi], td.cbn[gi],
                                            td.w_nb_b[gi], lever_flu)
     rng = None if perfect else np.random.default_rng(gnss_seedseq(seed))
-    gnss = make_gnss(tau_g, sc.t0, lat_a, lon_a, h_a, v_a, sc.gnss, rng, f"simulate:{sc.name}")
+    rtk = None
+    if not perfect and (sc.gnss["float"] is not None or sc.gnss["jumps"]):
+        rtk = rtk_errors(tau_g, sc.gnss, stream(seed, RTK_STREAM))
+    gnss = make_gnss(tau_g, sc.t0, lat_a, lon_a, h_a, v_a, sc.gnss, rng, f"simulate:{sc.name}", rtk)
     init = NavState(time=sc.t0, lat=float(truth.lat[0]), lon=float(truth.lon[0]),
                     height=float(truth.height[0]), vel_n=truth.vel_n[0].copy(), Cbn=cbn[0].copy())
     launch = {"time": sc.t0, "lat": sc.start_deg["lat"], "lon": sc.start_deg["lon"], "height": sc.h0,
               "azimuth": sc.start_deg["heading"] % 360.0}
     res = SimResult(imu=imu, truth=truth, gnss=gnss, init=init, conv=conv, seed=seed, name=sc.name,
                     perfect=perfect, launch=launch, sensor=realized, scenario=sc, imu_rates=rates,
-                    imu_stamps=imu_stamps(sc, tau, seed, perfect),
-                    odometry=odometry_log(sc, td, conv, seed, perfect) if sc.odometry is not None else None)
+                    imu_stamps=stamps,
+                    odometry=odometry_log(sc, td, conv, seed, perfect) if sc.odometry is not None else None,
+                    imu_dropped=dropped, realism=realism_sizes(sc, td, dropped, rtk, tau.size))
     res.record = sim_record(res, vibration)
     return res
 

@@ -18,6 +18,9 @@ from ..errors import SinsError
 from ..inputs import load_yaml
 from ..nav.rotation import BODY_CONVENTIONS
 from ..sensors import ACCEL_UNITS, GYRO_UNITS
+from ..units import G0, MG, UG
+from .environment import Environment
+from .flex import Flex
 from .gait import Gait
 from .imu_synth import GRAVITY_MODELS
 from .segments import AXES
@@ -48,11 +51,20 @@ POSITIVE = {"freq", "half_angle"}
 NONNEGATIVE = {"speed", "ramp", "transition"}
 
 TOP_KEYS = {"name", "description", "seed", "duration", "start", "imu", "gnss", "gravity", "body", "segments",
-            "vibration", "gait", "odometry"}
+            "vibration", "gait", "odometry", "temperature", "mount_flex", "vehicle"}
 START_KEYS = {"time", "lat", "lon", "height", "heading", "pitch", "roll", "speed"}
-IMU_KEYS = {"rate", "sensor", "gyro", "accel", "output", "stamp_jitter", "time_offset", "mounting"}
+IMU_KEYS = {"rate", "sensor", "gyro", "accel", "output", "stamp_jitter", "time_offset", "mounting",
+            "quantization", "g_sensitivity", "vibration_rectification", "dropped"}
 GNSS_KEYS = {"rate", "pos_noise", "vel_noise", "lever_arm", "outages", "velocity", "pos_tau", "vel_tau",
-             "reported_pos_sigma", "reported_vel_sigma", "time_offset"}
+             "reported_pos_sigma", "reported_vel_sigma", "time_offset", "float", "jumps"}
+QUANTIZATION_KEYS = {"gyro", "accel"}
+DROPPED_KEYS = {"fraction", "run"}
+TEMPERATURE_KEYS = {"rise", "tau", "swing", "period", "gyro", "accel"}
+FLEX_KEYS = {"roll", "pitch", "yaw", "tau"}
+VEHICLE_KEYS = {"sideslip"}
+FLOAT_KEYS = {"windows", "sigma", "walk", "drift", "reported"}
+JUMP_KEYS = {"start", "duration", "offset"}
+MAX_SIDESLIP = 30.0              # deg/g: a larger slip gradient is no road vehicle's
 VIBRATION_KEYS = {"gyro_rms", "accel_rms", "band", "lines", "seed", "ramp"}
 GAIT_KEYS = {"speed", "step_freq", "bob", "surge", "sway", "wobble"}
 ODOMETRY_KEYS = {"rate", "scale_factor", "noise", "reported_sigma"}
@@ -92,6 +104,12 @@ class Scenario:
     vibration: dict | None = None                  # validated vibration section (SI)
     gait: object = None                            # sim.gait.Gait or None
     odometry: dict | None = None                   # validated odometry section
+    # realism terms of real logs (all off by default; docs/simulate.md "As hard as real logs")
+    quantization: dict | None = None               # {"gyro": rad/s, "accel": m/s^2} step of the written values
+    environment: Environment = field(default_factory=Environment)   # g-sensitivity, rectification, temperature
+    dropped: dict | None = None                    # {"fraction", "run": (min, max)}
+    flex: Flex | None = None                       # the mount's flex under the body's acceleration
+    sideslip: float = 0.0                          # rad per m/s^2: slip angle per lateral acceleration
 
 
 def load_scenario(scenario) -> Scenario:
@@ -167,6 +185,17 @@ def validate(data: dict, src: str, base_dir: Path) -> Scenario:
     gait = _gait(src, _mapping(src, "gait", data.get("gait"), GAIT_KEYS)) if data.get("gait") is not None else None
     odometry = _odometry(src, _mapping(src, "odometry", data.get("odometry"), ODOMETRY_KEYS), rate) \
         if data.get("odometry") is not None else None
+    quantization = _quantization(src, _mapping(src, "imu.quantization", imu.get("quantization"), QUANTIZATION_KEYS))
+    environment = Environment(
+        g_sensitivity=_g_sensitivity(src, imu.get("g_sensitivity")),
+        rectification=_rectification(src, imu.get("vibration_rectification")),
+        temperature=_temperature(src, _mapping(src, "temperature", data.get("temperature"), TEMPERATURE_KEYS)))
+    dropped = _dropped(src, _mapping(src, "imu.dropped", imu.get("dropped"), DROPPED_KEYS))
+    flex = _flex(src, _mapping(src, "mount_flex", data.get("mount_flex"), FLEX_KEYS))
+    vehicle = _mapping(src, "vehicle", data.get("vehicle"), VEHICLE_KEYS)
+    slip = _number(src, "vehicle.sideslip", vehicle.get("sideslip", 0.0))
+    if abs(slip) > MAX_SIDESLIP:
+        _fail(src, "vehicle.sideslip", f"expected a slip gradient within +-{MAX_SIDESLIP:g} deg/g; got {slip:g}")
 
     gravity = data.get("gravity", "normal")
     if gravity not in GRAVITY_MODELS:
@@ -200,7 +229,9 @@ def validate(data: dict, src: str, base_dir: Path) -> Scenario:
                     conv=BODY_CONVENTIONS[body.lower()], segments=segments,
                     description=str(data.get("description", "")), raw=data,
                     imu_output=output, stamp_jitter=jitter, imu_time_offset=imu_offset, mounting=mounting,
-                    mounting_raw=imu.get("mounting"), vibration=vibration, gait=gait, odometry=odometry)
+                    mounting_raw=imu.get("mounting"), vibration=vibration, gait=gait, odometry=odometry,
+                    quantization=quantization, environment=environment, dropped=dropped, flex=flex,
+                    sideslip=slip * deg / G0)
 
 
 def _offset(src, key, value):
@@ -280,18 +311,7 @@ def _gnss(src, g, imu_rate):
     rate = _number(src, "gnss.rate", g.get("rate", 1.0), gt=0.0)
     if rate > imu_rate:
         _fail(src, "gnss.rate", f"{rate:g} Hz is above the IMU rate {imu_rate:g} Hz")
-    outages = g.get("outages", []) or []
-    if not isinstance(outages, list):
-        _fail(src, "gnss.outages", "expected a list of [start, end] pairs (s since the start)")
-    outs = []
-    for i, o in enumerate(outages):
-        if not isinstance(o, (list, tuple)) or len(o) != 2:
-            _fail(src, f"gnss.outages[{i}]", f"expected [start, end] in s since the start; got {o!r}")
-        a = _number(src, f"gnss.outages[{i}][0]", o[0], ge=0.0)
-        b = _number(src, f"gnss.outages[{i}][1]", o[1])
-        if b <= a:
-            _fail(src, f"gnss.outages[{i}]", f"end {b:g} must be after start {a:g}")
-        outs.append((a, b))
+    outs = _windows(src, "gnss.outages", g.get("outages", []))
     velocity = g.get("velocity", True)
     if not isinstance(velocity, bool):
         _fail(src, "gnss.velocity", f"expected true or false; got {velocity!r}")
@@ -307,7 +327,143 @@ def _gnss(src, g, imu_rate):
         out[k] = _positive_vector(src, f"gnss.{k}", g[k]) if g.get(k) is not None else None
     if out["reported_vel_sigma"] is not None and not velocity:
         _fail(src, "gnss.reported_vel_sigma", "given with gnss.velocity: false (no velocity columns)")
+    out["float"] = None
+    if g.get("float") is not None:
+        if out["reported_pos_sigma"] is None and not np.all(out["pos_noise"] > 0):
+            _fail(src, "gnss.float", "needs the fixed epochs' sigma: gnss.pos_noise > 0 on every axis or "
+                                     "gnss.reported_pos_sigma")
+        out["float"] = _float(src, _mapping(src, "gnss.float", g["float"], FLOAT_KEYS), out["pos_noise"])
+    out["jumps"] = _jumps(src, g.get("jumps"))
+    if out["jumps"] and out["reported_pos_sigma"] is None and not np.all(out["pos_noise"] > 0):
+        _fail(src, "gnss.jumps", "needs the fixed epochs' sigma (the one a wrong fix reports): gnss.pos_noise > 0 "
+                                 "on every axis or gnss.reported_pos_sigma")
     return out
+
+
+def _windows(src, key, value):
+    """``[[start, end], ...]`` (s since the start, end after start) as a list of pairs."""
+    value = value or []
+    if not isinstance(value, list):
+        _fail(src, key, "expected a list of [start, end] pairs (s since the start)")
+    outs = []
+    for i, o in enumerate(value):
+        if not isinstance(o, (list, tuple)) or len(o) != 2:
+            _fail(src, f"{key}[{i}]", f"expected [start, end] in s since the start; got {o!r}")
+        a = _number(src, f"{key}[{i}][0]", o[0], ge=0.0)
+        b = _number(src, f"{key}[{i}][1]", o[1])
+        if b <= a:
+            _fail(src, f"{key}[{i}]", f"end {b:g} must be after start {a:g}")
+        outs.append((a, b))
+    return outs
+
+
+def _float(src, f, pos_noise):
+    """RTK float windows (:mod:`.rtk`): windows, sigma (m), walk (m/sqrt(s)), drift (m/s), reported (m)."""
+    if "windows" not in f:
+        _fail(src, "gnss.float.windows", "required: a list of [start, end] (s since the start)")
+    sigma = _positive_vector(src, "gnss.float.sigma", f.get("sigma", [0.1, 0.1, 0.2]))
+    rep = f.get("reported")
+    return {"windows": _windows(src, "gnss.float.windows", f["windows"]), "sigma": sigma,
+            "walk": _vector(src, "gnss.float.walk", f.get("walk", 0.0), ge=0.0),
+            "drift": _vector(src, "gnss.float.drift", f.get("drift", 0.0), ge=0.0),
+            "reported": np.sqrt(pos_noise ** 2 + sigma ** 2) if rep is None
+            else _positive_vector(src, "gnss.float.reported", rep)}
+
+
+def _jumps(src, value):
+    """Wrong fixes (:mod:`.rtk`): a list of ``{start: s, duration: s, offset: [E, N, U] m}``."""
+    if value is None:
+        return []
+    if not isinstance(value, list):
+        _fail(src, "gnss.jumps", "expected a list of {start, duration, offset} (s, s, [E, N, U] m)")
+    out = []
+    for i, j in enumerate(value):
+        key = f"gnss.jumps[{i}]"
+        j = _mapping(src, key, j, JUMP_KEYS)
+        for k in JUMP_KEYS:
+            if k not in j:
+                _fail(src, f"{key}.{k}", "required (start s since the start, duration s, offset [E, N, U] m)")
+        out.append({"start": _number(src, f"{key}.start", j["start"], ge=0.0),
+                    "duration": _number(src, f"{key}.duration", j["duration"], gt=0.0),
+                    "offset": np.array(sc.vector(src, f"{key}.offset", j["offset"], 3, scalar=False,
+                                                 limit=1.0e4))})
+    return out
+
+
+def _quantization(src, q):
+    """Steps of the written values: gyro deg/s, accel mg (0 or absent: none); None when both are off."""
+    gyro = _number(src, "imu.quantization.gyro", q.get("gyro", 0.0), ge=0.0)
+    accel = _number(src, "imu.quantization.accel", q.get("accel", 0.0), ge=0.0)
+    if gyro == 0.0 and accel == 0.0:
+        return None
+    return {"gyro": gyro * np.pi / 180.0, "accel": accel * MG}
+
+
+def _g_sensitivity(src, v):
+    """Gyro bias per specific force, deg/s per g: one number or three (diagonal), or a 3x3 matrix (row: gyro
+    axis, column: specific-force axis; sensor axes); in rad/s per m/s^2."""
+    if v is None:
+        return None
+    key = "imu.g_sensitivity"
+    if isinstance(v, (list, tuple)) and v and all(isinstance(r, (list, tuple)) for r in v):
+        if len(v) != 3:
+            _fail(src, key, f"expected one number, three, or a 3x3 matrix (deg/s per g); got {len(v)} rows")
+        m = np.array([sc.vector(src, f"{key}[{i}]", r, 3, scalar=False, limit=100.0) for i, r in enumerate(v)])
+    else:
+        m = np.diag(sc.vector(src, key, v, 3, limit=100.0))
+    return m * (np.pi / 180.0) / G0
+
+
+def _rectification(src, v):
+    """The accelerometer's second-order coefficient K2, micro-g per g^2 (one number or three); in 1/(m/s^2)."""
+    if v is None:
+        return None
+    k2 = np.array(sc.vector(src, "imu.vibration_rectification", v, 3, limit=1.0e6))
+    return k2 * UG / (G0 * G0)
+
+
+def _temperature(src, t):
+    """Temperature drift (:mod:`.environment`): profile (K, s) and coefficients (gyro deg/s/K, accel mg/K)."""
+    if not t:
+        return None
+    rise = _number(src, "temperature.rise", t.get("rise", 0.0))
+    swing = _number(src, "temperature.swing", t.get("swing", 0.0), ge=0.0)
+    return {"rise": rise, "tau": _number(src, "temperature.tau", t.get("tau", 600.0), gt=0.0),
+            "swing": swing, "period": _number(src, "temperature.period", t.get("period", 1800.0), gt=0.0),
+            "gyro": np.array(sc.vector(src, "temperature.gyro", t.get("gyro", 0.0), 3, limit=10.0)) * np.pi / 180.0,
+            "accel": np.array(sc.vector(src, "temperature.accel", t.get("accel", 0.0), 3, limit=1.0e3)) * MG}
+
+
+def _dropped(src, d):
+    """Dropped IMU rows (:mod:`.recorder`): fraction in [0, 1), run lengths [min, max] (or one number)."""
+    if not d:
+        return None
+    frac = sc.number(src, "imu.dropped.fraction", d.get("fraction", 0.0), ge=0.0, lt=1.0)
+    run = d.get("run", 1)
+    if isinstance(run, (list, tuple)):
+        if len(run) != 2:
+            _fail(src, "imu.dropped.run", f"expected a length or [min, max] (rows); got {run!r}")
+        lo = sc.integer(src, "imu.dropped.run[0]", run[0], 1, 10 ** 6)
+        hi = sc.integer(src, "imu.dropped.run[1]", run[1], 1, 10 ** 6)
+        if hi < lo:
+            _fail(src, "imu.dropped.run", f"max {hi} must be at least min {lo}")
+    else:
+        lo = hi = sc.integer(src, "imu.dropped.run", run, 1, 10 ** 6)
+    return None if frac == 0.0 else {"fraction": frac, "run": (lo, hi)}
+
+
+def _flex(src, f):
+    """Mount flex (:mod:`.flex`): gains deg per m/s^2 (roll and yaw per lateral, pitch per longitudinal
+    acceleration), time constant s."""
+    if not f:
+        return None
+    deg = np.pi / 180.0
+    gain = np.array([_number(src, f"mount_flex.{k}", f.get(k, 0.0)) for k in ("roll", "pitch", "yaw")])
+    if np.any(np.abs(gain) > 5.0):
+        _fail(src, "mount_flex", f"gains within +-5 deg per m/s^2 (a mount that turns by degrees per m/s^2 is "
+                                 f"loose); got {gain.tolist()}")
+    tau = _number(src, "mount_flex.tau", f.get("tau", 0.3), gt=0.0)
+    return None if not np.any(gain) else Flex(gain * deg, tau)
 
 
 def _segment(src, i, s):

@@ -20,8 +20,8 @@ Attitude and velocity (FLU body axes, ENU navigation frame):
     Cbn = Rz(-heading) Rx(pitch) Ry(roll) C_FLU^RFU P(t)     (docs/formats.md Euler chain)
     v^n = speed (sin hdg cos pitch, cos hdg cos pitch, sin pitch) + d'(t) u^n
 
-so the velocity is along the path's forward axis (no sideslip or angle of
-attack); ``P(t)`` is the perturbation rotation and ``d(t) u^n`` a linear
+so the velocity is along the path's forward axis (no angle of attack; a sideslip in turns only with
+``vehicle.sideslip``, :mod:`.sideslip`); ``P(t)`` is the perturbation rotation and ``d(t) u^n`` a linear
 vibration displacement along a fixed ENU direction.  Pitch and heading are
 unwrapped real numbers: a loop is pitch going through 360 deg.
 
@@ -40,6 +40,7 @@ from ..nav.rotation import FLU, RFU, conv_to_flu, euler_to_dcm
 from ..units import G0
 from .jets import Jet, axis_rotation, polynomial, stack
 from .gait import gait_terms
+from .sideslip import slip_velocity
 
 HEADING, PITCH, ROLL, SPEED = 0, 1, 2, 3
 G_BANK = G0               # m/s^2, only shapes the coordinated-bank profile
@@ -92,6 +93,7 @@ class Primitive:
     index: int = 0              # user segment index
     kind: str = ""              # user segment type
     gait: object = None         # a :class:`~sinscli.sim.gait.Gait` (walker step dynamics) or None
+    sideslip: float = 0.0       # rad per m/s^2: slip angle per lateral acceleration (:mod:`.sideslip`)
 
     @property
     def t_end(self) -> float:
@@ -137,6 +139,7 @@ class Primitive:
         sv = 2.0 * u - 1.0
         coeffs = self.channel_coeffs()
         hdg, pit, rol, spd = (polynomial(coeffs[k], sv) for k in range(4))
+        slip = slip_velocity(self.sideslip, spd, hdg, pit) if self.sideslip != 0.0 else None
         if self.bank and self.delta[HEADING] != 0.0:
             turn_rate = polynomial(DS_COEF * (self.delta[HEADING] / T), sv)   # rad/s of the step
             rol = rol + np.arctan(spd * turn_rate / G_BANK)
@@ -145,6 +148,8 @@ class Primitive:
         cbn = (c_path @ axis_rotation(1, rol)) @ C_FLU_TO_RFU
         ch, sh, cp, sp = np.cos(hdg), np.sin(hdg), np.cos(pit), np.sin(pit)
         vel = spd.truncate(1)[..., None] * stack([sh * cp, ch * cp, sp], axis=-1)
+        if slip is not None:
+            vel = vel + slip
         if self.gait is not None:
             rot, dv = gait_terms(self.gait, T * u, self.t_start, spd, hdg, pit)
             cbn = cbn @ rot

@@ -25,6 +25,7 @@ from . import pinned as pm
 from .imu_synth import body_rate_nb, normal_gravity_n, sensor_outputs
 from .quadrature import gauss_legendre
 from .segments import Primitive
+from .flex import Flex, flex_between, flex_knots, flex_target
 from .vibration import Vibration, vibrate
 
 CHUNK = 16384          # sub-intervals per chunk
@@ -47,6 +48,8 @@ class TruthData:
     dvel_b: np.ndarray     # (N, 3) m/s
     w_imu: np.ndarray | None = None    # (N+1, 3) rad/s: sensor rate at each IMU instant (``rates=True``)
     f_imu: np.ndarray | None = None    # (N+1, 3) m/s^2: specific force at each IMU instant
+    ff_b: np.ndarray | None = None     # (N, 6) m^2/s^3: int (fx^2, fy^2, fz^2, fx fy, fx fz, fy fz) dt (``moments``)
+    flex_theta: np.ndarray | None = None   # (N+1, 3) rad: the mount's flex at each IMU instant (``flex``)
 
 
 def boundaries(tau_imu: np.ndarray, extra: np.ndarray, subdiv: int):
@@ -144,14 +147,17 @@ def sample_times(t0: float, rate: float, n: int) -> np.ndarray:
 
 def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: float, n_imu: int,
              extra_times=(), nodes: int = 8, gravity=normal_gravity_n, progress=None,
-             t0: float = 0.0, vibration: Vibration | None = None, rates: bool = False) -> TruthData:
+             t0: float = 0.0, vibration: Vibration | None = None, rates: bool = False,
+             flex: Flex | None = None, moments: bool = False) -> TruthData:
     """Exact truth and increments for ``n_imu`` IMU intervals at ``rate`` Hz from epoch ``t0``.
 
     ``extra_times`` (s since start, e.g. GNSS epochs) become boundaries too;
     ``gravity(lat, h)`` gives ``g^n`` (n, 3); ``progress(k)`` is called with
     the number of IMU intervals completed by each chunk.  ``vibration``: the
     mount's vibration (:mod:`.vibration`), in the increments and rates but not
-    in the truth; ``rates``: also the sensor outputs at every IMU instant.
+    in the truth; ``rates``: also the sensor outputs at every IMU instant; ``flex``: the mount's flex under
+    the body's acceleration (:mod:`.flex`), likewise in the sensor outputs only; ``moments``: also the
+    integrals of the products of the specific force's components over each IMU interval.
     """
     tau_imu = sample_times(t0, rate, n_imu)
     starts = np.array([p.t_start for p in prims])
@@ -165,6 +171,16 @@ def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: 
     x, w, A = gauss_legendre(nodes)
     M = b.size - 1
     owner = np.searchsorted(tau_imu, b[1:], side="left") - 1      # IMU interval of each sub-interval
+    knots = None
+    if flex is not None:
+        acc_b = np.empty((n_imu + 1, 3))
+        for k0 in range(0, n_imu + 1, CHUNK):
+            k1 = min(k0 + CHUNK, n_imu + 1)
+            cbn, _, _, acc = evaluate(prims, starts, tau_imu[k0:k1])
+            acc_b[k0:k1] = pm.matmul(np.swapaxes(cbn, -1, -2), acc[:, :, None])[:, :, 0]     # C_n^b dv^n/dt
+        knots = flex_knots(flex, tau_imu, flex_target(flex, acc_b))
+        h_imu = np.diff(tau_imu)
+    sub_ff = np.empty((M, 6)) if moments else None
 
     lat = np.empty(M + 1)
     lon = np.empty(M + 1)
@@ -195,7 +211,15 @@ def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: 
         lat[j0 + 1:j1 + 1], lon[j0 + 1:j1 + 1], hgt[j0 + 1:j1 + 1] = lat_e, lon_e, h_e
         lat_f, h_f = lat_n.ravel(), h_n.ravel()
         w_ib, f_b = sensor_outputs(lat_f, h_f, vel, acc, cbn, body_rate_nb(cbn, dcbn), gravity(lat_f, h_f))
-        w_ib, f_b = vibrate(vibration, base + off, w_ib, f_b)
+        extra = None
+        if knots is not None:
+            own = np.repeat(owner[j0:j1], nodes)
+            extra = flex_between(knots[0], knots[1], h_imu, own, (base - tau_imu[own]) + off)
+        w_ib, f_b = vibrate(vibration, base + off, w_ib, f_b, extra)
+        if sub_ff is not None:
+            fr = f_b.reshape(J, nodes, 3)
+            for col, (i, j) in enumerate(((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))):
+                sub_ff[j0:j1, col] = half * pm.matmul(fr[:, :, i] * fr[:, :, j], w)
         sub_dth[j0:j1] = half[:, None] * np.einsum("jnk,n->jk", w_ib.reshape(J, nodes, 3), w)
         sub_dv[j0:j1] = half[:, None] * np.einsum("jnk,n->jk", f_b.reshape(J, nodes, 3), w)
         at_boundaries(j0 + 1, j1 + 1)
@@ -213,5 +237,10 @@ def generate(prims: list[Primitive], lat0: float, lon0: float, h0: float, rate: 
             cbn, dcbn, vel, acc = evaluate(prims, starts, tau_imu[k0:k1])
             la, hh = lat[imu_idx[k0:k1]], hgt[imu_idx[k0:k1]]
             w_ib, f_b = sensor_outputs(la, hh, vel, acc, cbn, body_rate_nb(cbn, dcbn), gravity(la, hh))
-            w_imu[k0:k1], f_imu[k0:k1] = vibrate(vibration, tau_imu[k0:k1], w_ib, f_b)
-    return TruthData(b, lat, lon, hgt, vel_b, cbn_b, w_b, imu_idx, dtheta, dvel, w_imu, f_imu)
+            extra = None if knots is None else (knots[0][k0:k1], knots[1][k0:k1])
+            w_imu[k0:k1], f_imu[k0:k1] = vibrate(vibration, tau_imu[k0:k1], w_ib, f_b, extra)
+    ff = None
+    if sub_ff is not None:
+        ff = np.stack([np.bincount(owner, sub_ff[:, k], minlength=n_imu) for k in range(6)], axis=-1)
+    return TruthData(b, lat, lon, hgt, vel_b, cbn_b, w_b, imu_idx, dtheta, dvel, w_imu, f_imu, ff,
+                     None if knots is None else knots[0])

@@ -142,12 +142,18 @@ def _lines(tau, m, m1, m2, rot_w, rot_a, rot_p, lin_w, lin_b, lin_p):
     return th, dth, d, dd, ddd
 
 
-def vibrate(vib: Vibration | None, tau: np.ndarray, w_ib: np.ndarray, f_b: np.ndarray):
+def vibrate(vib: Vibration | None, tau: np.ndarray, w_ib: np.ndarray, f_b: np.ndarray, extra=None):
     """The sensor outputs of the vibrating mount (see the module docstring) from the body's ``w_ib^b``,
-    ``f^b`` (n, 3) at times ``tau``; ``vib`` None returns the inputs."""
-    if vib is None:
+    ``f^b`` (n, 3) at times ``tau``; ``extra`` = ``(theta, theta')`` (n, 3) a slower rotation of the mount
+    added to the lines' (its flex, :mod:`.flex`); ``vib`` and ``extra`` None return the inputs."""
+    if vib is None and extra is None:
         return w_ib, f_b
+    if vib is None:
+        z = np.zeros_like(w_ib)
+        return mount_outputs(np.ascontiguousarray(extra[0]), np.ascontiguousarray(extra[1]), z, z, z, w_ib, f_b)
     theta, dtheta, d, dd, ddd = mount_motion(vib, tau)
+    if extra is not None:
+        theta, dtheta = theta + extra[0], dtheta + extra[1]
     return mount_outputs(theta, dtheta, d, dd, ddd, w_ib, f_b)
 
 
