@@ -24,6 +24,7 @@ from importlib import resources
 
 import numpy as np
 
+from .. import conventions as cv
 from ..inputs import parse_yaml
 
 GPS_EPOCH_UNIX = 315964800.0     # 1980-01-06 00:00:00 UTC in UNIX seconds
@@ -31,8 +32,9 @@ WEEK = 604800.0                  # s in a GPS week
 ABSOLUTE_MIN = 1.0e8             # s: an absolute epoch (1973 onwards in UNIX time)
 ABSOLUTE_MAX = 4.0e9             # s: beyond 2096 in UNIX time: not seconds
 
-TIME_SYSTEMS = ("utc", "gps")   # the IMU's time system (config imu.time_system): UTC-based UNIX time, or GPS
-                                 # time read as POSIX seconds (UNIX time + GPS - UTC, as some loggers write)
+# the IMU's time system (config imu.time_system): UTC-based UNIX time, or GPS time read as POSIX seconds (UNIX
+# time + GPS - UTC, as some loggers write): the time base NMEA and UBX receiver times are turned into
+TIME_SYSTEMS = cv.TIME_SYSTEMS
 
 
 @functools.lru_cache(maxsize=1)
@@ -52,6 +54,14 @@ def gps_minus_utc(unix_time):
     k = np.searchsorted(start, unix_time, side="right")
     out = np.where(k > 0, n[np.maximum(k - 1, 0)], 0)
     return int(out) if np.ndim(out) == 0 else out
+
+
+def days_from_ymd(ymd) -> np.ndarray:
+    """Days from 1970-01-01 of Gregorian dates written as integers ``yyyymmdd`` (numpy's calendar)."""
+    ymd = np.asarray(ymd, dtype=np.int64)
+    y, m, d = ymd // 10000, (ymd // 100) % 100, ymd % 100
+    month = (y - 1970).astype("datetime64[Y]").astype("datetime64[M]") + (m - 1).astype("timedelta64[M]")
+    return (month.astype("datetime64[D]") + (d - 1).astype("timedelta64[D]")).astype(np.int64)
 
 
 def from_utc(t_utc, system: str) -> np.ndarray:
