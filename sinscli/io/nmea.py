@@ -208,7 +208,8 @@ def solutions(buf: np.ndarray, source: str, date: str | None, time_system: str) 
                                    np.where(slow, 0.0, speed * np.cos(np.where(slow, 0.0, c))),
                                    np.full(idx.size, np.nan)])
             sig = np.where(slow, np.maximum(np.nan_to_num(speed), MIN_COURSE_SPEED), np.nan)
-            std_vel = np.column_stack([sig, sig, np.full(idx.size, np.nan)])
+            if np.isfinite(sig[with_vel]).any():          # else the configured sigma throughout
+                std_vel = np.column_stack([sig, sig, np.full(idx.size, np.nan)])
         else:
             notes.append(f"{source}: only {int(with_vel.sum()):,} of {idx.size:,} fixes have speed and course "
                          f"(RMC/VTG in the epoch): the velocity is not used")

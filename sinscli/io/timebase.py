@@ -80,6 +80,22 @@ def from_gps(t_gps, system: str) -> np.ndarray:
     return t - gps_minus_utc(approx)
 
 
+def to_utc(t, system: str) -> np.ndarray:
+    """Times in the time system ``system`` as UTC-based UNIX times (the inverse of :func:`from_utc`)."""
+    t = np.asarray(t, dtype=np.float64)
+    if system != "gps":
+        return t
+    return t - gps_minus_utc(np.floor(t) - gps_minus_utc(np.floor(t)))
+
+
+def to_gps(t, system: str) -> np.ndarray:
+    """Times in the time system ``system`` as GPS times (s since 1980-01-06; the inverse of :func:`from_gps`)."""
+    t = np.asarray(t, dtype=np.float64)
+    if system == "gps":
+        return t - GPS_EPOCH_UNIX
+    return t - GPS_EPOCH_UNIX + gps_minus_utc(np.floor(t))
+
+
 SCALES = ((1e3, "milliseconds"), (1e6, "microseconds"), (1e9, "nanoseconds"))
 
 

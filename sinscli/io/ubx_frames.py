@@ -50,6 +50,12 @@ def is_ubx(path) -> bool:
     return False
 
 
+def has_message(buf: np.ndarray, cls: int, mid: int) -> bool:
+    """Whether ``buf`` holds a header of message ``(cls, mid)`` (sync, class, id; not checked further)."""
+    return bool(buf.shape[0] >= 4 and ((buf[:-3] == 0xB5) & (buf[1:-2] == 0x62) & (buf[2:-1] == cls)
+                                       & (buf[3:] == mid)).any())
+
+
 def find_frames(buf: np.ndarray, cls: int, mid: int, length: int):
     """The payloads of every ``(cls, mid)`` message of payload ``length`` bytes in ``buf`` (uint8), in file
     order: ``(payloads (m, length) uint8, byte offsets (m,), bad checksums, truncated)``.  A frame whose
@@ -76,3 +82,13 @@ def find_frames(buf: np.ndarray, cls: int, mid: int, length: int):
     k = k[good]
     payloads = windows[k][:, 6:6 + length].copy() if k.size else np.zeros((0, length), np.uint8)
     return payloads, k.astype(np.int64), int((~good).sum()), truncated
+
+
+def build_frames(cls: int, mid: int, payloads: np.ndarray) -> np.ndarray:
+    """Whole UBX frames ``(m, length + 8)`` uint8 of the ``(m, length)`` payloads of one message (the inverse of
+    :func:`find_frames`)."""
+    m, length = payloads.shape
+    head = np.tile(np.array([0xB5, 0x62, cls, mid, length & 0xFF, length >> 8], np.uint8), (m, 1))
+    body = np.hstack([head, payloads])
+    a, b = fletcher(body[:, 2:])
+    return np.hstack([body, a.astype(np.uint8)[:, None], b.astype(np.uint8)[:, None]])

@@ -13,11 +13,14 @@ types 0 (no fix), 1 (dead reckoning only) and 5 (time only), ``invalidLlh`` set,
 """
 from __future__ import annotations
 
+
 import numpy as np
 
 from .solutions import Solutions
+from ..types import GnssLog
 from .timebase import GPS_EPOCH_UNIX, WEEK, days_from_ymd, from_gps, gps_minus_utc
-from .ubx_frames import find_frames
+from .atomic import atomic_path
+from .ubx_frames import build_frames, find_frames
 
 NAV, PVT, HPPOSLLH = 0x01, 0x07, 0x14
 PVT_DTYPE = np.dtype([("iTOW", "<u4"), ("year", "<u2"), ("month", "u1"), ("day", "u1"), ("hour", "u1"),
@@ -159,3 +162,76 @@ def summary(buf: np.ndarray) -> dict | None:
             "rate_hz": float(1.0 / np.median(dt)) if dt.size and np.median(dt) > 0 else None,
             "start_gps": float(t[0]) if t.size else None, "end_gps": float(t[-1]) if t.size else None,
             "hpposllh": int(hp.shape[0])}
+
+
+# ----------------------------------------------------------------------------------------- writing
+
+def _hp_split(x: np.ndarray, scale: float, sub: int):
+    """A value as u-blox's integer and high-precision parts: ``total = round(x * scale * sub)``,
+    ``main = round(total / sub)``, ``hp = total - main * sub`` (|hp| <= sub / 2)."""
+    total = np.round(np.asarray(x, dtype=np.float64) * scale * sub).astype(np.int64)
+    main = np.round(total / sub).astype(np.int64)
+    return main, total - main * sub
+
+
+def solution_frames(gnss: GnssLog, t_gps: np.ndarray, *, hpposllh: bool = True, carrier: int = 0,
+                    num_sv: int = 20, default_acc: float = 0.01) -> bytes:
+    """NAV-PVT (and NAV-HPPOSLLH) frames of each fix at GPS times ``t_gps`` (s since 1980-01-06), with the
+    fields' rounding: ``iTOW`` 1 ms, position 1e-7 deg and 1 mm (1e-9 deg and 0.1 mm in NAV-HPPOSLLH), velocity
+    1 mm/s, accuracies 1 mm (0.1 mm) and 1 mm/s: ``hAcc`` the larger of the east and north sigma, ``sAcc`` the
+    largest velocity sigma; without sigmas ``default_acc`` (m, m/s).  Fix type 3D, gnssFixOK, ``carrier`` as
+    carrSoln (0 none, 1 float, 2 fixed).  UTC date and time from ``t_gps`` less the leap seconds."""
+    n = len(gnss)
+    t_gps = np.asarray(t_gps, dtype=np.float64)
+    ms = np.round(t_gps * 1000.0).astype(np.int64)
+    t_utc_ms = ms + int(GPS_EPOCH_UNIX) * 1000 - 1000 * gps_minus_utc(np.floor(ms / 1000.0) + GPS_EPOCH_UNIX)
+    day, ms_day = np.divmod(t_utc_ms, 86400000)
+    ymd = np.datetime64("1970-01-01", "D") + day.astype("timedelta64[D]")
+    y = ymd.astype("datetime64[Y]").astype(np.int64) + 1970
+    mo = ymd.astype("datetime64[M]").astype(np.int64) % 12 + 1
+    d = (ymd - ymd.astype("datetime64[M]")).astype(np.int64) + 1
+    r = np.zeros(n, PVT_DTYPE)
+    r["iTOW"] = ms % 604800000
+    r["year"], r["month"], r["day"] = y, mo, d
+    r["hour"], r["min"], r["sec"] = ms_day // 3600000, ms_day // 60000 % 60, ms_day // 1000 % 60
+    r["nano"] = (ms_day % 1000) * 1000000
+    r["valid"] = 0x07
+    r["tAcc"] = 20
+    r["fixType"] = 3
+    r["flags"] = 0x01 | ((carrier & 0x03) << 6) | (0x02 if carrier else 0)
+    r["numSV"] = num_sv
+    lat, lat_hp = _hp_split(gnss.lat, 1e7, 100)
+    lon_v = (np.asarray(gnss.lon, dtype=np.float64) + 180.0) % 360.0 - 180.0
+    lon, lon_hp = _hp_split(lon_v, 1e7, 100)
+    h, h_hp = _hp_split(gnss.height, 1e3, 10)
+    r["lat"], r["lon"], r["height"], r["hMSL"] = lat, lon, h, h
+    sp = gnss.std_pos if gnss.std_pos is not None else np.full((n, 3), default_acc)
+    sp = np.where(np.isfinite(sp), sp, default_acc)
+    h_acc, v_acc = np.maximum(sp[:, 0], sp[:, 1]), sp[:, 2]
+    r["hAcc"], r["vAcc"] = np.round(h_acc * 1e3), np.round(v_acc * 1e3)
+    v = gnss.vel_n if gnss.vel_n is not None else np.zeros((n, 3))
+    r["velN"], r["velE"], r["velD"] = np.round(v[:, 1] * 1e3), np.round(v[:, 0] * 1e3), np.round(-v[:, 2] * 1e3)
+    r["gSpeed"] = np.round(np.hypot(v[:, 0], v[:, 1]) * 1e3)
+    r["headMot"] = np.round(np.degrees(np.arctan2(v[:, 0], v[:, 1])) % 360.0 * 1e5)
+    sv = gnss.std_vel if gnss.std_vel is not None else np.full((n, 3), default_acc)
+    r["sAcc"] = np.round(np.nanmax(np.where(np.isfinite(sv), sv, default_acc), axis=1) * 1e3)
+    r["headAcc"] = np.round(np.degrees(np.arctan2(sv[:, 0], np.maximum(np.hypot(v[:, 0], v[:, 1]), 1e-3)))
+                            .clip(0, 180) * 1e5)
+    r["pDOP"] = 150
+    frames = [build_frames(NAV, PVT, r.view(np.uint8).reshape(n, -1))]
+    if hpposllh:
+        q = np.zeros(n, HP_DTYPE)
+        q["iTOW"] = r["iTOW"]
+        q["lat"], q["lon"], q["height"], q["hMSL"] = lat, lon, h, h
+        q["latHp"], q["lonHp"], q["heightHp"], q["hMSLHp"] = lat_hp, lon_hp, h_hp, h_hp
+        q["hAcc"], q["vAcc"] = np.round(h_acc * 1e4), np.round(v_acc * 1e4)
+        frames.append(build_frames(NAV, HPPOSLLH, q.view(np.uint8).reshape(n, -1)))
+    return np.hstack(frames).tobytes()
+
+
+def write_ubx_solutions(path, gnss: GnssLog, t_gps: np.ndarray, **kw) -> None:
+    """A UBX log of the fixes' NAV-PVT (and NAV-HPPOSLLH) frames (:func:`solution_frames`), atomically."""
+    data = solution_frames(gnss, t_gps, **kw)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
