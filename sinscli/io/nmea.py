@@ -90,6 +90,15 @@ def _match(keys: np.ndarray, epoch_keys: np.ndarray) -> np.ndarray:
     return np.where(uk[i] == epoch_keys, first[i], -1)
 
 
+def _match_times(t: np.ndarray, epoch_keys: np.ndarray) -> np.ndarray:
+    """Row of a formatter's table (its times ``t``, NaN without one) at each epoch key, -1 where none."""
+    ok = np.flatnonzero(np.isfinite(t))
+    if ok.size == 0:
+        return np.full(epoch_keys.size, -1, np.int64)
+    i = _match(_ms(t[ok]), epoch_keys)
+    return np.where(i >= 0, ok[np.maximum(i, 0)], -1)
+
+
 def _ms(t: np.ndarray) -> np.ndarray:
     return np.round(t * 1000.0).astype(np.int64)
 
@@ -177,8 +186,7 @@ def solutions(buf: np.ndarray, source: str, date: str | None, time_system: str) 
     height = g[:, 6] + sep
     # velocity: RMC, else VTG
     rmc, vtg = s.table[K.K_RMC], s.table[K.K_VTG]
-    ir = _match(_ms(times[K.K_RMC][np.isfinite(times[K.K_RMC])]), uk)
-    ir = np.where(ir >= 0, np.flatnonzero(np.isfinite(times[K.K_RMC]))[np.maximum(ir, 0)], -1)
+    ir = _match_times(times[K.K_RMC], uk)
     speed = np.full(idx.size, np.nan)
     course = np.full(idx.size, np.nan)
     has = ir >= 0
@@ -217,9 +225,7 @@ def solutions(buf: np.ndarray, source: str, date: str | None, time_system: str) 
     std = np.full((idx.size, 3), np.nan)
     gst = s.table[K.K_GST]
     if gst.shape[0]:
-        tg = times[K.K_GST]
-        ig = _match(_ms(tg[np.isfinite(tg)]), uk)
-        ig = np.where(ig >= 0, np.flatnonzero(np.isfinite(tg))[np.maximum(ig, 0)], -1)
+        ig = _match_times(times[K.K_GST], uk)
         has = ig >= 0
         sg = gst[ig[has]][:, [2, 1, 3]]                       # lon, lat, alt sigma -> E, N, U
         good = np.isfinite(sg).all(axis=1) & (sg > 0).all(axis=1)

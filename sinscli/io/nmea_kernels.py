@@ -18,14 +18,18 @@ KIND_NAMES = ("other", "GGA", "RMC", "VTG", "GST", "GSA")
 MAX_SENTENCE = 160        # bytes from '$' to '*': NMEA 0183 allows 82 in all; high-precision and multi-GNSS
                           # variants run longer, so a sentence is cut only well beyond them
 MAX_FIELDS = 48
+# fields of each formatter in NMEA 0183 v2.0 (later versions add fields at the end: RMC's mode and navigational
+# status, VTG's mode, GSA's system id); a sentence with fewer is garbled (a field lost would shift the rest)
+MIN_FIELDS = (0, 14, 11, 8, 8, 17)
 NCOL = 8                  # columns of a parsed table (module docstring of sinscli.io.nmea says what each holds)
 # scan counters
 C_VALID, C_OTHER, C_CHECKSUM, C_GARBLED, C_FIRST_CHECKSUM, C_FIRST_GARBLED = 0, 1, 2, 3, 4, 5
 
 
 @njit(cache=True)
-def _upper_or_digit(c):
-    return (65 <= c <= 90) or (48 <= c <= 57)
+def _head_char(c):
+    """A character of a sentence's address field: printable, not a delimiter ('$', ',', '*', '!', '\\')."""
+    return 33 <= c <= 126 and c != 36 and c != 44 and c != 42 and c != 33 and c != 92
 
 
 @njit(cache=True)
@@ -62,8 +66,8 @@ def scan(buf):
     its '$', ``end`` that of its '*', and ``counts`` (:data:`C_VALID` ...): valid sentences of a known formatter,
     of other formatters, sentences with a bad checksum, and truncated or garbled ones (a sentence head
     ``$ttsss,`` not followed by ``*hh`` within :data:`MAX_SENTENCE` printable bytes), then the byte offsets of the
-    first bad-checksum and the first garbled sentence (-1: none).  A '$' not followed by a sentence head is binary
-    data and not counted."""
+    first bad-checksum and the first garbled sentence (-1: none).  A '$' not followed by a sentence head (five
+    printable characters and a comma) is binary data and not counted."""
     n = buf.shape[0]
     nd = 0
     for i in range(n):
@@ -85,16 +89,16 @@ def scan(buf):
             # a head cut by the end of the file: garbled when what is there looks like one
             head = True
             for j in range(i + 1, n):
-                if not _upper_or_digit(buf[j]) and not (j == i + 6 and buf[j] == 44):
+                if not _head_char(buf[j]):
                     head = False
             if head and n - i > 1:
                 counts[C_GARBLED] += 1
                 if counts[C_FIRST_GARBLED] < 0:
                     counts[C_FIRST_GARBLED] = i
             break
-        head = buf[i + 6] == 44 and 65 <= buf[i + 1] <= 90 and 65 <= buf[i + 2] <= 90
-        for j in range(i + 3, i + 6):
-            if not _upper_or_digit(buf[j]):
+        head = buf[i + 6] == 44
+        for j in range(i + 1, i + 6):
+            if not _head_char(buf[j]):
                 head = False
         if not head:
             i += 1
@@ -131,7 +135,8 @@ def scan(buf):
             i = star + 3
             continue
         k = _kind(buf, i)
-        if k == K_OTHER or buf[i + 1] == 80:       # other formatters; proprietary ($P...) sentences
+        talker = 65 <= buf[i + 1] <= 90 and 65 <= buf[i + 2] <= 90 and buf[i + 1] != 80
+        if k == K_OTHER or not talker:            # other formatters; proprietary ($P...) sentences
             counts[C_OTHER] += 1
         else:
             start[m] = i
@@ -242,7 +247,8 @@ def _date(buf, a, b):
 
 @njit(cache=True)
 def _angle(buf, a, b, ha, hb, deg_max):
-    """``(d)ddmm.mmmm`` with the hemisphere letter ``buf[ha:hb]`` (N/E positive, S/W negative) -> signed degrees:
+    """``(d)ddmm.mmmm`` with the hemisphere letter ``buf[ha:hb]`` (N, S for a latitude, ``deg_max`` 90; E, W for a
+    longitude; S and W negative) -> signed degrees:
     ``deg + minutes / 60`` (the degrees all digits but the two before the '.')."""
     if a >= b:
         return np.nan, 0
@@ -261,9 +267,9 @@ def _angle(buf, a, b, ha, hb, deg_max):
     if ok != 1 or minutes >= 60.0 or deg > deg_max:
         return np.nan, -1
     h = _char(buf, ha, hb)
-    if h == 78 or h == 69:
+    if h == (78 if deg_max == 90 else 69):            # N | E
         sign = 1.0
-    elif h == 83 or h == 87:
+    elif h == (83 if deg_max == 90 else 87):          # S | W
         sign = -1.0
     else:
         return np.nan, -1
@@ -299,7 +305,7 @@ def parse(buf, start, end, want):
         good = nf > 0
         row = out[k]
         if want == K_GGA:
-            good = good and nf >= 10
+            good = good and nf >= MIN_FIELDS[K_GGA]
             if good:
                 row[0], f0 = _time_of_day(buf, pos[0], pos[1] - 1)
                 q, fq = _number(buf, pos[5], pos[6] - 1)
@@ -318,7 +324,7 @@ def parse(buf, start, end, want):
                 if good and q > 0.0:            # a fix has its position and altitude
                     good = f1 == 1 and f2 == 1 and f6 == 1
         elif want == K_RMC:
-            good = good and nf >= 9
+            good = good and nf >= MIN_FIELDS[K_RMC]
             if good:
                 row[0], f0 = _time_of_day(buf, pos[0], pos[1] - 1)
                 st = _char(buf, pos[1], pos[2] - 1)
@@ -335,7 +341,7 @@ def parse(buf, start, end, want):
                 good = (f0 >= 0 and (st == 65 or st == 86) and f2 >= 0 and f3 >= 0 and f4 >= 0 and f5 >= 0
                         and f6 >= 0 and mode >= 0)
         elif want == K_VTG:
-            good = good and nf >= 8
+            good = good and nf >= MIN_FIELDS[K_VTG]
             if good:
                 row[0], f0 = _number(buf, pos[0], pos[1] - 1)
                 row[1], f1 = _number(buf, pos[4], pos[5] - 1)
@@ -344,10 +350,11 @@ def parse(buf, start, end, want):
                 if nf >= 9:
                     mode = _char(buf, pos[8], pos[9] - 1)
                 row[3] = mode
-                t_ok = _char(buf, pos[1], pos[2] - 1)
-                good = f0 >= 0 and f1 >= 0 and f2 >= 0 and mode >= 0 and (t_ok == 84 or t_ok == 0)
+                u1, u5, u7 = _char(buf, pos[1], pos[2] - 1), _char(buf, pos[5], pos[6] - 1), _char(buf, pos[7], pos[8] - 1)
+                good = (f0 >= 0 and f1 >= 0 and f2 >= 0 and mode >= 0 and (u1 == 84 or u1 == 0)      # T, N, K
+                        and (u5 == 78 or u5 == 0) and (u7 == 75 or u7 == 0))
         elif want == K_GST:
-            good = good and nf >= 8
+            good = good and nf >= MIN_FIELDS[K_GST]
             if good:
                 row[0], f0 = _time_of_day(buf, pos[0], pos[1] - 1)
                 row[1], f1 = _number(buf, pos[5], pos[6] - 1)
@@ -355,7 +362,7 @@ def parse(buf, start, end, want):
                 row[3], f3 = _number(buf, pos[7], pos[8] - 1)
                 good = f0 >= 0 and f1 >= 0 and f2 >= 0 and f3 >= 0
         elif want == K_GSA:
-            good = good and nf >= 17
+            good = good and nf >= MIN_FIELDS[K_GSA]
             if good:
                 row[0], f0 = _number(buf, pos[1], pos[2] - 1)
                 row[1], f1 = _number(buf, pos[14], pos[15] - 1)
