@@ -52,17 +52,18 @@ class Sentences:
 
     def __init__(self, buf: np.ndarray):
         start, end, kind, counts = K.scan(buf)
-        self.table, self.offset = {}, {}
+        self.table, self.offset, self.index = {}, {}, {}
+        self.count = int(start.shape[0])
         garbled, first_garbled = int(counts[K.C_GARBLED]), int(counts[K.C_FIRST_GARBLED])
         for k in (K.K_GGA, K.K_RMC, K.K_VTG, K.K_GST, K.K_GSA):
-            sel = kind == k
+            sel = np.flatnonzero(kind == k)                   # in file order
             out, ok = K.parse(buf, start[sel], end[sel], k)
             off = start[sel]
             if not ok.all():
                 garbled += int((~ok).sum())
                 f = int(off[~ok][0])
                 first_garbled = f if first_garbled < 0 else min(first_garbled, f)
-            self.table[k], self.offset[k] = out[ok], off[ok]
+            self.table[k], self.offset[k], self.index[k] = out[ok], off[ok], sel[ok]
         self.checksum = (int(counts[K.C_CHECKSUM]), int(counts[K.C_FIRST_CHECKSUM]))
         self.garbled = (garbled, first_garbled)
         self.valid = int(counts[K.C_VALID]) - (garbled - int(counts[K.C_GARBLED]))
@@ -104,25 +105,22 @@ def _ms(t: np.ndarray) -> np.ndarray:
 
 
 def _utc_times(s: Sentences, date: str | None, source: str):
-    """UTC (UNIX s) of the timed sentences (GGA, RMC, GST) in file order, dated by RMC or ``date``; the times
-    of each formatter's rows (NaN without a time of day) and the key of the epoch each untimed one follows."""
+    """UTC (UNIX s) of the timed sentences (GGA, RMC, GST), dated by RMC or ``date``: the times of each formatter's
+    rows (NaN without a time of day), and for VTG and GSA the key of the timed sentence each follows."""
     kinds = (K.K_GGA, K.K_RMC, K.K_GST)
-    tod = np.concatenate([s.table[k][:, 0] for k in kinds])
-    off = np.concatenate([s.offset[k] for k in kinds])
-    src = np.concatenate([np.full(s.table[k].shape[0], k) for k in kinds])
-    row = np.concatenate([np.arange(s.table[k].shape[0]) for k in kinds])
-    timed = np.isfinite(tod)
-    order = np.argsort(off[timed], kind="stable")
-    tod_o, off_o, src_o, row_o = tod[timed][order], off[timed][order], src[timed][order], row[timed][order]
+    tod = np.full(s.count, np.nan)                        # every sentence in file order
+    ymd = np.full(s.count, np.nan)
+    for k in kinds:
+        tod[s.index[k]] = s.table[k][:, 0]
+    ymd[s.index[K.K_RMC]] = s.table[K.K_RMC][:, 6]
+    timed = np.flatnonzero(np.isfinite(tod))
+    tod_o = tod[timed]
     roll = np.concatenate([[0], np.cumsum(np.diff(tod_o) < -43200.0)]) if tod_o.size else np.zeros(0, np.int64)
-    rmc_date = np.full(tod_o.size, np.nan)
-    is_rmc = src_o == K.K_RMC
-    rmc_date[is_rmc] = s.table[K.K_RMC][row_o[is_rmc], 6]
-    dated = np.flatnonzero(np.isfinite(rmc_date))
+    has_date = np.isfinite(ymd[timed])
+    dated = np.flatnonzero(has_date)
     if dated.size:
-        anchor = days_from_ymd(rmc_date[dated].astype(np.int64)) - roll[dated]
-        last = np.maximum.accumulate(np.where(np.isfinite(rmc_date), np.arange(tod_o.size), -1))
-        pick = np.searchsorted(dated, np.where(last >= 0, last, dated[0]))
+        anchor = days_from_ymd(ymd[timed][dated].astype(np.int64)) - roll[dated]
+        pick = np.maximum(np.cumsum(has_date) - 1, 0)     # the last RMC date at or before; the first before it
         day = anchor[pick] + roll
     elif date is not None:
         y, m, d = (int(x) for x in date.split("-"))
@@ -130,16 +128,17 @@ def _utc_times(s: Sentences, date: str | None, source: str):
     else:
         raise SinsError(f"{source}: the NMEA log has no RMC sentence with a date, so its UTC times of day cannot "
                         f"be dated: give the UTC date of its first fix as the config's {DATE_KEY} (YYYY-MM-DD)")
-    t_o = day * 86400.0 + tod_o
-    times = {k: np.full(s.table[k].shape[0], np.nan) for k in kinds}
-    for k in kinds:
-        sel = src_o == k
-        times[k][row_o[sel]] = t_o[sel]
-    keys = _ms(t_o)
+    t_all = np.full(s.count, np.nan)
+    t_all[timed] = day * 86400.0 + tod_o
+    times = {k: t_all[s.index[k]] for k in kinds}
+    keys = np.full(s.count, -1, np.int64)
+    keys[timed] = _ms(t_all[timed])
+    last_timed = np.maximum.accumulate(np.where(np.isfinite(t_all), np.arange(s.count), -1)) if s.count else \
+        np.zeros(0, np.int64)
 
     def follows(k):
         """The epoch key of the timed sentence before each untimed one (-1: none)."""
-        i = np.searchsorted(off_o, s.offset[k]) - 1
+        i = last_timed[s.index[k]]
         return np.where(i >= 0, keys[np.maximum(i, 0)], -1)
     return times, follows(K.K_VTG), follows(K.K_GSA)
 

@@ -22,6 +22,7 @@ MAX_FIELDS = 48
 # status, VTG's mode, GSA's system id); a sentence with fewer is garbled (a field lost would shift the rest)
 MIN_FIELDS = (0, 14, 11, 8, 8, 17)
 NCOL = 8                  # columns of a parsed table (module docstring of sinscli.io.nmea says what each holds)
+POW10 = 10.0 ** np.arange(23)     # exact powers of ten (10^22 is the largest exact double power of ten)
 # scan counters
 C_VALID, C_OTHER, C_CHECKSUM, C_GARBLED, C_FIRST_CHECKSUM, C_FIRST_GARBLED = 0, 1, 2, 3, 4, 5
 
@@ -198,7 +199,7 @@ def _number(buf, a, b):
         j += 1
     if ndigits == 0 or frac > 22:
         return np.nan, -1
-    return sign * (mant / 10.0 ** frac), 1
+    return sign * (mant / POW10[frac]), 1
 
 
 @njit(cache=True)

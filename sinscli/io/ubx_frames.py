@@ -52,8 +52,8 @@ def is_ubx(path) -> bool:
 
 def has_message(buf: np.ndarray, cls: int, mid: int) -> bool:
     """Whether ``buf`` holds a header of message ``(cls, mid)`` (sync, class, id; not checked further)."""
-    return bool(buf.shape[0] >= 4 and ((buf[:-3] == 0xB5) & (buf[1:-2] == 0x62) & (buf[2:-1] == cls)
-                                       & (buf[3:] == mid)).any())
+    k = np.flatnonzero(buf[:-3] == 0xB5) if buf.shape[0] >= 4 else np.zeros(0, np.int64)
+    return bool(((buf[k + 1] == 0x62) & (buf[k + 2] == cls) & (buf[k + 3] == mid)).any())
 
 
 def find_frames(buf: np.ndarray, cls: int, mid: int, length: int):
@@ -64,7 +64,8 @@ def find_frames(buf: np.ndarray, cls: int, mid: int, length: int):
     n = buf.shape[0]
     if n < 8:
         return np.zeros((0, length), np.uint8), np.zeros(0, np.int64), 0, 0
-    k = np.flatnonzero((buf[:-5] == 0xB5) & (buf[1:-4] == 0x62) & (buf[2:-3] == cls) & (buf[3:-2] == mid))
+    k = np.flatnonzero(buf[:-5] == 0xB5)                 # few in text; then the rest of the header
+    k = k[(buf[k + 1] == 0x62) & (buf[k + 2] == cls) & (buf[k + 3] == mid)]
     k = k[(buf[k + 4].astype(np.int64) | (buf[k + 5].astype(np.int64) << 8)) == length]
     whole = k + length + 8 <= n
     truncated = int((~whole).sum())
