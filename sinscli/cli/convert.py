@@ -133,7 +133,7 @@ def convert_cmd(log_path, outdir, solution, config_path, imu_topic, gnss_topic, 
 def _convert_receiver(log_path, output, config_path, quiet) -> None:
     """An NMEA log or a UBX log's NAV-PVT solutions to the GNSS CSV ``output``."""
     from ..config import load_config              # loaded when the command runs: --help stays light
-    from ..io.receiver import read_receiver_log
+    from ..io.receiver import read_receiver_log   # loaded when the command runs: --help stays light
     prepare_output(output)
     cfg = load_config(config_path)
     gnss = read_receiver_log(log_path, cfg.imu.time_system, cfg.gnss.date, cfg.limits)

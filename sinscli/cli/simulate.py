@@ -52,7 +52,7 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet, raw_gnss, gnss_fo
     sc = prepared.scenario
     gnss_formats = tuple(dict.fromkeys(gnss_formats))
     if gnss_formats:
-        from ..sim.run import RECEIVER_FILES, check_receiver_formats
+        from ..sim.run import RECEIVER_FILES, check_receiver_formats   # the command's modules load when it runs
         check_receiver_formats(sc, gnss_formats)
         for fmt in gnss_formats:
             prepare_output(outdir / RECEIVER_FILES[fmt])

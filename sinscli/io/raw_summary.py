@@ -9,13 +9,14 @@ from ..errors import SinsError
 from ..gnss.signals import SYS_CHARS, SYS_NAMES
 from ..gnss.timesys import epoch_text
 from .atomic import staged_dir
+from .receiver import is_nmea, read_bytes
+from .ubx_frames import has_message, is_ubx
+from .ubx_solution import summary as pvt_summary
 
 
 def raw_kind(path) -> str | None:
     """``'ubx'``, ``'nmea'``, ``'obs'``, ``'nav'`` or None."""
-    from .receiver import is_nmea
     from .rinex import is_rinex  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
-    from .ubx_frames import is_ubx
     p = Path(path)
     if not p.is_file():
         return None
@@ -35,14 +36,10 @@ def raw_summary(path) -> dict:
     solutions = None
     if kind == "nmea":
         from .nmea import summary as nmea_summary     # the NMEA kernels only for an NMEA log
-        from .receiver import read_bytes
         _, buf = read_bytes(path, "NMEA log")
         return {"path": str(path), "format": "NMEA 0183 log", "nmea": nmea_summary(buf)}
     if kind == "ubx":
-        from .receiver import read_bytes
         from .ubx import read_ubx  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
-        from .ubx_frames import has_message
-        from .ubx_solution import summary as pvt_summary
         _, buf = read_bytes(path, "UBX log")
         solutions = pvt_summary(buf)
         if has_message(buf, 0x02, 0x15) or solutions is None:
