@@ -63,7 +63,10 @@ class Sentences:
                 garbled += int((~ok).sum())
                 f = int(off[~ok][0])
                 first_garbled = f if first_garbled < 0 else min(first_garbled, f)
-            self.table[k], self.offset[k], self.index[k] = out[ok], off[ok], sel[ok]
+            if ok.all():
+                self.table[k], self.offset[k], self.index[k] = out, off, sel
+            else:
+                self.table[k], self.offset[k], self.index[k] = out[ok], off[ok], sel[ok]
         self.checksum = (int(counts[K.C_CHECKSUM]), int(counts[K.C_FIRST_CHECKSUM]))
         self.garbled = (garbled, first_garbled)
         self.valid = int(counts[K.C_VALID]) - (garbled - int(counts[K.C_GARBLED]))
@@ -119,7 +122,10 @@ def _utc_times(s: Sentences, date: str | None, source: str):
     has_date = np.isfinite(ymd[timed])
     dated = np.flatnonzero(has_date)
     if dated.size:
-        anchor = days_from_ymd(ymd[timed][dated].astype(np.int64)) - roll[dated]
+        ymd_d = ymd[timed][dated].astype(np.int64)
+        change = np.flatnonzero(np.concatenate([[True], ymd_d[1:] != ymd_d[:-1]]))    # dates change rarely
+        days = days_from_ymd(ymd_d[change])[np.cumsum(np.isin(np.arange(ymd_d.size), change)) - 1]
+        anchor = days - roll[dated]
         pick = np.maximum(np.cumsum(has_date) - 1, 0)     # the last RMC date at or before; the first before it
         day = anchor[pick] + roll
     elif date is not None:

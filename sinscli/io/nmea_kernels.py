@@ -5,12 +5,14 @@ XOR of the bytes between ``$`` and ``*``, NMEA 0183 v4.11 section 5.2.1), also b
 other loggers interleave them; :func:`parse` reads the fields of one formatter into a float table.  The field
 layouts are NMEA 0183 v4.11's (GGA 6.3.63, RMC 6.3.143, VTG 6.3.188, GST 6.3.72, GSA 6.3.68).  Numbers are read
 digit by digit into an integer and divided by a power of ten: the quotient of two exact doubles is correctly
-rounded, so every value equals Python's ``float()`` of the same text.
+rounded, so every value equals Python's ``float()`` of the same text (the parser of the RINEX kernels).
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from .rinex_kernels import parse_number
 
 # formatter codes (column 'kind' of the scan)
 K_OTHER, K_GGA, K_RMC, K_VTG, K_GST, K_GSA = 0, 1, 2, 3, 4, 5
@@ -22,7 +24,6 @@ MAX_FIELDS = 48
 # status, VTG's mode, GSA's system id); a sentence with fewer is garbled (a field lost would shift the rest)
 MIN_FIELDS = (0, 14, 11, 8, 8, 17)
 NCOL = 8                  # columns of a parsed table (module docstring of sinscli.io.nmea says what each holds)
-POW10 = 10.0 ** np.arange(23)     # exact powers of ten (10^22 is the largest exact double power of ten)
 # scan counters
 C_VALID, C_OTHER, C_CHECKSUM, C_GARBLED, C_FIRST_CHECKSUM, C_FIRST_GARBLED = 0, 1, 2, 3, 4, 5
 
@@ -61,19 +62,20 @@ def _kind(buf, i):
     return K_OTHER
 
 
-@njit(cache=True)
 def scan(buf):
+    """:func:`scan_kernel` with its arrays sized by the '$' bytes of ``buf`` (counted by numpy)."""
+    return scan_kernel(buf, int(np.count_nonzero(buf == 36)))
+
+
+@njit(cache=True)
+def scan_kernel(buf, nd):
     """Every checksummed sentence of a known formatter: ``(start, end, kind, counts)`` with ``start`` the index of
     its '$', ``end`` that of its '*', and ``counts`` (:data:`C_VALID` ...): valid sentences of a known formatter,
     of other formatters, sentences with a bad checksum, and truncated or garbled ones (a sentence head
     ``$ttsss,`` not followed by ``*hh`` within :data:`MAX_SENTENCE` printable bytes), then the byte offsets of the
     first bad-checksum and the first garbled sentence (-1: none).  A '$' not followed by a sentence head (five
-    printable characters and a comma) is binary data and not counted."""
+    printable characters and a comma) is binary data and not counted.  ``nd``: the number of '$' bytes."""
     n = buf.shape[0]
-    nd = 0
-    for i in range(n):
-        if buf[i] == 36:
-            nd += 1
     start = np.empty(nd, np.int64)
     end = np.empty(nd, np.int64)
     kind = np.empty(nd, np.int8)
@@ -167,39 +169,20 @@ def _fields(buf, s, e, pos):
 
 @njit(cache=True)
 def _number(buf, a, b):
-    """The decimal number in ``buf[a:b]``: ``(value, 1)``; ``(nan, 0)`` when empty; ``(nan, -1)`` when not a number
-    (a sign, digits with at most one '.', at most 17 significant digits)."""
-    if a >= b:
-        return np.nan, 0
-    sign = 1.0
-    j = a
-    if buf[j] == 45 or buf[j] == 43:
-        sign = -1.0 if buf[j] == 45 else 1.0
-        j += 1
-    mant = 0
-    frac = 0
-    sig = 0
-    ndigits = 0
-    point = False
-    while j < b:
-        c = buf[j]
-        if 48 <= c <= 57:
-            ndigits += 1
-            if mant != 0 or c != 48:
-                sig += 1
-                if sig > 17:
-                    return np.nan, -1
-            mant = mant * 10 + (c - 48)
-            if point:
-                frac += 1
-        elif c == 46 and not point:
-            point = True
-        else:
-            return np.nan, -1
-        j += 1
-    if ndigits == 0 or frac > 22:
-        return np.nan, -1
-    return sign * (mant / POW10[frac]), 1
+    """The decimal number in ``buf[a:b]`` (:func:`sinscli.io.rinex_kernels.parse_number`): ``(value, 1)``;
+    ``(nan, 0)`` when empty; ``(nan, -1)`` when not a number."""
+    v, st = parse_number(buf, a, b)
+    return (v if st == 1 else np.nan), st
+
+
+@njit(cache=True)
+def _numbers(buf, pos, row, col, field, n):
+    """Fields ``field .. field + n - 1`` as numbers into ``row[col:col + n]``; False when one is not a number."""
+    good = True
+    for i in range(n):
+        row[col + i], f = _number(buf, pos[field + i], pos[field + i + 1] - 1)
+        good = good and f >= 0
+    return good
 
 
 @njit(cache=True)
@@ -358,17 +341,10 @@ def parse(buf, start, end, want):
             good = good and nf >= MIN_FIELDS[K_GST]
             if good:
                 row[0], f0 = _time_of_day(buf, pos[0], pos[1] - 1)
-                row[1], f1 = _number(buf, pos[5], pos[6] - 1)
-                row[2], f2 = _number(buf, pos[6], pos[7] - 1)
-                row[3], f3 = _number(buf, pos[7], pos[8] - 1)
-                good = f0 >= 0 and f1 >= 0 and f2 >= 0 and f3 >= 0
+                good = f0 >= 0 and _numbers(buf, pos, row, 1, 5, 3)          # sigma lat, lon, alt
         elif want == K_GSA:
             good = good and nf >= MIN_FIELDS[K_GSA]
             if good:
-                row[0], f0 = _number(buf, pos[1], pos[2] - 1)
-                row[1], f1 = _number(buf, pos[14], pos[15] - 1)
-                row[2], f2 = _number(buf, pos[15], pos[16] - 1)
-                row[3], f3 = _number(buf, pos[16], pos[17] - 1)
-                good = f0 >= 0 and f1 >= 0 and f2 >= 0 and f3 >= 0
+                good = _numbers(buf, pos, row, 0, 1, 1) and _numbers(buf, pos, row, 1, 14, 3)    # fix; P/H/VDOP
         ok[k] = good
     return out, ok

@@ -57,11 +57,10 @@ def gps_minus_utc(unix_time):
 
 
 def days_from_ymd(ymd) -> np.ndarray:
-    """Days from 1970-01-01 of Gregorian dates written as integers ``yyyymmdd`` (numpy's calendar)."""
+    """Days from 1970-01-01 of Gregorian dates written as integers ``yyyymmdd``."""
+    from ..gnss.timesys import days_from_civil_py   # its module loads numba: only when a receiver log is dated
     ymd = np.asarray(ymd, dtype=np.int64)
-    y, m, d = ymd // 10000, (ymd // 100) % 100, ymd % 100
-    month = (y - 1970).astype("datetime64[Y]").astype("datetime64[M]") + (m - 1).astype("timedelta64[M]")
-    return (month.astype("datetime64[D]") + (d - 1).astype("timedelta64[D]")).astype(np.int64)
+    return days_from_civil_py(ymd // 10000, (ymd // 100) % 100, ymd % 100)
 
 
 def from_utc(t_utc, system: str) -> np.ndarray:

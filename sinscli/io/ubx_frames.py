@@ -62,7 +62,8 @@ def find_frames(buf: np.ndarray, cls: int, mid: int, length: int):
     checksum fails is skipped and counted; so is one cut by the end of the file.  A header announcing another
     length is not this message (a later protocol version, or binary data that happens to look like one)."""
     n = buf.shape[0]
-    if n < 8:
+    raw = buf.base if isinstance(buf.base, bytes) and len(buf.base) == n else None
+    if n < 8 or (raw is not None and raw.find(bytes([0xB5, 0x62, cls, mid])) < 0):     # none (memchr-fast)
         return np.zeros((0, length), np.uint8), np.zeros(0, np.int64), 0, 0
     k = np.flatnonzero(buf[:-5] == 0xB5)                 # few in text; then the rest of the header
     k = k[(buf[k + 1] == 0x62) & (buf[k + 2] == cls) & (buf[k + 3] == mid)]
