@@ -552,3 +552,21 @@ def test_ros_twist_with_unknown_vertical(tmp_path):
     g = ros.read_gnss(tmp_path / "g.bag", vel_topic="/fix_velocity")
     assert np.allclose(g.vel_n[:, :2], [[1.0, 2.0]] * n) and np.isnan(g.vel_n[:, 2]).all()
     assert np.allclose(g.std_vel[:, :2], 0.1) and np.isnan(g.std_vel[:, 2]).all()
+
+
+def test_receiver_log_in_the_wrong_time_system_names_imu_time_system(tmp_path):
+    from sinscli.io.imu_csv import write_imu_rates_csv
+    n = 2001
+    t = T0 + np.arange(n) / 50.0                                  # 40 s: the spans overlap 18 s apart
+    write_imu_rates_csv(tmp_path / "imu.csv", t, np.zeros((n, 3)), np.tile([0.0, 0.0, 9.79], (n, 1)))
+    g = GnssLog(T0 + np.arange(41.0), np.full(41, 30.0), np.full(41, 114.0), np.full(41, 50.0))
+    write_nmea(tmp_path / "g.nmea", g, g.time)                   # UTC, as the IMU
+    (tmp_path / "init.yaml").write_text(f"time: {T0}\nlat: 30.0\nlon: 114.0\nheight: 50.0\nvel_e: 0\nvel_n: 0\n"
+                                        f"vel_u: 0\nroll: 0\npitch: 0\nheading: 0\n")
+    (tmp_path / "c.yaml").write_text("imu:\n  time_system: gps\n")
+    r = CliRunner().invoke(main, ["navigate", str(tmp_path / "imu.csv"), "--gnss", str(tmp_path / "g.nmea"), "--init",
+                                  str(tmp_path / "init.yaml"), "--config", str(tmp_path / "c.yaml"), "-o",
+                                  str(tmp_path / "out.csv")])
+    assert r.exit_code == 2 and not (tmp_path / "out.csv").exists()
+    line = r.output.strip().splitlines()[-1]
+    assert "18 s ahead" in line and line.endswith("imu.time_system: utc (now gps)")
