@@ -22,9 +22,9 @@ COMMA2K19 = "comma2k19_ex1"
 
 
 def comma2k19_dir() -> Path | None:
-    """The comma2k19 example segment: ``$SINS_REALDATA/comma2k19_ex1``, else ``tests/data/comma2k19_ex1``, else
-    ``/work/shared/data/comma2k19_ex1`` (the team's copy); None when none exists."""
-    for base in (os.environ.get("SINS_REALDATA"), Path(__file__).parent / "data", "/work/shared/data"):
+    """The comma2k19 example segment: ``$SINS_REALDATA/comma2k19_ex1``, else ``tests/data/comma2k19_ex1``; None
+    when neither exists."""
+    for base in (os.environ.get("SINS_REALDATA"), Path(__file__).parent / "data"):
         if base and (Path(base) / COMMA2K19 / "processed_log").is_dir():
             return Path(base) / COMMA2K19
     return None
