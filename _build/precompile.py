@@ -50,7 +50,8 @@ LANES = [
      ["allan", IMU, "--end", "60", "-o", "allan"],
      ["simulate", str(SRC / "configs/scenarios/vehicle_drive.yaml"), "--duration", "30", "--raw-gnss",
       str(SRC / "configs/raw_gnss/urban.yaml"), "-o", "sim"],
-     ["gnss", "spp", "sim/obs.rnx", "--nav", "sim/nav.rnx", "-o", "spp.csv"]],
+     ["gnss", "spp", "sim/obs.rnx", "--nav", "sim/nav.rnx", "-o", "spp.csv"],
+     ["convert", str(SRC / "_build/receiver_sample.nmea"), "-o", "nmea.csv"]],     # the NMEA kernels
 ]
 
 

@@ -11,6 +11,7 @@ sections belong to their stages, which validate them (:mod:`sinscli.align.option
 from __future__ import annotations
 
 import copy
+import datetime
 import math
 import warnings
 from dataclasses import dataclass, field, fields, replace
@@ -96,6 +97,20 @@ def _limit(positive=True):
     return check
 
 
+def _date(src, key, v):
+    """A UTC calendar date ``YYYY-MM-DD`` (YAML reads it unquoted as a date) or null; kept as its ISO text."""
+    if v is None:
+        return None
+    if isinstance(v, datetime.date) and not isinstance(v, datetime.datetime):
+        return v.isoformat()
+    if isinstance(v, str) and len(v.strip()) == 10:
+        try:
+            return datetime.date.fromisoformat(v.strip()).isoformat()
+        except ValueError:
+            pass
+    sc.expected(src, key, "a UTC date YYYY-MM-DD (the day of the GNSS log's first fix) or null", v)
+
+
 def _text(src, key, v):
     return sc.optional_text(src, key, v)
 
@@ -123,6 +138,7 @@ SCHEMA = {
                                                     # auto (estimated from the log by navigate --gnss)
         "static_start": (False, sc.boolean),        # the log starts at rest (the specific-force check)
         "time_offset": (0.0, _time_offset),         # s added to every IMU time on reading
+        "time_system": ("utc", _ch(cv.TIME_SYSTEMS)),    # the time NMEA and UBX receiver times are turned into
     },
     "gnss": {
         "columns": ({}, _columns(GNSS_NAMES)),
@@ -131,6 +147,7 @@ SCHEMA = {
         "time_offset": (0.0, _time_offset),             # s added to every GNSS time on reading
         "frame": ("enu", _ch(FRAMES)),                  # velocity columns (NED: vel_d, std_d, std_vel_d)
         "units": ({}, _angle_units),                    # lat, lon in deg | rad
+        "date": (None, _date),                          # UTC date of an NMEA log without RMC sentences
     },
     "init": {                                   # the --init file (init YAML or trajectory)
         "frame": ("enu", _ch(FRAMES)),
@@ -189,6 +206,7 @@ class ImuSection:
     mounting: object = None
     static_start: bool = False
     time_offset: float = 0.0
+    time_system: str = "utc"
 
 
 @dataclass(frozen=True)
@@ -199,6 +217,7 @@ class GnssSection:
     time_offset: float = 0.0
     frame: str = "enu"
     units: sc.FrozenMap = field(default_factory=lambda: sc.frozen({"angle": "deg"}))
+    date: str | None = None
 
 
 @dataclass(frozen=True)

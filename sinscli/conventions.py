@@ -20,6 +20,7 @@ EULER_INTEGRATORS = ("euler", "rk4")                         # navigation.euler_
 ON_SINGULARITY = ("continue", "stop")                        # navigation.on_singularity, --on-singularity
 ROS_TIMES = ("header", "log")                                # ros.time, sins convert --time
 ODOMETRY_FRAMES = ("auto", "body", "vehicle", "sensor")      # odometry.frame
+TIME_SYSTEMS = ("utc", "gps")          # imu.time_system: UTC-based UNIX time, or GPS time read as POSIX seconds
 ALIGN_METHODS = ("static", "inertial", "gnss-inertial", "kf")    # align.method, --method, --align
 ALIGN_EPOCHS = ("end", "start")                              # align.epoch, --epoch
 FUSION_STATES = (15, 21)                                     # fusion.states

@@ -232,7 +232,7 @@ def test_output_problems(data, tmp_path):
     refused(["navigate", data / "imu.csv", "--init", INIT, "-o", tmp_path / "adir"], "adir: output is a directory")
     (tmp_path / "afile").write_text("x")
     refused(["navigate", data / "imu.csv", "--init", INIT, "-o", tmp_path / "afile" / "n.csv"], "is a file, not a folder")
-    refused(["convert", SAMPLE / "imu.csv", "-o", tmp_path / "afile"], "convert: Invalid value for '-o'")
+    refused(["convert", SAMPLE / "imu.csv", "-o", tmp_path / "afile"], "afile: output is a file; give a folder name")
     refused(["compare", "--truth", SAMPLE / "truth.csv", SAMPLE / "truth.csv", "-o", tmp_path / "afile"], "afile")
     refused(["navigate", data / "imu.csv", "--init", INIT, "-o", tmp_path / "n.xyz"], "unknown output format '.xyz'")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["adir", "afile"] and not any((tmp_path / "adir").iterdir())

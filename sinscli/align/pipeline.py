@@ -200,12 +200,17 @@ def gnss_velocity(gnss: GnssLog):
     """ENU velocity at the fixes, m/s (n, 3), and its 1-sigma (n, 3).
 
     From the velocity columns when present, else central differences of the
-    positions (seed 001 eq 13).  The 1-sigma is the file's ``std_vel``, else
+    positions (seed 001 eq 13); a horizontal-only velocity (speed and course: up NaN) takes its up
+    component from the positions.  The 1-sigma is the file's ``std_vel``, else
     the scatter of the velocity about its neighbours' mean.
     """
     t = gnss.time
     if gnss.vel_n is not None and np.isfinite(gnss.vel_n).all():
         v = np.asarray(gnss.vel_n, dtype=float)
+    elif gnss.vel_n is not None and np.isfinite(gnss.vel_n[:, :2]).all():
+        v = np.asarray(gnss.vel_n, dtype=float).copy()
+        up = np.isnan(v[:, 2])
+        v[up, 2] = np.gradient(gnss.height, t)[up] if len(t) > 1 else 0.0
     else:
         lat = np.radians(gnss.lat)
         lon = np.radians(gnss.lon)
@@ -224,6 +229,8 @@ def gnss_velocity(gnss: GnssLog):
         else:
             sig = np.full(3, 0.1)
         s = np.broadcast_to(sig, v.shape).copy()
+        if gnss.std_vel is not None:                # the file's where it has one (a horizontal-only sigma)
+            s = np.where(np.isfinite(gnss.std_vel) & (gnss.std_vel > 0), gnss.std_vel, s)
     return v, s
 
 

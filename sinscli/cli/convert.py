@@ -1,4 +1,6 @@
-"""``sins convert LOG -o DIR``: a ROS bag / MCAP log to ``imu.csv`` (increments), ``gnss.csv`` and ``odom.csv``."""
+"""``sins convert LOG -o DIR``: a ROS bag / MCAP log to ``imu.csv`` (increments), ``gnss.csv`` and ``odom.csv``; a
+UBX log to RINEX (``obs.rnx``, ``nav.rnx``); ``sins convert FILE.nmea -o gnss.csv`` and ``sins convert LOG.ubx
+--solution -o gnss.csv``: a receiver's fixes to the GNSS CSV."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -17,8 +19,15 @@ from .base import log, main, progress, quiet_option
 
 @main.command("convert")
 @click.argument("log_path", metavar="LOG", type=click.Path(path_type=Path))
-@click.option("-o", "--output", "outdir", required=True, type=click.Path(path_type=Path, file_okay=False),
-              help="Output directory (created): imu.csv, gnss.csv and odom.csv.")
+@click.option("-o", "--output", "outdir", required=True, type=click.Path(path_type=Path),
+              help="Output directory (created): imu.csv, gnss.csv and odom.csv (a UBX log: obs.rnx, nav.rnx); for "
+                   "an NMEA log or a UBX log with --solution the GNSS CSV file to write.")
+@click.option("--solution", is_flag=True,
+              help="UBX log: its receiver's own solutions (NAV-PVT, with NAV-HPPOSLLH) to the GNSS CSV -o FILE, "
+                   "not its raw observations to RINEX.")
+@click.option("--config", "config_path", type=click.Path(path_type=Path), default=None,
+              help="NMEA / UBX solutions: the navigation config whose imu.time_system (utc | gps) the times are "
+                   "written in, and gnss.date (the UTC date of an NMEA log without RMC).")
 @click.option("--imu-topic", default=None, help="sensor_msgs/Imu topic (default: the only one).")
 @click.option("--gnss-topic", default=None, help="sensor_msgs/NavSatFix topic (default: the only one).")
 @click.option("--vel-topic", default=None,
@@ -34,20 +43,33 @@ from .base import log, main, progress, quiet_option
               help="Bridge IMU gaps longer than 5 sample intervals with one increment each (as sins navigate "
                    "--allow-gaps; without it such a gap is refused, naming it).")
 @quiet_option
-def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, time_source, start, end, allow_gaps,
-                quiet):
+def convert_cmd(log_path, outdir, solution, config_path, imu_topic, gnss_topic, vel_topic, odom_topic, time_source, start,
+                end, allow_gaps, quiet):
     """Convert a ROS 1 bag, ROS 2 bag (directory or .db3) or MCAP LOG into docs/formats.md CSV files:
     DIR/imu.csv (increments, axes as in the messages), DIR/gnss.csv (when the log has a NavSatFix
     topic) and DIR/odom.csv (body velocity, when it has one nav_msgs/Odometry topic or --odom-topic;
     docs/io_formats.md).  Everything is read and checked before anything is written.
 
+    An NMEA log (GGA, RMC, VTG, GST, GSA) or, with --solution, a UBX log's NAV-PVT solutions go to the GNSS
+    CSV of docs/formats.md at -o FILE (times in the config's imu.time_system).
+
     \b
-    Example:
+    Examples:
       sins convert husky_imu_gps.bag -o husky/ --time header
+      sins convert drive.nmea -o gnss.csv
+      sins convert f9p.ubx --solution -o gnss.csv
     """
-    prepare_output(outdir, directory=True)
     from ..io.raw_summary import convert_ubx, raw_kind   # loaded when the command runs: --help stays light
-    if raw_kind(log_path) == "ubx":                 # u-blox log -> RINEX 3.04 obs/nav (docs/raw_gnss.md)
+    kind = raw_kind(log_path)
+    if kind == "nmea" or (kind == "ubx" and solution):  # a receiver's fixes -> gnss.csv
+        _convert_receiver(log_path, outdir, config_path, quiet)
+        return
+    if solution:
+        raise SinsError(f"{log_path}: --solution is for a u-blox UBX log (its NAV-PVT solutions); this is not one")
+    if config_path is not None:
+        raise SinsError("--config is for an NMEA log or a UBX log with --solution (imu.time_system, gnss.date)")
+    prepare_output(outdir, directory=True)
+    if kind == "ubx":                 # u-blox log -> RINEX 3.04 obs/nav (docs/raw_gnss.md)
         paths, obs, nav = convert_ubx(log_path, outdir)
         click.echo(f"wrote {', '.join(str(p) for p in paths)}: {len(obs)} epochs, {len(nav)} ephemerides from "
                    f"{log_path} (RINEX 3.04, read back and checked)", err=True)
@@ -106,3 +128,19 @@ def convert_cmd(log_path, outdir, imu_topic, gnss_topic, vel_topic, odom_topic, 
                 f"the axes of frame '{frame}' (a vehicle frame, x forward, y left, z up: odometry.frame: vehicle)")
         click.echo(f"wrote {outdir / 'odom.csv'}: {len(odom.time)} body velocities from {odom.source}, in {axes}",
                    err=True)
+
+
+def _convert_receiver(log_path, output, config_path, quiet) -> None:
+    """An NMEA log or a UBX log's NAV-PVT solutions to the GNSS CSV ``output``."""
+    from ..config import load_config              # loaded when the command runs: --help stays light
+    from ..io.receiver import read_receiver_log   # loaded when the command runs: --help stays light
+    prepare_output(output)
+    cfg = load_config(config_path)
+    gnss = read_receiver_log(log_path, cfg.imu.time_system, cfg.gnss.date, cfg.limits)
+    write_gnss_csv(output, gnss)
+    commit_outputs()
+    if not quiet:
+        vel = ("no velocity" if gnss.vel_n is None else
+               "horizontal velocity (vel_e, vel_n)" if np.isnan(gnss.vel_n[:, 2]).all() else "ENU velocity")
+        click.echo(f"wrote {output}: {len(gnss)} fixes from {log_path} with {vel}; times in "
+                   f"{cfg.imu.time_system.upper()} (imu.time_system)", err=True)

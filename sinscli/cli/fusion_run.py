@@ -24,6 +24,7 @@ from ..io.imu_csv import apply_mounting
 from ..io.init_state import align_estimates, read_init
 from ..io.innovations import write_innovations
 from ..io.readers import _is_log, read_body_velocity, read_gnss, read_imu
+from ..io.receiver import is_receiver_log
 from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
 from ..nav.earth import gravity, radii_py
 from ..nav.pipeline import concat
@@ -80,6 +81,10 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         if not offset and raw is not None:
             raise SinsError(f"{exc} (raw observations are stamped in GPS time: --time-offset or gnss.time_offset "
                             f"maps them onto the IMU's clock)") from None
+        if raw is None and "leap seconds" in str(exc) and is_receiver_log(gnss_path):
+            other = "utc" if cfg.imu.time_system == "gps" else "gps"
+            raise SinsError(f"{exc}; for an NMEA or UBX log say the IMU's time system instead: imu.time_system: "
+                            f"{other} (now {cfg.imu.time_system})") from None
         if not offset:
             raise
         raise SinsError(f"{exc} (after the GNSS time offset of {offset:g} s, --time-offset or gnss.time_offset)") \

@@ -21,8 +21,12 @@ from .base import log, main, progress, quiet_option
 @click.option("--raw-gnss", "raw_gnss", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Also write raw GNSS observations (obs.rnx, nav.rnx, gnss_truth.csv) of the antenna's "
                    "trajectory with the settings of this YAML (docs/raw_gnss.md).")
+@click.option("--gnss-format", "gnss_formats", multiple=True, type=click.Choice(["nmea", "ubx"]),
+              help="Also write the GNSS fixes as a receiver writes them: nmea (gnss.nmea: GGA, RMC, GST) or ubx "
+                   "(gnss.ubx: NAV-PVT, NAV-HPPOSLLH), with the formats' rounding; repeat for both. Needs an "
+                   "absolute start.time (UNIX time, UTC).")
 @quiet_option
-def simulate(scenario, outdir, seed, perfect, duration, quiet, raw_gnss):
+def simulate(scenario, outdir, seed, perfect, duration, quiet, raw_gnss, gnss_formats):
     """Simulate SCENARIO.yaml: IMU increments, GNSS fixes and the exact truth (see docs/simulate.md).
 
     \b
@@ -46,9 +50,15 @@ def simulate(scenario, outdir, seed, perfect, duration, quiet, raw_gnss):
             prepare_output(outdir / name)
     prepared = prepare(scenario, perfect, duration)   # every check happens before anything is written
     sc = prepared.scenario
+    gnss_formats = tuple(dict.fromkeys(gnss_formats))
+    if gnss_formats:
+        from ..sim.run import RECEIVER_FILES, check_receiver_formats   # the command's modules load when it runs
+        check_receiver_formats(sc, gnss_formats)
+        for fmt in gnss_formats:
+            prepare_output(outdir / RECEIVER_FILES[fmt])
     with progress(prepared.n_imu, "simulate", quiet) as bar:
         result = run_simulation(prepared, seed=seed, perfect=perfect, progress=bar.update)
-    paths = write_sim(result, outdir)
+    paths = write_sim(result, outdir, gnss_formats)
     if raw_cfg is not None:
         from ..sim.raw_gnss import simulate_from_result, write_raw   # only with --raw-gnss
         raw = simulate_from_result(result, raw_cfg, seed if seed is not None else result.seed)

@@ -756,6 +756,8 @@ def _model(row, kind, st, fs, cv, nx, H, z, r, sat):
     elif kind == MT_GNSS_VEL:
         if not head_known or fs[F_HAVE_W] == 0.0:
             return 0, 0, 0, 1, 2
+        if np.isnan(row[RW_Z + 2]):
+            m = 2                               # horizontal only (speed and course): east and north rows
         w = (fs[F_W], fs[F_W + 1], fs[F_W + 2])
         v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
         g = gravity(np.sin(lat), h)

@@ -152,7 +152,8 @@ def estimate_mounting(imu: ImuLog, gnss: GnssLog, conv: int, fopts, span: float 
     speed = np.hypot(v[:, 0], v[:, 1])
     # sin of the road's slope: gravity along the forward axis; from GNSS velocity only (a height differenced
     # over seconds is too noisy: the slope then stays in the fitted bias, its changes in the residuals)
-    slope = v[:, 2] / np.maximum(speed, 1e-3) if gnss.vel_n is not None else np.zeros(len(speed))
+    vertical = gnss.vel_n is not None and bool(np.isfinite(gnss.vel_n[:, 2]).all())    # not speed and course only
+    slope = v[:, 2] / np.maximum(speed, 1e-3) if vertical else np.zeros(len(speed))
     edges = np.concatenate([[tg[0] - 0.5 * span], tg + 0.5 * span])
     cum_dv = np.vstack([np.zeros((1, 3)), np.cumsum(imu.dvel_b, axis=0)])
     cum_th = np.vstack([np.zeros((1, 3)), np.cumsum(imu.dtheta_b, axis=0)])

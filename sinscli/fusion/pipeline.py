@@ -158,7 +158,9 @@ def gnss_rows(gnss: GnssLog, fopts: FusionOptions, t_min: float) -> np.ndarray:
 
 
 def velocity_sigma(gnss: GnssLog, fopts: FusionOptions) -> np.ndarray:
-    """``(N, 3)`` velocity 1-sigma (m/s, ENU): the fix's own where positive and finite, else the config's."""
+    """``(N, 3)`` velocity 1-sigma (m/s, ENU): the fix's own where positive and finite, else the config's.
+    A horizontal-only velocity (NaN up, kept NaN in its measurement row) is applied as east and north alone
+    (:func:`sinscli.fusion.kernel._model`)."""
     n = len(gnss)
     sv = gnss.std_vel if gnss.std_vel is not None else np.tile(fopts.gnss_vel_sigma, (n, 1))
     return np.where(np.isfinite(sv) & (sv > 0), sv, fopts.gnss_vel_sigma[None, :])

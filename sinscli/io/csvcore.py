@@ -147,12 +147,13 @@ def read_numeric_columns(path, columns: dict[str, str]) -> dict[str, np.ndarray]
 
 
 def read_mapped_columns(path, section, names: list[str], required: list[str], groups: list[list[str]],
-                        unknown_hint: str, missing_hint: str) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+                        unknown_hint: str, missing_hint: str, horizontal=()) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     """Read a CSV whose columns are ``names`` (or config-mapped to them): ``(our name -> array, mapping)``.
 
     ``section`` is the config's section, with ``columns`` (our name -> file column) and ``ignore_columns``.
     Refused naming the file: unknown columns (``unknown_hint`` says what is expected), missing required
-    ones (``missing_hint``), a group of three (e.g. std_x, std_y, std_z) given in part; then every value
+    ones (``missing_hint``), a group of three (e.g. std_x, std_y, std_z) given in part (the groups named in
+    ``horizontal`` may also come as their first two columns: east and north without up); then every value
     as in :func:`read_numeric_columns`.
     """
     path = Path(path)
@@ -169,8 +170,9 @@ def read_mapped_columns(path, section, names: list[str], required: list[str], gr
         raise SinsError(f"{path}: missing column(s) {', '.join(missing)}; {missing_hint}")
     for group in groups:
         present = [c for c in group if c in known]
-        if present and len(present) != len(group):
-            raise SinsError(f"{path}: has {', '.join(present)} but not all of {', '.join(group)}")
+        if present and len(present) != len(group) and not (group in horizontal and present == group[:2]):
+            pair = f" (or {', '.join(group[:2])} alone: horizontal only)" if group in horizontal else ""
+            raise SinsError(f"{path}: has {', '.join(present)} but not all of {', '.join(group)}{pair}")
     wanted = [c for c in names if c in known]
     return read_numeric_columns(path, {c: mapping.get(c, c) for c in wanted}), mapping
 

@@ -25,10 +25,16 @@ REQUIRED = ["time", "lat", "lon", "height"]
 POLE_USE = "; such fixes cannot aid the ENU navigation: leave them out of the GNSS log"
 GROUPS = {"vel_n": ["vel_e", "vel_n", "vel_u"], "std_pos": ["std_e", "std_n", "std_u"],
           "std_vel": ["std_vel_e", "std_vel_n", "std_vel_u"]}
+# groups that may come horizontal only (east, north; speed and course as receivers give them): the vertical
+# component is NaN in the GnssLog, and the filter uses the east and north components alone
+HORIZONTAL = [GROUPS["vel_n"], GROUPS["std_vel"]]
 
 
 def read_gnss_csv(path, cfg: GnssSection | None = None, limits: Limits | None = None) -> GnssLog:
     """Read ``gnss.csv``: required time, lat, lon (deg), height (m); optional velocity and sigmas.
+
+    The velocity (and its sigma) may be horizontal only, ``vel_e, vel_n`` without ``vel_u``: its vertical
+    column of the GnssLog is then NaN.
 
     ``cfg`` (the config's ``gnss`` section) may say the file is NED or in radians (:mod:`sinscli.frames`).
 
@@ -48,7 +54,7 @@ def read_gnss_csv(path, cfg: GnssSection | None = None, limits: Limits | None = 
     data, mapping = read_mapped_columns(
         path, section, GNSS_NAMES, REQUIRED, list(GROUPS.values()),
         f"expected {', '.join(GNSS_NAMES)} (map other names with the config's gnss.columns)",
-        "expected time, lat, lon, height")
+        "expected time, lat, lon, height", horizontal=HORIZONTAL)
     names = {c: mapping.get(c, c) for c in data}
     data = to_enu(data, frame, to_deg)
     limits_mod.check_time(path, data["time"], lim, names["time"], 2)
@@ -57,24 +63,33 @@ def read_gnss_csv(path, cfg: GnssSection | None = None, limits: Limits | None = 
                               (names["lat"], names["lon"], names["height"]), 2)
     limits_mod.check_near_pole(path, data["lat"], names["lat"], 2, use=POLE_USE)
     if "vel_e" in data:
-        limits_mod.check_velocity(path, np.column_stack([data[c] for c in GROUPS["vel_n"]]), lim,
-                                  [names[c] for c in GROUPS["vel_n"]], 2)
+        have = [c for c in GROUPS["vel_n"] if c in data]
+        limits_mod.check_velocity(path, np.column_stack([data[c] for c in have]), lim, [names[c] for c in have], 2)
     for c in GROUPS["std_pos"] + GROUPS["std_vel"]:
         if c in data:
             limits_mod.check_sigma(path, data[c], names[c], 2)
     out = GnssLog(data["time"], data["lat"], data["lon"], data["height"], source=str(path))
+    n = len(out)
     for name, group in GROUPS.items():
         if group[0] in data:
-            setattr(out, name, np.column_stack([data[c] for c in group]))
+            setattr(out, name, np.column_stack([data.get(c, np.full(n, np.nan)) for c in group]))
     return out
 
 
+def horizontal_only(arr) -> bool:
+    """An (N, 3) velocity or velocity sigma whose east and north are finite and whose up is NaN throughout."""
+    return arr is not None and len(arr) > 0 and bool(np.isnan(arr[:, 2]).all() and np.isfinite(arr[:, :2]).all())
+
+
 def write_gnss_csv(path, gnss: GnssLog) -> None:
-    """Write ``gnss.csv`` atomically with exact floats (optional groups when present)."""
+    """Write ``gnss.csv`` atomically with exact floats (optional groups when present; a horizontal-only
+    velocity or velocity sigma as its east and north columns)."""
     lat, lon = output_lon_lat(path, gnss.lat, gnss.lon, gnss.time)      # lon in [-180, 180), lat within +-90
     data = {"time": gnss.time, "lat": lat, "lon": lon, "height": gnss.height}
     for name, group in GROUPS.items():
         arr = getattr(gnss, name)
+        if group in HORIZONTAL and horizontal_only(arr):
+            group, arr = group[:2], arr[:, :2]
         if arr is not None and np.isnan(arr).any():
             log.warning("%s: %d of %d fixes have no %s; the %s columns are left out", path,
                         int(np.isnan(arr).any(axis=1).sum()), len(gnss), name, ", ".join(group))

@@ -9,29 +9,43 @@ from ..errors import SinsError
 from ..gnss.signals import SYS_CHARS, SYS_NAMES
 from ..gnss.timesys import epoch_text
 from .atomic import staged_dir
+from .receiver import is_nmea, read_bytes
+from .ubx_frames import has_message, is_ubx
+from .ubx_solution import summary as pvt_summary
 
 
 def raw_kind(path) -> str | None:
-    """``'ubx'``, ``'obs'``, ``'nav'`` or None."""
+    """``'ubx'``, ``'nmea'``, ``'obs'``, ``'nav'`` or None."""
     from .rinex import is_rinex  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
-    from .ubx import is_ubx  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
     p = Path(path)
     if not p.is_file():
         return None
     if is_ubx(p):
         return "ubx"
+    if is_nmea(p):
+        return "nmea"
     return is_rinex(p)
 
 
 def raw_summary(path) -> dict:
-    """What a raw GNSS file holds: epochs, span, interval, satellites and signals per system, ephemerides."""
+    """What a raw GNSS file holds: epochs, span, interval, satellites and signals per system, ephemerides; for a
+    UBX log also the receiver's own solutions (NAV-PVT), for an NMEA log its sentences and fix qualities."""
     from .rinex import read_nav, read_obs  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
     kind = raw_kind(path)
-    nav = None
+    nav = obs = None
+    solutions = None
+    if kind == "nmea":
+        from .nmea import summary as nmea_summary     # the NMEA kernels only for an NMEA log
+        _, buf = read_bytes(path, "NMEA log")
+        return {"path": str(path), "format": "NMEA 0183 log", "nmea": nmea_summary(buf)}
     if kind == "ubx":
         from .ubx import read_ubx  # the RINEX/UBX readers (numba kernels, pyubx2) only for a raw GNSS log
-        obs, nav = read_ubx(path)
-        fmt = "u-blox UBX log (RXM-RAWX, RXM-SFRBX)"
+        _, buf = read_bytes(path, "UBX log")
+        solutions = pvt_summary(buf)
+        if has_message(buf, 0x02, 0x15) or solutions is None:
+            obs, nav = read_ubx(path)
+        fmt = "u-blox UBX log (" + ", ".join(x for x, have in (("NAV-PVT", solutions is not None),
+                                                                ("RXM-RAWX, RXM-SFRBX", obs is not None)) if have) + ")"
     elif kind == "obs":
         obs = read_obs(path)
         fmt = f"RINEX {obs.header.get('version', 3):g} observations"
@@ -42,6 +56,8 @@ def raw_summary(path) -> dict:
     else:
         raise SinsError(f"{path}: not a RINEX or UBX file")
     s = {"path": str(path), "format": fmt}
+    if solutions is not None:
+        s["solutions"] = solutions
     if obs is not None:
         dt = np.diff(obs.time)
         s.update(epochs=len(obs), start=epoch_text(obs.time[0]) if len(obs) else None,
@@ -63,8 +79,35 @@ def raw_summary(path) -> dict:
     return s
 
 
+def _counts(d: dict) -> str:
+    return ", ".join(f"{k} {v:,}" for k, v in d.items()) or "none"
+
+
 def format_raw_summary(s: dict) -> str:
     lines = [f"{s['path']}: {s['format']}"]
+    if s.get("nmea") is not None:
+        m = s["nmea"]
+        lines.append(f"sentences: {_counts(m['sentences'])}; {m['other_sentences']:,} of other types; damaged: "
+                     f"{m['bad_checksum']:,} with a bad checksum, {m['garbled']:,} truncated or garbled")
+        lines.append(f"GGA epochs per quality: {_counts(m['qualities'])}; rate "
+                     f"{'-' if m['rate_hz'] is None else format(m['rate_hz'], '.3g')} Hz; first RMC date "
+                     f"{m['first_date'] or '- (none: give gnss.date)'}; geoid separation "
+                     f"{'given' if m['geoid_separation'] else 'absent (heights above mean sea level)'}")
+        lines.append("use: sins navigate IMU --gnss LOG, sins convert LOG -o gnss.csv")
+    elif "nmea" in s:
+        lines.append("no NMEA sentence")
+    if "solutions" in s:
+        m = s["solutions"]
+        span = (f" from {epoch_text(m['start_gps'])} to {epoch_text(m['end_gps'])}" if m["start_gps"] is not None
+                else "")
+        rate = "-" if m["rate_hz"] is None else format(m["rate_hz"], ".3g")
+        lines.append(f"receiver solutions (NAV-PVT): {m['messages']:,} epochs, {m['usable']:,} usable, {rate} Hz"
+                     f"{span}")
+        lines.append(f"  fix types: {_counts(m['fix_types'])}")
+        lines.append(f"  carrier solution (usable epochs): {_counts(m['carrier_solution'])}; differential "
+                     f"{m['differential']:,}; NAV-HPPOSLLH {m['hpposllh']:,}"
+                     + (f"; {m['damaged']:,} damaged NAV-PVT frames" if m["damaged"] else ""))
+        lines.append("  use: sins navigate IMU --gnss LOG (these solutions), sins convert LOG --solution -o gnss.csv")
     if "epochs" in s:
         lines.append(f"{s['epochs']} epochs from {s['start']} to {s['end']} ({s['duration']:.1f} s), interval "
                      f"{s['interval'] if s['interval'] is not None else '-'} s, {s['gaps']} gaps")

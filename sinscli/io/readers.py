@@ -10,6 +10,7 @@ from ..types import BodyVelLog, GnssLog, ImuLog
 from .body_vel_csv import read_body_velocity_csv
 from .gnss_csv import read_gnss_csv
 from .imu_csv import apply_mounting, concat_imu, iter_imu_csv
+from .receiver import is_receiver_log, read_receiver_log
 
 
 def _is_log(path) -> bool:
@@ -51,7 +52,8 @@ def read_imu(path, cfg: Config, allow_gaps: bool = False) -> ImuLog:
 
 
 def read_gnss(path, cfg: Config) -> GnssLog:
-    """A GNSS log from a CSV file or a ROS/MCAP log; ``gnss.time_offset`` (s) is added to its times."""
+    """A GNSS log from a CSV file, a ROS/MCAP log, or a receiver's log (u-blox UBX NAV-PVT, NMEA 0183; its times
+    in the IMU's ``imu.time_system``); ``gnss.time_offset`` (s) is added to its times."""
     path = Path(path)
     if not path.exists():
         raise SinsError(f"{path}: file not found")
@@ -60,6 +62,8 @@ def read_gnss(path, cfg: Config) -> GnssLog:
         ros = cfg.ros
         gnss = read_ros_gnss(path, topic=ros.gnss_topic, vel_topic=ros.vel_topic, time_source=ros.time,
                              limits=cfg.limits)
+    elif is_receiver_log(path):
+        gnss = read_receiver_log(path, cfg.imu.time_system, cfg.gnss.date, cfg.limits)
     else:
         gnss = read_gnss_csv(path, cfg.gnss, limits=cfg.limits)
     offset = cfg.gnss.time_offset

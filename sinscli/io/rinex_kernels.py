@@ -9,7 +9,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+
 from ..gnss.timesys import GPS_EPOCH_DAYS, days_from_civil
+
+POW10 = 10.0 ** np.arange(23)     # 10^0 .. 10^22: every one exact in float64
 
 NL = 10
 CR = 13
@@ -81,7 +84,9 @@ def parse_number(buf, a, b):
     if i < b:
         return 0.0, -1
     p = dec - exp
-    if p >= 0:
+    if 0 <= p <= 22:
+        v = mant / POW10[p]                   # exact powers of ten from a table: pow() is slow per field
+    elif p >= 0:
         v = mant / 10.0 ** p
     else:
         v = mant * 10.0 ** (-p)

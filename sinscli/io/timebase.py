@@ -19,29 +19,83 @@ constant shift repairs it, the shift.
 from __future__ import annotations
 
 import calendar
+import functools
+from importlib import resources
+
+import numpy as np
+
+from .. import conventions as cv
+from ..inputs import parse_yaml
 
 GPS_EPOCH_UNIX = 315964800.0     # 1980-01-06 00:00:00 UTC in UNIX seconds
 WEEK = 604800.0                  # s in a GPS week
 ABSOLUTE_MIN = 1.0e8             # s: an absolute epoch (1973 onwards in UNIX time)
 ABSOLUTE_MAX = 4.0e9             # s: beyond 2096 in UNIX time: not seconds
 
-# (UTC date from which GPS - UTC equals n seconds, n): IERS Bulletin C / IS-GPS-200
-_LEAPS = [((1981, 7, 1), 1), ((1982, 7, 1), 2), ((1983, 7, 1), 3), ((1985, 7, 1), 4), ((1988, 1, 1), 5),
-          ((1990, 1, 1), 6), ((1991, 1, 1), 7), ((1992, 7, 1), 8), ((1993, 7, 1), 9), ((1994, 7, 1), 10),
-          ((1996, 1, 1), 11), ((1997, 7, 1), 12), ((1999, 1, 1), 13), ((2006, 1, 1), 14), ((2009, 1, 1), 15),
-          ((2012, 7, 1), 16), ((2015, 7, 1), 17), ((2017, 1, 1), 18)]
-LEAP_TABLE = [(float(calendar.timegm((y, m, d, 0, 0, 0))), n) for (y, m, d), n in _LEAPS]
+# the IMU's time system (config imu.time_system): UTC-based UNIX time, or GPS time read as POSIX seconds (UNIX
+# time + GPS - UTC, as some loggers write): the time base NMEA and UBX receiver times are turned into
+TIME_SYSTEMS = cv.TIME_SYSTEMS
+
+
+@functools.lru_cache(maxsize=1)
+def leap_table() -> tuple[np.ndarray, np.ndarray]:
+    """``(UNIX time of each UTC date from which GPS - UTC changes, GPS - UTC from then on)``: the package data
+    ``sinscli/data/gnss/leap_seconds.yaml`` (IERS Bulletin C / IS-GPS-200)."""
+    text = resources.files("sinscli").joinpath("data", "gnss", "leap_seconds.yaml").read_text(encoding="utf-8")
+    rows = parse_yaml(text, "sinscli/data/gnss/leap_seconds.yaml")
+    start = np.array([float(calendar.timegm((d.year, d.month, d.day, 0, 0, 0))) for d, _ in rows])
+    return start, np.array([int(n) for _, n in rows], dtype=np.int64)
+
+
+def gps_minus_utc(unix_time):
+    """GPS - UTC in whole seconds at a UTC-based UNIX time (0 before 1981-07-01); a scalar gives an int, an
+    array an int64 array."""
+    start, n = leap_table()
+    k = np.searchsorted(start, unix_time, side="right")
+    out = np.where(k > 0, n[np.maximum(k - 1, 0)], 0)
+    return int(out) if np.ndim(out) == 0 else out
+
+
+def days_from_ymd(ymd) -> np.ndarray:
+    """Days from 1970-01-01 of Gregorian dates written as integers ``yyyymmdd``."""
+    from ..gnss.timesys import days_from_civil_py   # its module loads numba: only when a receiver log is dated
+    ymd = np.asarray(ymd, dtype=np.int64)
+    return days_from_civil_py(ymd // 10000, (ymd // 100) % 100, ymd % 100)
+
+
+def from_utc(t_utc, system: str) -> np.ndarray:
+    """UTC-based UNIX times (s) in the time system ``system`` (:data:`TIME_SYSTEMS`)."""
+    t = np.asarray(t_utc, dtype=np.float64)
+    return t + gps_minus_utc(np.floor(t)) if system == "gps" else t
+
+
+def from_gps(t_gps, system: str) -> np.ndarray:
+    """GPS times (s since 1980-01-06 00:00:00 GPS) in the time system ``system``: ``gps`` the same instant as
+    POSIX seconds (``t + GPS_EPOCH_UNIX``), ``utc`` less the GPS - UTC leap seconds of the date."""
+    t = np.asarray(t_gps, dtype=np.float64) + GPS_EPOCH_UNIX
+    if system == "gps":
+        return t
+    approx = np.floor(t) - gps_minus_utc(np.floor(t))          # UTC within a second: the leap count of that date
+    return t - gps_minus_utc(approx)
+
+
+def to_utc(t, system: str) -> np.ndarray:
+    """Times in the time system ``system`` as UTC-based UNIX times (the inverse of :func:`from_utc`)."""
+    t = np.asarray(t, dtype=np.float64)
+    if system != "gps":
+        return t
+    return t - gps_minus_utc(np.floor(t) - gps_minus_utc(np.floor(t)))
+
+
+def to_gps(t, system: str) -> np.ndarray:
+    """Times in the time system ``system`` as GPS times (s since 1980-01-06; the inverse of :func:`from_gps`)."""
+    t = np.asarray(t, dtype=np.float64)
+    if system == "gps":
+        return t - GPS_EPOCH_UNIX
+    return t - GPS_EPOCH_UNIX + gps_minus_utc(np.floor(t))
+
 
 SCALES = ((1e3, "milliseconds"), (1e6, "microseconds"), (1e9, "nanoseconds"))
-
-
-def gps_minus_utc(unix_time: float) -> int:
-    """GPS - UTC in whole seconds at a UNIX time (0 before 1981-07-01)."""
-    n = 0
-    for start, k in LEAP_TABLE:
-        if unix_time >= start:
-            n = k
-    return n
 
 
 def kind(t0: float, t1: float) -> str:

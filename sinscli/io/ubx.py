@@ -25,6 +25,7 @@ from ..gnss.signals import SYS_BDS, SYS_GAL, SYS_GLO, SYS_GPS, SYS_QZS, SYS_SBS,
 from ..gnss.timesys import SECONDS_PER_WEEK, epoch_text
 from ..inputs import input_file
 from .rinex import report_skipped
+from .ubx_frames import fletcher, is_ubx  # noqa: F401 (is_ubx: the name the raw readers import)
 
 log = logging.getLogger("sins")
 
@@ -38,14 +39,6 @@ SIG_CODE = {(0, 0): "1C", (0, 3): "2L", (0, 4): "2S", (0, 6): "5I", (0, 7): "5Q"
             (5, 0): "1C", (5, 4): "2S", (5, 5): "2L",
             (6, 0): "1C", (6, 2): "2C"}
 PI = math.pi
-
-
-def _fletcher(buf: np.ndarray) -> tuple[int, int]:
-    """UBX checksum (8-bit Fletcher, RFC 1145) over class, id, length and payload."""
-    n = buf.size
-    a = int(buf.sum(dtype=np.int64)) & 0xFF
-    b = int(np.dot(np.arange(n, 0, -1, dtype=np.int64), buf.astype(np.int64))) & 0xFF
-    return a, b
 
 
 def frames(data: bytes, source: str, skipped: dict, last_epoch):
@@ -77,7 +70,7 @@ def frames(data: bytes, source: str, skipped: dict, last_epoch):
         if buf.size != length + 8:
             skipped.setdefault("truncated", []).append(f"{source}: after {last_epoch()}")
             continue
-        a, b = _fletcher(buf[2:-2])
+        a, b = fletcher(buf[2:-2])
         if a != buf[-2] or b != buf[-1]:
             skipped.setdefault("checksum", []).append(f"{source}: after {last_epoch()}")
             continue
@@ -570,31 +563,3 @@ def _assemble(times, rec, source) -> ObsData:
                 bad = (obs.sys == s) & ~np.isnan(v) & ((v < 1.0e7) | (v > 5.0e7))
                 v[bad] = np.nan
     return obs
-
-
-def is_ubx(path) -> bool:
-    """A UBX log: named ``.ubx``, or a whole UBX frame with a valid checksum starting within its first 64 bytes
-    (a log may begin with the tail of a message or NMEA text)."""
-    p = Path(path)
-    if p.suffix.lower() == ".ubx":
-        return True
-    try:
-        with open(p, "rb") as f:
-            head = f.read(4096)
-    except OSError:
-        return False
-    k = head.find(b"\xb5\x62", 0, 64)
-    while 0 <= k < 64:
-        if k + 6 <= len(head):
-            n = head[k + 4] | (head[k + 5] << 8)
-            frame = head[k + 2:k + 6 + n]
-            if k + 8 + n <= len(head):
-                a = b = 0
-                for x in frame:
-                    a = (a + x) & 0xFF
-                    b = (b + a) & 0xFF
-                if head[k + 6 + n] == a and head[k + 7 + n] == b:
-                    return True
-        k = head.find(b"\xb5\x62", k + 1, 64)
-    return False
-

@@ -10,6 +10,9 @@ from ..errors import SinsError
 from ..io.atomic import staged_dir
 from ..io.gnss_csv import write_gnss_csv
 from ..io.init_state import write_init_yaml
+from ..io.nmea import write_nmea
+from ..io.timebase import ABSOLUTE_MIN, to_gps, to_utc
+from ..io.ubx_solution import write_ubx_solutions
 from ..io.trajectory import write_trajectory
 from ..nav.rotation import conv_to_flu
 from ..sensors import load_sensor
@@ -173,17 +176,50 @@ def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: d
 
 
 SIM_FILES = ("imu.csv", "gnss.csv", "truth.csv", "init.yaml", "sim_truth.yaml")
+# the same fixes as a receiver writes them (sins simulate --gnss-format): file name per format
+RECEIVER_FILES = {"nmea": "gnss.nmea", "ubx": "gnss.ubx"}
+SIM_GEOID_SEPARATION = -30.0   # m written as GGA's geoid separation (no geoid model: altitude = height + 30 m)
 
 
-def write_sim(result: SimResult, outdir) -> list[Path]:
+def check_receiver_formats(sc: Scenario, formats) -> None:
+    """SinsError unless the scenario's times can be a receiver's: NMEA and UBX carry UTC dates and times, so the
+    scenario time (read as UTC-based UNIX time) must be absolute."""
+    unknown = [f for f in formats if f not in RECEIVER_FILES]
+    if unknown:
+        raise SinsError(f"--gnss-format: {unknown[0]!r} is not one of {', '.join(RECEIVER_FILES)}")
+    if formats and sc.t0 < ABSOLUTE_MIN:
+        raise SinsError(f"{sc.source}: key start.time: --gnss-format {formats[0]} writes UTC dates and times, so "
+                        f"the scenario's time must be UNIX time (UTC), e.g. 1715680800 for 2024-05-14 10:00:00; "
+                        f"got {sc.t0:g}")
+
+
+def write_receiver_logs(gnss: GnssLog, outdir, formats) -> list[Path]:
+    """The fixes as a receiver's logs, their times read as UTC-based UNIX time: ``gnss.nmea`` (GGA, RMC, GST:
+    :func:`sinscli.io.nmea.format_sentences`, geoid separation :data:`SIM_GEOID_SEPARATION`) and ``gnss.ubx``
+    (NAV-PVT and NAV-HPPOSLLH: :func:`sinscli.io.ubx_solution.solution_frames`), each with its format's rounding."""
+    out = []
+    for fmt in formats:
+        path = Path(outdir) / RECEIVER_FILES[fmt]
+        if fmt == "nmea":
+            write_nmea(path, gnss, to_utc(gnss.time, "utc"), geoid_separation=SIM_GEOID_SEPARATION)
+        else:
+            write_ubx_solutions(path, gnss, to_gps(gnss.time, "utc"))
+        out.append(path)
+    return out
+
+
+def write_sim(result: SimResult, outdir, gnss_formats=()) -> list[Path]:
     """Write ``imu.csv``, ``gnss.csv``, ``truth.csv``, ``init.yaml``, ``sim_truth.yaml`` (and ``odom.csv``
-    with odometry) into ``outdir`` (docs/formats.md, docs/simulate.md).
+    with odometry; ``gnss.nmea`` and ``gnss.ubx`` for ``gnss_formats`` "nmea", "ubx": :func:`write_receiver_logs`)
+    into ``outdir`` (docs/formats.md, docs/simulate.md).
 
     The files are one set (:func:`sinscli.io.atomic.staged_dir`): all of them replace an earlier
     set, or none does (a full disk never pairs new IMU data with an old truth).  Returns the paths.
     """
     out = Path(outdir)
-    with staged_dir(out, owned=SIM_FILES + ("odom.csv",)) as tmp:
+    if result.scenario is not None:
+        check_receiver_formats(result.scenario, tuple(gnss_formats))
+    with staged_dir(out, owned=SIM_FILES + ("odom.csv",) + tuple(RECEIVER_FILES.values())) as tmp:
         write_imu_log(tmp / SIM_FILES[0], result)
         write_gnss_csv(tmp / SIM_FILES[1], result.gnss)
         write_trajectory(tmp / SIM_FILES[2], result.truth, conv=result.conv)
@@ -193,4 +229,6 @@ def write_sim(result: SimResult, outdir) -> list[Path]:
         write_record(tmp / SIM_FILES[4], result.record)
         if result.odometry is not None:
             write_odometry(tmp / "odom.csv", result.odometry)
-    return [out / name for name in SIM_FILES] + ([out / "odom.csv"] if result.odometry is not None else [])
+        receivers = write_receiver_logs(result.gnss, tmp, gnss_formats)
+    return ([out / name for name in SIM_FILES] + ([out / "odom.csv"] if result.odometry is not None else [])
+            + [out / p.name for p in receivers])

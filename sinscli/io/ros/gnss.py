@@ -17,6 +17,8 @@ log = logging.getLogger("sins")
 
 
 BODY_FRAME_NAMES = ("base_link", "base_footprint", "body", "vehicle")
+UNKNOWN_VARIANCE = 1.0e6     # (m/s)^2: a vertical velocity variance this large (or negative, ROS's "unknown") says
+                             # the receiver gives no vertical velocity (speed and course): horizontal only
 
 
 def refuse_odometry(lg: _Log, topic: str | None, role: str = "GNSS velocity") -> None:
@@ -38,7 +40,8 @@ def _velocity(lg: _Log, topic: str, time_source: str, lim: dict):
     GNSS receiver drivers (nmea_navsat_driver, ublox, septentrio) publish these with the antenna's frame
     in ``header.frame_id`` and the velocity components east, north, up: the values are taken as ENU.
     A ``frame_id`` that names a vehicle body frame (``base_link`` ...) gets a warning: such a twist is
-    more likely a body velocity.
+    more likely a body velocity.  A TwistWithCovarianceStamped whose vertical variance is negative or at
+    least :data:`UNKNOWN_VARIANCE` has no vertical velocity: its up component (and sigma) is NaN.
     """
     info = lg.topics[topic]
     where = f"{lg.path}: topic {topic}"
@@ -51,18 +54,28 @@ def _velocity(lg: _Log, topic: str, time_source: str, lim: dict):
         log.warning("%s: frame_id %s names a vehicle body frame, but the twist is read as an ENU (east, north, up) "
                     "GNSS velocity; if it is a body velocity, give it as odometry instead", where, frames[0])
     std = None
+    up_unknown = np.zeros(len(msgs), dtype=bool)
     if info.msgtype == "geometry_msgs/msg/TwistStamped":
         v = np.array([(m.twist.linear.x, m.twist.linear.y, m.twist.linear.z) for m in msgs], dtype=np.float64)
     else:
         v = np.array([(m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z) for m in msgs],
                      dtype=np.float64)
         cov = np.array([np.asarray(m.twist.covariance, dtype=np.float64).reshape(6, 6)[:3, :3] for m in msgs])
-        std = variance_to_std(where, np.einsum("nii->ni", cov), "velocity")
+        var = np.einsum("nii->ni", cov).copy()
+        up_unknown = (var[:, 2] < 0) | (var[:, 2] >= UNKNOWN_VARIANCE)
+        var[up_unknown, 2] = 0.0
+        if up_unknown.any() and not np.all(var == 0):
+            var[up_unknown, 2] = 1.0            # checked as a placeholder, then NaN
+        std = variance_to_std(where, var, "velocity")
     if not np.isfinite(v).all():
         k = int(np.flatnonzero(~np.isfinite(v).all(axis=1))[0])
         raise SinsError(f"{where}: message {k} has a non-finite velocity")
     limits_mod.check_velocity(where, v, lim, ("x", "y", "z"), 0, "message")
     check_increasing(t, where, f"{time_source} stamp")
+    if up_unknown.any():
+        v[up_unknown, 2] = np.nan
+        if std is not None:
+            std[up_unknown, 2] = np.nan
     return t, v, std
 
 

@@ -67,7 +67,8 @@ def _navsat_messages(ts, ros1, gnss, frame_id="gps"):
 
 
 def _twist_messages(ts, ros1, vel, frame_id="gps"):
-    """geometry_msgs/TwistWithCovarianceStamped objects from ``time``, ``vel`` (N,3 ENU) and optional ``std`` (N,3)."""
+    """geometry_msgs/TwistWithCovarianceStamped objects from ``time``, ``vel`` (N,3 ENU) and optional ``std`` (N,3).
+    A NaN vertical velocity (horizontal only) is written as 0 with the vertical variance -1 (ROS: unknown)."""
     t_ns = _ns(vel["time"])
     v = np.asarray(vel["vel"], dtype=np.float64)
     std = vel.get("std")
@@ -78,8 +79,11 @@ def _twist_messages(ts, ros1, vel, frame_id="gps"):
         cov = np.zeros(36)
         if std is not None:
             cov[[0, 7, 14]] = np.asarray(std[k], dtype=np.float64) ** 2
+        up = float(v[k, 2])
+        if np.isnan(up):
+            up, cov[14] = 0.0, -1.0
         yield cls(header=_header(ts, ros1, int(t_ns[k]), frame_id, k),
-                  twist=twc(twist=tw(linear=v_cls(x=float(v[k, 0]), y=float(v[k, 1]), z=float(v[k, 2])),
+                  twist=twc(twist=tw(linear=v_cls(x=float(v[k, 0]), y=float(v[k, 1]), z=up),
                                      angular=v_cls(x=0.0, y=0.0, z=0.0)), covariance=cov))
 
 
