@@ -80,6 +80,15 @@ class CourseFit:
     used: int               # epochs used
     dropped: int            # epochs rejected as glitches (or reversing)
     factor: float           # residual chi-square / dof (>= 1: applied to the covariance)
+    glitches: int = 0       # of ``dropped``: neither along the estimate's heading nor reversing
+    considered: int = 0     # epochs faster than the minimum speed
+
+    @property
+    def broken(self) -> bool:
+        """More glitches than the robust fit may drop (a fifth of the epochs, as the velocity fit): the
+        estimate's heading does not follow the course as ``a + b t`` (the drift is not a constant gyro
+        bias, or the estimate is wrong), and what is left is a chosen subset, not a sample."""
+        return self.glitches > max(1, self.considered // 5)
 
     def delta(self, dt):
         """The correction at ``dt`` s after the last epoch."""
@@ -101,7 +110,8 @@ def course_heading(t, vel_n, heading_est, min_speed, sigma_v, floor, drift_sigma
     (iteratively reweighted least squares, k = 1.345 on the residuals over their robust scale); epochs
     more than 30 deg off (reversing, a glitch) and then more than 5 robust sigma off are dropped.  The
     variance of ``a`` is scaled by the residual chi-square per degree of freedom when that exceeds 1,
-    and the sideslip/mounting ``floor`` is added in quadrature (it does not average out).
+    and the sideslip/mounting ``floor`` is added in quadrature (it does not average out).  A fit that
+    drops more glitches than a fifth of its epochs is :attr:`CourseFit.broken`: the caller does not use it.
     """
     t = np.asarray(t, dtype=float)
     v = np.asarray(vel_n, dtype=float)
@@ -117,6 +127,7 @@ def course_heading(t, vel_n, heading_est, min_speed, sigma_v, floor, drift_sigma
     mean = math.atan2(float((w0 * np.sin(d)).sum()), float((w0 * np.cos(d)).sum()))
     d = mean + np.angle(np.exp(1j * (d - mean)))            # unwrapped about the mean
     keep = np.abs(d - mean) < math.radians(30.0)
+    reversing = int((np.abs(np.angle(np.exp(1j * (d - mean - math.pi)))) < math.radians(30.0)).sum())
     dropped = int((~keep).sum())
     prior = 0.0 if not drift_sigma or not np.isfinite(drift_sigma) else 1.0 / drift_sigma ** 2
     A = np.stack([np.ones_like(tt), tt], axis=-1)
@@ -147,4 +158,5 @@ def course_heading(t, vel_n, heading_est, min_speed, sigma_v, floor, drift_sigma
     chi2 = float((W * (d - A @ x) ** 2).sum())
     dof = max(n - 2 + (1 if prior > 0 else 0), 1)
     factor = max(1.0, chi2 / dof)
-    return CourseFit(float(x[0]), float(x[1]), cov * factor, float(floor), n, dropped, factor)
+    return CourseFit(float(x[0]), float(x[1]), cov * factor, float(floor), n, dropped, factor,
+                     glitches=dropped - reversing, considered=int(ok.sum()))
