@@ -28,7 +28,7 @@ from ..io.trajectory import check_trajectory_output, guard_trajectory, write_tra
 from ..nav.earth import gravity, radii_py
 from ..nav.pipeline import concat
 from ..nav.sanity import accel_unit_check, gyro_unit_check, mounting_warning
-from ..nav.timesync import estimate_offset, offset_refusal
+from ..nav.timesync import estimate_offset, offset_refusal, offset_warning
 from ..nav.window import Window, check_in_log, check_init, clip_imu, from_start, trim
 from ..sensors import read_sensor
 from ..types import ImuLog
@@ -96,6 +96,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         text = offset_refusal(est, str(gnss.source), cfg.gnss.time_offset)
         if text:
             raise SinsError(text)
+        note = offset_warning(est, str(gnss.source), cfg.gnss.time_offset)    # periodic motion: candidates only
+        if note:
+            log.warning(note)
 
     def gyro_units(lat_g, height):
         """Before anything runs on the increments (the mounting too): at the first fix, or (raw observations
