@@ -124,19 +124,27 @@ def test_consistent_fits_are_not_continued(runs, monkeypatch):
 
 
 def test_course_fit_that_drops_most_epochs_is_broken():
-    """A heading estimate that does not follow the course as a + b t (here: it turns by 3 deg/s and
-    then by -3 deg/s: no single drift) makes the robust fit drop most epochs: broken; a clean one is
-    not, and reversing is not counted as a glitch."""
+    """A heading estimate that does not follow the course as a + b t (it turns one way, then back: no
+    single drift): at 3 deg/s a third of the epochs are dropped and the fit ends 45 deg off, its residuals
+    bend, and the 1-sigma widened by their correlation holds it; at 6 deg/s half or more are dropped:
+    broken (past the breakdown point of a robust fit).  A clean one is not touched, and reversing is not
+    counted as a glitch."""
     t = np.arange(0.0, 60.0, 0.2)
     course = np.radians(5.0) + np.zeros(t.size)
     vel = np.stack([10 * np.sin(course), 10 * np.cos(course), np.zeros(t.size)], axis=-1)
     bent = np.radians(3.0) * np.where(t < 30.0, t, 60.0 - t)
     co = observability.course_heading(t, vel, course - bent, 0.5, 0.05, math.radians(2.0), math.radians(5.0))
-    assert co.broken and co.glitches > t.size // 5, (co.glitches, co.used)
+    # a third dropped, 45 deg off at the end: the residuals bend (correlation ~1), the 1-sigma holds it
+    assert not co.broken and co.correlation > 0.9
+    assert abs(co.delta_end - 0.0) <= 3.0 * co.sigma(), (math.degrees(co.delta_end), math.degrees(co.sigma()))
+    steep = np.radians(6.0) * np.where(t < 30.0, t, 60.0 - t)
+    co = observability.course_heading(t, vel, course - steep, 0.5, 0.05, math.radians(2.0), math.radians(5.0))
+    assert co.broken and 2 * co.glitches >= t.size, (co.glitches, co.used)
     rng = np.random.default_rng(0)
     h = course - math.radians(1.0) + rng.normal(0, 0.005, t.size)
     rev = vel.copy()
     rev[100:200] *= -1.0                    # a third of the time reversing: not glitches
     co = observability.course_heading(t, rev, h, 0.5, 0.05, math.radians(2.0), math.radians(5.0))
     assert not co.broken and co.glitches == 0 and co.dropped == 100
+    assert co.factor < 1.5 and co.correlation < 3.0 / math.sqrt(co.used)     # white: not widened
     assert abs(co.delta_end - math.radians(1.0)) < 3.0 * co.sigma()

@@ -785,8 +785,8 @@ def _resolve_heading(sol: _Solution, opts: AlignOptions, notes: list, b, t0: flo
                                           opts.course_sigma_floor, b.gyro_bias)
         if co is not None and co.broken:
             why = (f"; the GNSS course cannot replace it: the robust course fit drops {co.glitches} of {co.considered} "
-                   f"epochs faster than {opts.course_min_speed:g} m/s as glitches (at most a fifth may be; residual "
-                   f"chi-square/dof {co.factor:.3g} on the rest): the estimate's heading does not follow the course")
+                   f"epochs faster than {opts.course_min_speed:g} m/s as glitches (past a robust fit's breakdown point, half): "
+                   f"the estimate's heading does not follow the course")
             if not heading_optional:
                 raise SinsError(sol.heading.reason + why + ": give --heading DEG")
             notes.append(sol.heading.reason + why + "; the heading is left to the fused run (heading from motion)")
@@ -800,8 +800,10 @@ def _resolve_heading(sol: _Solution, opts: AlignOptions, notes: list, b, t0: flo
             extra = f", {co.dropped} dropped as glitches" if co.dropped else ""
             s_end = co.sigma(t1 - t0 - t_last)
             notes.append(sol.heading.reason + f"; heading from the GNSS course over {co.used} epochs faster than "
-                         f"{opts.course_min_speed:g} m/s{extra} (robust fit with the heading drift, residual "
-                         f"chi-square/dof {co.factor:.3g}): 1-sigma {math.degrees(s_end):.3g} deg")
+                         f"{opts.course_min_speed:g} m/s{extra} (robust fit with the heading drift, variance "
+                         f"scaled by {co.factor:.3g}: residual chi-square/dof"
+                         + (f" and their correlation {co.correlation:.2f}" if co.correlation > 3.0 / math.sqrt(co.used) else "")
+                         + f"): 1-sigma {math.degrees(s_end):.3g} deg")
             return _Heading(cbn0, cur, cbn_end, s_end, co.sigma(-t_last), "gnss-course", co.dropped)
         if not heading_optional:
             raise SinsError(sol.heading.reason + f"; the GNSS course cannot replace it (fewer than 2 epochs faster "
