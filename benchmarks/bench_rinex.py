@@ -1,6 +1,6 @@
 """Read speed of RINEX 3 observations: our reader (numba kernel over the file's bytes) against georinex.
 
-Builds a day at 1 Hz of multi-constellation observations (86,400 epochs) from the epochs of the shared SLAC
+Builds a day at 1 Hz of multi-constellation observations (86,400 epochs) from the epochs of the shipped SLAC
 file (GPS, GLONASS, Galileo; ~22 satellites, 4-6 observation types each), then measures
 
 - ``sins``: ``sinscli.io.rinex.read_obs`` on the whole day (epochs/s and seconds; a first call compiles);
@@ -23,8 +23,7 @@ import numpy as np
 from sinscli.gnss.timesys import calendar
 from sinscli.io.rinex import read_obs
 
-DEFAULT_OBS = next((p for p in (Path(__file__).resolve().parents[1].parent / "shared/data/rinex_static/slac1350.20o",
-                                Path("/work/shared/data/rinex_static/slac1350.20o")) if p.is_file()),
+DEFAULT_OBS = next((p for p in (Path(__file__).resolve().parents[1] / "tests/data/rinex_static/slac1350.20o",) if p.is_file()),
                    Path("slac1350.20o"))
 
 

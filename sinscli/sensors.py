@@ -6,6 +6,9 @@ The same YAML (schema of the presets: ``gyro``/``accel`` sections with ``bias_si
 ``sins simulate`` (the errors drawn), ``sins align`` (the sigma budget) and the fusion filter
 (process noise).  Presets are package data, read through :mod:`importlib.resources`, so they are
 found from any working directory once the package is installed.
+
+Every value is finite; the sigmas are >= 0 and the white noise (``arw``, ``vrw``) and ``bias_instability``
+> 0 (:data:`POSITIVE`); a bad term is refused in one line naming the file and the key.
 """
 from __future__ import annotations
 
@@ -46,6 +49,12 @@ ACCEL_UNITS = {
     "quantization": 1.0,                   # m/s per count
 }
 PRESETS = ("navigation", "tactical", "mems", "consumer")
+# terms that must be > 0 when given (a 0 would claim a perfect sensor, and the filters divide by them), and why;
+# a 0 is allowed for: bias_sigma (written by `sins allan`, which cannot observe the turn-on bias: the stages take
+# it as unknown), scale_factor_sigma and misalignment_sigma (a perfectly calibrated axis), quantization (none)
+POSITIVE = {"arw": "white noise: every sensor has some; leave the key out when unknown",
+            "vrw": "white noise: every sensor has some; leave the key out when unknown",
+            "bias_instability": "every sensor's bias wanders; leave the key out when unknown"}
 MAX_VALUE = 1.0e9            # any value of a sensor description, in its units (squares stay finite)
 MIN_TAU = 1.0e-6             # s: shortest Gauss-Markov correlation time
 
@@ -147,12 +156,16 @@ def _convert(d: dict, units: dict, where: str, which: str) -> dict:
             arr = np.full(n, float(v))
         else:
             sc.expected(where, f"{which}.{k}", "a number", v)
+        if not np.all(np.isfinite(arr)):
+            sc.expected(where, f"{which}.{k}", "finite numbers", arr[np.argmax(~np.isfinite(arr))])
         if not np.all(np.abs(arr) <= MAX_VALUE):
             sc.expected(where, f"{which}.{k}", f"numbers within +-{MAX_VALUE:g}",
                         arr[np.argmax(~(np.abs(arr) <= MAX_VALUE))])
         if k in ("bias_tau",) and np.any(arr < MIN_TAU):
             sc.expected(where, f"{which}.{k}", f"at least {MIN_TAU:g} s", float(np.min(arr)))
-        if (k.endswith("sigma") or k in ("arw", "vrw", "bias_instability", "quantization")) and np.any(arr < 0):
+        if k in POSITIVE and np.any(arr <= 0):
+            sc.expected(where, f"{which}.{k}", f"numbers > 0 ({POSITIVE[k]})", float(np.min(arr)))
+        if (k.endswith("sigma") or k == "quantization") and np.any(arr < 0):
             sc.expected(where, f"{which}.{k}", "numbers >= 0", float(np.min(arr)))
         out[k] = arr * units[k]
     if "bias_instability" in out and "bias_tau" not in out:

@@ -1,10 +1,11 @@
-"""Alignment on the real Husky log (../shared/data/ros1_husky): roll and pitch against the IMU's own
+"""Alignment on the real Husky log (tests/data/ros1_husky): roll and pitch against the IMU's own
 orientation field, heading from the GNSS course (the MEMS gyro cannot see the earth rate)."""
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import HUSKY_BAG
 import yaml
 from click.testing import CliRunner
 
@@ -15,10 +16,10 @@ from sinscli.io.readers import read_gnss, read_imu
 from sinscli.nav.rotation import dcm_to_euler, dcm_to_euler_many, quat_to_dcm_many
 
 ROOT = Path(__file__).resolve().parents[1]
-BAG = ROOT.parent / "shared" / "data" / "ros1_husky" / "husky_imu_gps.bag"
+BAG = HUSKY_BAG
 CONFIG = ROOT / "configs" / "align" / "husky.yaml"
 
-pytestmark = pytest.mark.skipif(not BAG.exists(), reason=f"real data not present: {BAG} (../shared is absent)")
+pytestmark = pytest.mark.skipif(not BAG.exists(), reason=f"real data not present: {BAG}")
 
 
 @pytest.fixture(scope="module")

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import HUSKY_BAG
 import yaml
 from click.testing import CliRunner
 
@@ -21,7 +22,7 @@ from sinscli.sim.errors import apply_imu_errors
 from sinscli.sim.run import simulate
 from sinscli.types import ImuLog
 
-HUSKY = Path("/work/shared/data/ros1_husky/husky_imu_gps.bag")
+HUSKY = HUSKY_BAG
 DEG_H = np.pi / 180 / 3600
 UG = 9.80665e-6
 SENSOR = {"gyro": {"arw": 0.3, "bias_instability": 10.0, "bias_tau": 20.0},
@@ -250,7 +251,7 @@ def test_moving_short_and_out_of_range_logs_are_refused(tmp_path):
     assert r.exit_code == 2 and "no noise to characterize" in r.output and not (tmp_path / "out2").exists()
 
 
-@pytest.mark.skipif(not HUSKY.exists(), reason="the real Husky bag is not on this machine")
+@pytest.mark.skipif(not HUSKY.exists(), reason="the Husky bag is not in tests/data")
 def test_husky_bag_is_refused_it_drives_throughout(tmp_path):
     """The rover moves from its first second (rates up to 29 deg/s); its quietest stretches last < 25 s."""
     r = run([HUSKY, "-o", tmp_path / "out"])

@@ -12,6 +12,7 @@ from statistics import NormalDist
 
 import numpy as np
 import pytest
+from realdata import HUSKY_BAG
 import yaml
 from scipy.stats import chi2
 
@@ -360,12 +361,10 @@ def test_cli_bad_input(case, tmp_path):
     assert expect in lines[0], lines[0]
 
 
-HUSKY = Path("/work/shared/data/ros1_husky/husky_imu_gps.bag")
-if not HUSKY.exists():
-    HUSKY = ROOT.parent / "shared/data/ros1_husky/husky_imu_gps.bag"
+HUSKY = HUSKY_BAG
 
 
-@pytest.mark.skipif(not HUSKY.exists(), reason="shared Husky bag not present")
+@pytest.mark.skipif(not HUSKY.exists(), reason="the Husky bag is not in tests/data")
 def test_husky_bag_end_to_end(tmp_path):
     """Real data: alignment on the first 30 s (heading from the GNSS course), fused track within a few
     fix sigmas of the fixes (residual RMS), a Foxglove MCAP written."""
@@ -413,7 +412,7 @@ def _husky_course(tmp_path):
     return g, g.time[:-s], g.time[s:], np.degrees(np.arctan2(de, dn)), np.hypot(de, dn)
 
 
-@pytest.mark.skipif(not HUSKY.exists(), reason="shared Husky bag not present")
+@pytest.mark.skipif(not HUSKY.exists(), reason="the Husky bag is not in tests/data")
 def test_husky_heading_from_the_course_inside_the_filter(tmp_path):
     """No heading at the start (sigma 180 deg: held out of the filter) and no alignment: the filter takes
     its heading from the GNSS course once the rover drives, and then, while it drives straight, agrees
@@ -440,7 +439,7 @@ def test_husky_heading_from_the_course_inside_the_filter(tmp_path):
     assert np.median(np.abs(d[straight])) < 8.0
 
 
-@pytest.mark.skipif(not HUSKY.exists(), reason="shared Husky bag not present")
+@pytest.mark.skipif(not HUSKY.exists(), reason="the Husky bag is not in tests/data")
 def test_husky_with_wheel_odometry(tmp_path):
     """``--odom`` on the same bag (the Odometry topic auto-detected): body-velocity updates applied."""
     import re

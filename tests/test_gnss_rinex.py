@@ -8,20 +8,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import RINEX_STATIC
 from click.testing import CliRunner
 
 from sinscli.cli import main
 from sinscli.errors import SinsError
 from sinscli.io.rinex import read_nav, read_obs
 
-DATA = Path("/work/shared/data/rinex_static")
-for cand in (Path(__file__).resolve().parents[2] / "shared/data/rinex_static",
-             Path(__file__).resolve().parents[1].parent / "shared/data/rinex_static"):
-    if cand.is_dir():
-        DATA = cand
+DATA = RINEX_STATIC
 OBS = DATA / "slac1350.20o"
 NAV = DATA / "brdc1350.20n"
-pytestmark = pytest.mark.skipif(not OBS.is_file(), reason="shared/data/rinex_static not present")
+pytestmark = pytest.mark.skipif(not OBS.is_file(), reason="tests/data/rinex_static not present")
 
 
 def test_rinex3_values_against_the_text():

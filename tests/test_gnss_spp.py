@@ -1,4 +1,4 @@
-"""Raw GNSS: broadcast satellite positions against RTKLIB, single-point positioning of the shared static station
+"""Raw GNSS: broadcast satellite positions against RTKLIB, single-point positioning of the shipped static station
 against its coordinates and against Debian's RTKLIB (`rnx2rtkp`, single mode) as an outside oracle."""
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import RINEX_STATIC
 
 from sinscli.gnss import spp as S
 from sinscli.gnss.ephemeris import select_ephemeris
@@ -19,17 +20,12 @@ from sinscli.io.gnss_csv import read_gnss_csv
 from sinscli.io.rinex import read_nav, read_obs
 from sinscli.nav.earth import ecef_to_lla, enu_rotation, lla_to_ecef
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "rinex_static"
-if not DATA.is_dir():
-    DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "rinex_static"
-for cand in (Path("/work/shared/data/rinex_static"), Path(__file__).resolve().parents[1].parent / "shared/data/rinex_static"):
-    if not DATA.is_dir() and cand.is_dir():
-        DATA = cand
+DATA = RINEX_STATIC
 OBS = DATA / "slac1350.20o"
 NAV = DATA / "brdc1350.20n"
 STATION = np.array([-2703115.2660, -4291768.3440, 3854247.9550])     # header APPROX POSITION XYZ (README)
 
-needs_data = pytest.mark.skipif(not OBS.is_file(), reason="shared/data/rinex_static not present")
+needs_data = pytest.mark.skipif(not OBS.is_file(), reason="tests/data/rinex_static not present")
 RNX2RTKP = shutil.which("rnx2rtkp")
 needs_rtklib = pytest.mark.skipif(RNX2RTKP is None, reason="Debian's rtklib (rnx2rtkp) is not installed "
                                                             "(.ci/run installs it with apt)")
@@ -178,7 +174,7 @@ def test_spp_csv_is_a_formats_gnss_csv(tmp_path):
     header = out.read_text().splitlines()[0].split(",")
     assert header[-3:] == ["nsat", "pdop", "excluded"]
     assert abs(g.lat.mean() - 37.4165) < 1e-3
-    # the defaults on the shared station (every system observed; only GPS has ephemerides): the issue's numbers
+    # the defaults on the static station (every system observed; only GPS has ephemerides): the issue's numbers
     e = _enu_errors(lla_to_ecef(np.radians(g.lat), np.radians(g.lon), g.height))
     assert np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2)) <= 1.6
     assert np.sqrt(np.mean(e[:, 2] ** 2)) <= 3.9

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import HUSKY_BAG
 from click.testing import CliRunner
 
 from sinscli.cli import main
@@ -13,8 +14,7 @@ from sinscli.errors import SinsError
 from sinscli.io import ros
 from sinscli.io.ros import decode, write
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared"
-HUSKY = SHARED / "data" / "ros1_husky" / "husky_imu_gps.bag"
+HUSKY = HUSKY_BAG
 
 FORMATS = ["x.bag", "x_lz4.bag", "x.mcap", "x_ros1.mcap", "x.db3", "xdir", "xdir_mcap"]
 
@@ -49,7 +49,7 @@ def _gnss(n=6, t0=1000.0, dt=0.05):
 @pytest.fixture(scope="module")
 def husky(tmp_path_factory):
     if not HUSKY.is_file():
-        pytest.skip(f"real data {HUSKY} is absent (../shared/ beside the repository)")
+        pytest.skip(f"real data {HUSKY} is absent (tests/data)")
     from rosbags.convert import convert
     d = tmp_path_factory.mktemp("husky")
     convert([HUSKY], d / "db", "sqlite3", 9, None, "file", None, None, (), (), (), ())

@@ -15,12 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import HUSKY_BAG
 
 from sinscli.errors import SinsError
 from sinscli.io import ros
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared"
-HUSKY = SHARED / "data" / "ros1_husky" / "husky_imu_gps.bag"
+HUSKY = HUSKY_BAG
 CASE_SECONDS = 10.0
 N_TRUNC, N_FLIP, N_BLOCK = 12, 48, 8        # up to 68 cases per source (8 sources with the real data)
 
@@ -85,7 +85,7 @@ def _generated_logs(d: Path) -> list[tuple[Path, bool]]:
 
 @pytest.fixture(scope="module")
 def sources(tmp_path_factory):
-    """Real logs when ../shared/ is there (else generated ones only, with more cases each)."""
+    """Real logs when tests/data holds them (else generated ones only, with more cases each)."""
     d = tmp_path_factory.mktemp("fuzz_src")
     real = _small_real_logs(d) if HUSKY.is_file() else []
     return real + _generated_logs(d)

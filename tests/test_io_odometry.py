@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import HUSKY_BAG
 
 from sinscli.config import load_config, override
 from sinscli.errors import SinsError
@@ -21,7 +22,7 @@ from sinscli.nav.earth import lla_to_local_enu
 from sinscli.types import BodyVelLog
 
 ROOT = Path(__file__).resolve().parents[1]
-HUSKY = ROOT.parent / "shared" / "data" / "ros1_husky" / "husky_imu_gps.bag"
+HUSKY = HUSKY_BAG
 HUSKY_CFG = ROOT / "configs" / "align" / "husky.yaml"
 SINS = Path(sys.executable).with_name("sins")
 # the Husky's mounting (configs/align/husky.yaml): forward = -z_imu, left = -x_imu, up = +y_imu
@@ -228,7 +229,7 @@ def test_body_velocity_csv_non_numeric(tmp_path):
 @pytest.fixture(scope="module")
 def husky():
     if not HUSKY.is_file():
-        pytest.skip(f"real data {HUSKY} is absent (../shared/ beside the repository)")
+        pytest.skip(f"real data {HUSKY} is absent (tests/data)")
     cfg = load_config(HUSKY_CFG)
     return cfg, read_body_velocity(HUSKY, cfg), read_gnss(HUSKY, cfg), read_imu(HUSKY, cfg)
 

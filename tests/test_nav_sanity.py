@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import HUSKY_BAG
 
 from sinscli.config import ImuSection, mounting_matrix
 from sinscli.io.imu_csv import apply_mounting
@@ -22,9 +23,7 @@ from test_contract import sins
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data"
-BAG = ROOT.parent / "shared" / "data" / "ros1_husky" / "husky_imu_gps.bag"
-if not BAG.exists():
-    BAG = Path("/work/shared/data/ros1_husky/husky_imu_gps.bag")
+BAG = HUSKY_BAG
 G = gravity(math.sin(math.radians(30.0)), 50.0)
 LEVEL = euler_to_dcm(0.0, 0.0, math.radians(30.0), 0)        # the sample's initial attitude (FLU)
 
@@ -102,7 +101,7 @@ def test_first_rest_stretch_after_a_turn():
 
 @pytest.mark.skipif(not BAG.exists(), reason=f"real data not present: {BAG}")
 def test_husky_without_its_mounting_warns_and_names_the_fix(tmp_path, caplog):
-    """The shared Husky bag navigated without configs/align/husky.yaml (its mounting) ran silently to
+    """The Husky bag navigated without configs/align/husky.yaml (its mounting) ran silently to
     hundreds of km off: now the run warns and names imu.mounting with the fix."""
     init = tmp_path / "init.yaml"
     init.write_text("time: 1432235497.988949\nlat: 42.0\nlon: -71.0\nheight: 30\nvel_e: 0\nvel_n: 0\nvel_u: 0\n"

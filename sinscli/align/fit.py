@@ -61,6 +61,8 @@ MAX_EPOCHS = 400          # epochs used (evenly thinned beyond; the last is kept
 NUMERIC_V = 1e-9          # m/s: white noise floor of the observation vectors (double-precision sums)
 CONVERGED = 1e-6          # rad: a Gauss-Newton step whose attitude effect is below this has converged
                           # (what the next linearization would change is of its square)
+MAX_HALVINGS = 12         # a step that raises the objective is halved at most this often (2^-12 of it)
+RISE_TOL = 1e-9           # relative rise of the objective taken as rounding, not as an overshoot
 
 
 @njit(cache=True)
@@ -135,13 +137,18 @@ def bias_sensitivities(cbb0, alpha, dtheta_b, dt, rows, out_b, out_g, out_pe, ou
             j += 1
 
 
-def noise_covariance(t, s_white, vrw, arw, g, s_common=0.0):
+def noise_covariance(t, s_white, vrw, arw, g, s_common=0.0, gyro_rw=0.0, accel_rw=0.0):
     """Epoch covariance (n, n) of one axis of the residual (module docstring); ``s_white`` (n,) or
-    a number; ``s_common`` a 1-sigma common to all epochs (one GNSS velocity subtracted from all)."""
+    a number; ``s_common`` a 1-sigma common to all epochs (one GNSS velocity subtracted from all);
+    ``gyro_rw`` (rad/s/sqrt(s)), ``accel_rw`` (m/s^2/sqrt(s)): the bias instability as a random walk."""
     t = np.asarray(t, dtype=float)
     lo = np.minimum.outer(t, t)
     hi = np.maximum.outer(t, t)
-    S = vrw ** 2 * lo + (g * arw) ** 2 * lo ** 2 * (3.0 * hi - lo) / 6.0
+    once = lo ** 2 * (3.0 * hi - lo) / 6.0            # integrated Wiener process
+    S = vrw ** 2 * lo + ((g * arw) ** 2 + accel_rw ** 2) * once
+    if gyro_rw:
+        d = hi - lo                                   # twice-integrated Wiener process
+        S += (g * gyro_rw) ** 2 * (d * d * lo ** 3 / 3.0 + d * lo ** 4 / 2.0 + lo ** 5 / 5.0) / 4.0
     # white noise, and the rounding of the integrated vectors (1e-9 m/s): never singular
     S[np.diag_indices_from(S)] += np.broadcast_to(np.asarray(s_white, dtype=float) ** 2, t.shape) + NUMERIC_V ** 2
     if s_common:
@@ -172,15 +179,16 @@ class FitResult:
     widen: dict = None          # {"accel": k, "gyro": k}: the estimation priors were too narrow by these factors
     report_widen: dict = None   # the same for the reported 1-sigma (with the Student t of the prior statistic)
 
-    def end_cov(self, cnn0_end, arw, T):
+    def end_cov(self, cnn0_end, arw, T, gyro_rw=0.0):
         """Attitude covariance (ENU at the end, rad^2): ``phi - C (B_T eps + P^E_T e)`` rotated by
-        ``C_n(T)^n(0)^T``, plus the angle random walk over ``T``."""
+        ``C_n(T)^n(0)^T``, plus the angle random walk over ``T`` and the turn of a bias that walks
+        (``gyro_rw``, rad/s/sqrt(s): ``gyro_rw^2 T^3 / 3``, the integrated Wiener process)."""
         p = self.cov.shape[0]
         J = np.zeros((3, p))
         J[:, P_PHI] = np.eye(3)
         J[:, P_EPS] = -self.cbn0 @ self.B_end
         J[:, P_E] = -self.cbn0 @ self.PE_end
-        c = J @ self.cov @ J.T + np.eye(3) * arw ** 2 * T
+        c = J @ self.cov @ J.T + np.eye(3) * (arw ** 2 * T + gyro_rw ** 2 * T ** 3 / 3.0)
         R = np.asarray(cnn0_end).T
         return psd(R @ c @ R.T)
 
@@ -211,8 +219,8 @@ class Whitener:
         self.Li, self.logdet = cholesky_inverse(np.ascontiguousarray(S, dtype=np.float64))
 
 
-def _whitener(t, s_white, vrw, arw, g, s_common):
-    return Whitener(noise_covariance(t, s_white, vrw, arw, g, s_common))
+def _whitener(t, s_white, vrw, arw, g, s_common, gyro_rw=0.0, accel_rw=0.0):
+    return Whitener(noise_covariance(t, s_white, vrw, arw, g, s_common, gyro_rw, accel_rw))
 
 
 def _solve(H, r, W, lam, mu):
@@ -253,7 +261,8 @@ def _golden(f, a, b, tol=0.02, maxit=30):
 def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0, prior_accel=None,
         prior_gyro=None, prior_sf=None, prior_mis=None, centered=False, s_common=0.0, order=2,
         alpha_adjust=None, robust=False, max_iter=8, report_accel=None, report_gyro=None, report_sf=None,
-        report_mis=None, widen_priors=True, accel_axes=None) -> FitResult:
+        report_mis=None, widen_priors=True, accel_axes=None, start=None, statistics=True,
+        halving=False, gyro_rw=0.0, accel_rw=0.0) -> FitResult:
     """Fit ``Cbn(0)`` and the sensor errors to the epochs ``rows`` (sample rows, 1..M) of one window.
 
     ``beta_ep`` (n, 3) the navigation-side vectors at the epochs; ``t_ep`` (n,) s since the start;
@@ -298,6 +307,8 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
     ba = np.zeros(3)
     bg = np.zeros(3)
     E = np.zeros((3, 3))
+    if start is not None:                # the linearization point of the sensor errors (a shorter window's fit)
+        bg, ba, E = (np.array(x, dtype=float) for x in start)
     C = np.array(cbn0, dtype=float)
     dropped = []
     M = dtheta_b.shape[0]
@@ -357,18 +368,48 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
         return max(float(np.abs(delta[P_PHI]).max()), float(np.abs(turn).max()),
                    float(np.abs(delta[P_NAB]).max()) * t_ep[-1] / max(float(np.abs(beta_ep).max()), 1e-9))
 
-    it = 0
-    s_w = 0.0
-    while True:
-        for it in range(1, max_iter + 1):
+    def cost(H, r, W, mu):
+        """The objective at the current point: whitened residual and prior terms (the step's start)."""
+        rw = np.einsum("ij,ja->ai", W.Li, r)
+        return float((rw ** 2).sum() + (lam * mu ** 2).sum())
+
+    def gauss_newton(W, iters):
+        """Gauss-Newton on the epochs ``keep`` with the whitener ``W``; a step that raises the objective (the
+        model far from linear there: a large gyro bias turns the frame by tens of degrees) is taken again at
+        half its length from where it started, up to ``MAX_HALVINGS`` times.  Returns the last solve's
+        ``(delta, Ni, chi2, p_eff, z, N, H, r, iterations, converged)``."""
+        nonlocal C, ba, bg, E, cbb0, alpha, a_ep, sens
+        last = None              # (C, ba, bg, E, objective, delta) where the last step started
+        halved = 0
+        k = 0
+        while True:
             cbb0, alpha, a_ep, sens = linearize()
             H, r = system(a_ep, sens, keep)
-            if it == 1:
-                L = _whitener(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common)
-            delta, Ni, chi2, p_eff, z, N = _solve(H, r, L, lam, prior_mean())
-            if step(delta) < CONVERGED:
+            mu = prior_mean()
+            f = cost(H, r, W, mu)
+            if halving and last is not None and f > last[4] * (1.0 + RISE_TOL) and halved < MAX_HALVINGS:
+                C, ba, bg, E = (x.copy() for x in last[:4])
+                last = (*last[:5], 0.5 * last[5])
+                halved += 1
+                step(last[5])
+                continue
+            halved = 0
+            k += 1
+            delta, Ni, chi2, p_eff, z, N = _solve(H, r, W, lam, mu)
+            last = (C.copy(), ba.copy(), bg.copy(), E.copy(), f, delta)
+            done = step(delta) < CONVERGED
+            out = (delta, Ni, chi2, p_eff, z, N, H, r, k, done)
+            if done or k >= iters:
                 break
-        if not robust or keep.sum() <= 6:
+        return out
+
+    it = 0
+    s_w = 0.0
+    cbb0 = alpha = a_ep = sens = None
+    while True:
+        L = _whitener(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common, gyro_rw, accel_rw)
+        delta, Ni, chi2, p_eff, z, N, H, r, it, converged = gauss_newton(L, max_iter)
+        if not robust or keep.sum() <= 6 or not converged:     # outliers of a fit at its minimum only
             break
         q = (z ** 2).sum(axis=1)
         scale = max(float(np.median(q)) / 2.366, 1.0)
@@ -386,7 +427,7 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
     groups = {"accel": np.r_[3:6], "gyro": np.r_[6:18]}
     widen = {"accel": 1.0, "gyro": 1.0}
     lam0, est0, rep0 = lam.copy(), est.copy(), rep.copy()
-    if chi2 > dof + 3.0 * math.sqrt(2.0 * dof):
+    if statistics and not consistent(chi2, dof):
         gidx = {k: v[free[v] & np.isfinite(est[v])] for k, v in groups.items()}
         for _ in range(2):
             H, r = system(a_ep, sens, keep)
@@ -400,7 +441,7 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
                 lt[gidx["gyro"]] /= kg ** 2
                 key = round(sw, 12)
                 if key not in wcache:
-                    wcache[key] = _whitener(t_ep[keep], np.hypot(s_v[keep], sw), vrw, arw, g, s_common)
+                    wcache[key] = _whitener(t_ep[keep], np.hypot(s_v[keep], sw), vrw, arw, g, s_common, gyro_rw, accel_rw)
                 Wt = wcache[key]
                 _, _, c2, _, _, Nt = _solve(_H, _r, Wt, lt, _mu)
                 pri = np.concatenate([gidx["accel"], gidx["gyro"]])
@@ -435,13 +476,8 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
                 lam[gidx[name]] /= k ** 2
                 est[groups[name]] *= k
                 rep[groups[name]] *= k
-            L = _whitener(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common)
-            for it in range(1, max_iter + 1):
-                cbb0, alpha, a_ep, sens = linearize()
-                H, r = system(a_ep, sens, keep)
-                delta, Ni, chi2, p_eff, z, N = _solve(H, r, L, lam, prior_mean())
-                if step(delta) < CONVERGED:
-                    break
+            L = _whitener(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common, gyro_rw, accel_rw)
+            delta, Ni, chi2, p_eff, z, N, H, r, it, _ = gauss_newton(L, max_iter)
         # a widened prior is the data's figure from r_p components: reported at its Student t (as the
         # bias components at rest, :mod:`.budget`)
         for name in groups:
@@ -452,11 +488,11 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
         # the data's statistic: if it is still significantly above its degrees of freedom, more
         # white noise until it is not
         dof = max(3.0 * n_used - p_eff, 1.0)
-        if chi2 > dof + 3.0 * math.sqrt(2.0 * dof):
+        if not consistent(chi2, dof):
             lo, hi = s_w, max(s_w, max(float(np.sqrt(np.mean(r ** 2))), 1e-9)) * 10.0 + 1.0
             for _ in range(60):                  # chi2(s_w) decreases with s_w: bisect on chi2 = dof
                 mid = math.sqrt(lo * hi) if lo > 0 else hi / 1e6
-                L = _whitener(t_ep[keep], np.hypot(s_v[keep], mid), vrw, arw, g, s_common)
+                L = _whitener(t_ep[keep], np.hypot(s_v[keep], mid), vrw, arw, g, s_common, gyro_rw, accel_rw)
                 _, _, c2, pe, _, _ = _solve(H, r, L, lam, prior_mean())
                 if c2 > 3.0 * n_used - pe:
                     lo = mid
@@ -465,7 +501,7 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
                 if lo > 0 and hi / lo < 1.01:
                     break
             s_w = hi
-            L = _whitener(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common)
+            L = _whitener(t_ep[keep], np.hypot(s_v[keep], s_w), vrw, arw, g, s_common, gyro_rw, accel_rw)
             for _ in range(3):
                 cbb0, alpha, a_ep, sens = linearize()
                 H, r = system(a_ep, sens, keep)
@@ -500,6 +536,11 @@ def fit(dtheta_b, dvel_b, dt, rows, beta_ep, cbn0, t_ep, *, g, vrw, arw, s_v=0.0
         Ni = Tr @ Ni @ Tr.T
     return FitResult(C, Ni, bg, ba, E, d, chi2_0, dof, s_w, dropped, keep, resid, cbb0, alpha, sens[0][-1],
                      sens[2][-1], cov_floor, it, widen, report_widen)
+
+
+def consistent(chi2: float, dof: float) -> bool:
+    """Is a residual chi-square within 3 standard deviations (``sqrt(2 dof)``) of its degrees of freedom?"""
+    return chi2 <= dof + 3.0 * math.sqrt(2.0 * dof)
 
 
 def _integrate(dtheta_b, dvel_b, dt, order):

@@ -79,7 +79,17 @@ class CourseFit:
     floor: float            # rad: sideslip and mounting, added to every sigma
     used: int               # epochs used
     dropped: int            # epochs rejected as glitches (or reversing)
-    factor: float           # residual chi-square / dof (>= 1: applied to the covariance)
+    factor: float           # residual chi-square / dof (>= 1), times the correlation's inflation: applied to the cov
+    glitches: int = 0       # of ``dropped``: neither along the estimate's heading nor reversing
+    considered: int = 0     # epochs faster than the minimum speed
+    correlation: float = 0.0    # lag-one correlation of the whitened residuals (time order)
+
+    @property
+    def broken(self) -> bool:
+        """Glitches in half the epochs or more: past the breakdown point of any robust fit (50 %), the epochs
+        kept are a chosen minority, not a sample: the estimate's heading does not follow the course as
+        ``a + b t`` (its drift is not a constant gyro bias, or the estimate is wrong)."""
+        return 2 * self.glitches >= max(self.considered, 2)
 
     def delta(self, dt):
         """The correction at ``dt`` s after the last epoch."""
@@ -100,8 +110,10 @@ def course_heading(t, vel_n, heading_est, min_speed, sigma_v, floor, drift_sigma
     ``N(0, drift_sigma^2)``; ``a`` is the correction at the last epoch.  The fit is Huber-weighted
     (iteratively reweighted least squares, k = 1.345 on the residuals over their robust scale); epochs
     more than 30 deg off (reversing, a glitch) and then more than 5 robust sigma off are dropped.  The
-    variance of ``a`` is scaled by the residual chi-square per degree of freedom when that exceeds 1,
-    and the sideslip/mounting ``floor`` is added in quadrature (it does not average out).
+    variance of ``a`` is scaled by the residual chi-square per degree of freedom when that exceeds 1 and by
+    ``(1 + rho) / (1 - rho)`` (at most n) when the residuals' lag-one correlation ``rho`` is significant
+    (systematic, not noise), and the sideslip/mounting ``floor`` is added in quadrature (it does not average out).  A fit that
+    drops half its epochs or more as glitches is :attr:`CourseFit.broken`: the caller does not use it.
     """
     t = np.asarray(t, dtype=float)
     v = np.asarray(vel_n, dtype=float)
@@ -117,6 +129,7 @@ def course_heading(t, vel_n, heading_est, min_speed, sigma_v, floor, drift_sigma
     mean = math.atan2(float((w0 * np.sin(d)).sum()), float((w0 * np.cos(d)).sum()))
     d = mean + np.angle(np.exp(1j * (d - mean)))            # unwrapped about the mean
     keep = np.abs(d - mean) < math.radians(30.0)
+    reversing = int((np.abs(np.angle(np.exp(1j * (d - mean - math.pi)))) < math.radians(30.0)).sum())
     dropped = int((~keep).sum())
     prior = 0.0 if not drift_sigma or not np.isfinite(drift_sigma) else 1.0 / drift_sigma ** 2
     A = np.stack([np.ones_like(tt), tt], axis=-1)
@@ -147,4 +160,12 @@ def course_heading(t, vel_n, heading_est, min_speed, sigma_v, floor, drift_sigma
     chi2 = float((W * (d - A @ x) ** 2).sum())
     dof = max(n - 2 + (1 if prior > 0 else 0), 1)
     factor = max(1.0, chi2 / dof)
-    return CourseFit(float(x[0]), float(x[1]), cov * factor, float(floor), n, dropped, factor)
+    # residuals that follow each other (the estimate's heading bends away from a + b t) average out less
+    # than white ones: the variance of a mean of n AR(1) terms is (1 + rho) / (1 - rho) times the white
+    # one's (at most n: all of them one sample); applied when rho is beyond 3 standard errors of white noise
+    u = ((d - A @ x) / s)[keep]
+    rho = float((u[1:] * u[:-1]).sum() / max(float((u * u).sum()), 1e-300)) if n > 2 else 0.0
+    if n > 2 and rho > 3.0 / math.sqrt(n):
+        factor *= min((1.0 + rho) / max(1.0 - rho, 1e-12), float(n))
+    return CourseFit(float(x[0]), float(x[1]), cov * factor, float(floor), n, dropped, factor,
+                     glitches=dropped - reversing, considered=int(ok.sum()), correlation=rho)

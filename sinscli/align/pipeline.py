@@ -448,18 +448,24 @@ def _observations(w: Window, opts: AlignOptions, lat: float, h: float, gnss: Gns
 def _fit(w: Window, ob: _Observations, cbn0, g, b, rows_mask=None, robust=False, notes=None):
     """The bias-aware fit (:mod:`.fit`) with the budget's priors.  A bias the budget does not know (no
     description, no rest) gets the prior the components the motion determined give (Student t), and the
-    fit is repeated with it (the budget is updated in place)."""
-    m = slice(None) if rows_mask is None else rows_mask
-    rows = ob.rows[m]
-    a_adj = ob.alpha_adjust
-    if a_adj is not None and rows_mask is not None:
-        full = ob.alpha_adjust
+    fit is repeated with it (the budget is updated in place).  A fit that the data reject (its residual
+    chi-square significantly above its degrees of freedom) is tried again by continuation
+    (:func:`_continued`); the one the data fit better is kept."""
 
-        def a_adj(a_ep, cbb0_ep, _full=full, _mask=rows_mask):
-            out = np.zeros((len(ob.rows), 3))
-            cb = np.broadcast_to(np.eye(3), (len(ob.rows), 3, 3)).copy()
-            out[_mask], cb[_mask] = a_ep, cbb0_ep
-            return _full(out, cb)[_mask]
+    def select(mask):
+        """The sample rows, epoch times (s since t0), GNSS 1-sigma and lever-arm adjustment of the epochs
+        ``mask`` (bool over ``ob.rows``; None: all)."""
+        m = slice(None) if mask is None else mask
+        a_adj = ob.alpha_adjust
+        if a_adj is not None and mask is not None:
+            full = ob.alpha_adjust
+
+            def a_adj(a_ep, cbb0_ep, _full=full, _mask=mask):
+                out = np.zeros((len(ob.rows), 3))
+                cb = np.broadcast_to(np.eye(3), (len(ob.rows), 3, 3)).copy()
+                out[_mask], cb[_mask] = a_ep, cbb0_ep
+                return _full(out, cb)[_mask]
+        return ob.rows[m], ob.times[m] - w.t0, ob.s_v[m], a_adj
 
     turning = _turning(w)
     # without GNSS the base's own motion (heave, sway) is unmodelled and the gyro matrix's effect
@@ -475,9 +481,12 @@ def _fit(w: Window, ob: _Observations, cbn0, g, b, rows_mask=None, robust=False,
     axes = None if e_est == 1.0 else _level_axes(w)
     scale = np.ones(3) if axes is None else np.array([e_est, e_est, 1.0])
 
-    def run():
-        return fit.fit(w.dtheta_b, w.dvel_b, w.dt, rows, ob.beta[rows], cbn0, ob.times[m] - w.t0, g=g,
-                       vrw=b.accel_vrw, arw=b.gyro_arw, s_v=ob.s_v[m], prior_accel=_accel_prior(b, g, True) * scale,
+    def run(mask=rows_mask, c0=cbn0, start=None, stage=False, statistics=True):
+        """The fit over the epochs ``mask`` from ``c0`` (and the sensor errors ``start``); a ``stage`` of the
+        continuation gives its solution only (no outliers, no residual statistics, halved overshoots)."""
+        rows, t_ep, s_v, a_adj = select(mask)
+        return fit.fit(w.dtheta_b, w.dvel_b, w.dt, rows, ob.beta[rows], c0, t_ep, g=g,
+                       vrw=b.accel_vrw, arw=b.gyro_arw, s_v=s_v, prior_accel=_accel_prior(b, g, True) * scale,
                        prior_gyro=b.gyro_bias_est if axes is None else b.gyro_bias,
                        report_accel=np.full(3, _accel_prior(b, g)), report_gyro=b.gyro_bias,
                        accel_axes=axes,
@@ -485,8 +494,20 @@ def _fit(w: Window, ob: _Observations, cbn0, g, b, rows_mask=None, robust=False,
                        prior_mis=b.gyro_mis_est * e_est if turning else 0.0,
                        report_sf=b.gyro_sf, report_mis=b.gyro_mis,
                        centered=ob.centered, s_common=ob.s_common, order=ob.order, alpha_adjust=a_adj,
-                       robust=robust, widen_priors=ob.vel_ep is not None)
-    res = run()
+                       robust=robust and not stage, widen_priors=ob.vel_ep is not None, start=start,
+                       statistics=statistics and not stage, halving=stage, max_iter=STAGE_ITERATIONS if stage else 8,
+                       gyro_rw=b.gyro_bias_rw, accel_rw=b.accel_bias_rw)
+
+    def best():
+        # the residual statistics only run on a fit the data reject: without them first (the same fit
+        # when the data accept it), and with them on the better of the direct and the continued fit
+        res = run(statistics=False)
+        if fit.consistent(res.chi2, res.dof):
+            return res
+        alt = _continued(run, ob.times - w.t0, rows_mask, b.gyro_bias_est)
+        return alt if alt is not None and alt.chi2 / alt.dof < res.chi2 / res.dof else run()
+
+    res = best()
     _widen_budget(b, res, notes)
     if not all(b.bias_known.values()):
         # what the budget does not know (no description, no rest): the prior from the components the
@@ -512,9 +533,36 @@ def _fit(w: Window, ob: _Observations, cbn0, g, b, rows_mask=None, robust=False,
                     if which == "gyro":
                         b.data_gyro_bias = max(b.data_gyro_bias, s)
             b.bias_known[which] = True
-        res = run()
+        res = best()
         _widen_budget(b, res, notes)
     return res
+
+
+STAGE_TURN = 0.3          # rad: the frame turn, at the gyro prior, over the continuation's first window
+STAGE_EPOCHS = 6          # the fewest epochs of a continuation window
+STAGE_ITERATIONS = 30     # Gauss-Newton steps of a continuation window (overshoots halved)
+
+
+def _continued(run, t_ep, mask, gyro_prior):
+    """The fit by continuation over growing windows: the first as long as a gyro bias at the prior
+    (rad/s per axis) turns the frame by ``STAGE_TURN`` (where the first-order model of the bias holds),
+    each next twice as long, started from the last one's attitude and sensor errors, the whole interval
+    last.  Gauss-Newton from the Wahba solution over the whole interval may not reach the minimum when
+    the gyro bias turns the frame by tens of degrees over it (a phone's 3 deg/s over a minute); each
+    window here starts close to its own.  ``t_ep`` (n,) s since t0 of every epoch, ``mask`` the epochs
+    of the fit (None: all).  None when no window shorter than the interval has ``STAGE_EPOCHS``."""
+    sel = np.ones(t_ep.shape[0], dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    t = t_ep[sel]
+    T = float(t[-1])
+    if t.shape[0] < 2 * STAGE_EPOCHS:
+        return None
+    t_len = max(STAGE_TURN / max(math.sqrt(3.0) * gyro_prior, 1e-12), float(t[STAGE_EPOCHS - 1]))
+    c0, start, staged = None, None, False
+    while t_len < T:
+        res = run(sel & (t_ep <= t_len + 1e-9), **({} if c0 is None else {"c0": c0}), start=start, stage=True)
+        c0, start, staged = res.cbn0, (res.gyro_bias, res.accel_bias, res.gyro_matrix), True
+        t_len *= 2.0
+    return run(c0=c0, start=start) if staged else None
 
 
 def _widen_budget(b, res, notes):
@@ -561,7 +609,7 @@ def _inertial(w: Window, opts: AlignOptions, lat: float, h: float, g: float, b,
     cbn0 = res.cbn0
     cbb0 = res.cbb0
     cov0 = res.cov[:3, :3]
-    cov_end = res.end_cov(ob.cnn0[-1], b.gyro_arw, T)
+    cov_end = res.end_cov(ob.cnn0[-1], b.gyro_arw, T, b.gyro_bias_rw)
     R = ob.cnn0[-1].T
     floor0 = res.cov_floor
     floor_end = R @ floor0 @ R.T          # a lower bound: the angle random walk after the start left out
@@ -576,7 +624,7 @@ def _inertial(w: Window, opts: AlignOptions, lat: float, h: float, g: float, b,
             res_w = _fit(w, ob, series0[j], g, b, rows_mask=mask, robust=gnss is not None)
             c_win = res_w.cbn0
             cw0 = res_w.cov[:3, :3]
-            cwe = res_w.end_cov(ob.cnn0[-1], b.gyro_arw, T)
+            cwe = res_w.end_cov(ob.cnn0[-1], b.gyro_arw, T, b.gyro_bias_rw)
         else:
             c_win, cw0, cwe = series0[j], cov0, cov_end
         cbn0 = _combine_roll(cbn0, c_win, opts.conv)
@@ -599,6 +647,7 @@ def _inertial(w: Window, opts: AlignOptions, lat: float, h: float, g: float, b,
                   accel_bias_sigma=np.sqrt(np.maximum(np.diag(res.cov[fit.P_NAB, fit.P_NAB]), 0.0)),
                   residual={"chi2_dof": res.chi2 / res.dof, "unmodelled_velocity_noise": res.s_white})
     hs = math.sqrt(max(cov_end[2, 2], 0.0))
+    _check_tilt(w, res, cov_end)
     if gnss is None:
         _check_translation(w, opts, res, times, g, b)
         hc = _earth_rate_check(lat, T, hs, b, opts, g)
@@ -620,6 +669,28 @@ def _inertial(w: Window, opts: AlignOptions, lat: float, h: float, g: float, b,
     dropped = {"gnss_velocity": len(res.dropped)}
     return _Solution(cbn0, rows, times, propagate, series0, cov0, cov_end, floor0, floor_end, hc, "gnss-motion",
                      at_end=at_end, vel_ep=ob.vel_ep, sig_v=np.maximum(ob.s_v, 1e-3), dropped=dropped, **common)
+
+
+MAX_TILT_SIGMA = math.radians(10.0)   # rad: beyond, sin x differs from x by > 0.5 %: no covariance describes the error
+
+
+def _check_tilt(w: Window, res, cov_end) -> None:
+    """Refuse a fit that the data reject (its residual chi-square significantly above its degrees of
+    freedom, so that the residual statistic widened its covariance) when its tilt 1-sigma (the larger
+    horizontal axis of the ENU covariance at the end) exceeds :data:`MAX_TILT_SIGMA`: the fit's small-angle model (and the navigation filter's) does not hold there, so
+    the figure would claim nothing.  The usual causes: the units, the axes, the lever arm, or a GNSS velocity
+    off the IMU's."""
+    if fit.consistent(res.chi2, res.dof):
+        return
+    tilt = math.sqrt(max(float(np.linalg.eigvalsh(0.5 * (cov_end[:2, :2] + cov_end[:2, :2].T)).max()), 0.0))
+    if tilt <= MAX_TILT_SIGMA:
+        return
+    extra = f", {res.s_white:.3g} m/s of unmodelled velocity noise added" if res.s_white > 0 else ""
+    raise SinsError(f"{w.source}: the alignment fit does not explain the data over {w.T:.4g} s (residual "
+                    f"chi-square/dof {res.chi2 / res.dof:.3g}{extra}): its roll/pitch 1-sigma is {math.degrees(tilt):.3g} "
+                    f"deg, beyond the {math.degrees(MAX_TILT_SIGMA):.0f} deg where an attitude error is small; check the "
+                    f"IMU units and axes (imu.units, imu.body, imu.mounting), gnss.lever_arm and the GNSS velocity, "
+                    f"or align over another interval (--start, --duration)")
 
 
 def _replace_roll(cov, cov_win, cbn, conv):
@@ -719,6 +790,15 @@ def _resolve_heading(sol: _Solution, opts: AlignOptions, notes: list, b, t0: flo
         # the drift of the estimate's heading: its gyro bias about up
         co = observability.course_heading(t_ep, sol.vel_ep, h_ep, opts.course_min_speed, sol.sig_v,
                                           opts.course_sigma_floor, b.gyro_bias)
+        if co is not None and co.broken:
+            why = (f"; the GNSS course cannot replace it: the robust course fit drops {co.glitches} of {co.considered} "
+                   f"epochs faster than {opts.course_min_speed:g} m/s as glitches (past a robust fit's breakdown point, half): "
+                   f"the estimate's heading does not follow the course")
+            if not heading_optional:
+                raise SinsError(sol.heading.reason + why + ": give --heading DEG")
+            notes.append(sol.heading.reason + why + "; the heading is left to the fused run (heading from motion)")
+            nan = float("nan")
+            return _Heading(sol.cbn0, cur, end, nan, nan, "none")
         if co is not None:
             t_last = float(t_ep[-1])
             cbn0 = _rz(float(co.delta(-t_last))) @ sol.cbn0
@@ -727,8 +807,10 @@ def _resolve_heading(sol: _Solution, opts: AlignOptions, notes: list, b, t0: flo
             extra = f", {co.dropped} dropped as glitches" if co.dropped else ""
             s_end = co.sigma(t1 - t0 - t_last)
             notes.append(sol.heading.reason + f"; heading from the GNSS course over {co.used} epochs faster than "
-                         f"{opts.course_min_speed:g} m/s{extra} (robust fit with the heading drift, residual "
-                         f"chi-square/dof {co.factor:.3g}): 1-sigma {math.degrees(s_end):.3g} deg")
+                         f"{opts.course_min_speed:g} m/s{extra} (robust fit with the heading drift, variance "
+                         f"scaled by {co.factor:.3g}: residual chi-square/dof"
+                         + (f" and their correlation {co.correlation:.2f}" if co.correlation > 3.0 / math.sqrt(co.used) else "")
+                         + f"): 1-sigma {math.degrees(s_end):.3g} deg")
             return _Heading(cbn0, cur, cbn_end, s_end, co.sigma(-t_last), "gnss-course", co.dropped)
         if not heading_optional:
             raise SinsError(sol.heading.reason + f"; the GNSS course cannot replace it (fewer than 2 epochs faster "

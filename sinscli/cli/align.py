@@ -62,7 +62,8 @@ def _parse_heading(value):
               help="--monte-carlo: worker processes of the local pool (default: all cores).")
 @scheduler_options
 @click.option("--force", is_flag=True,
-              help="Align data that the gyro-unit check refuses (rates impossible in their declared unit).")
+              help="Align data that the unit checks refuse (rates or specific forces impossible in their declared "
+                   "unit).")
 @quiet_option
 def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, heading, epoch, config_path, body,
               imu_topic, gnss_topic, vel_topic, series, plot, mc_runs, scenario, seed, output, jobs, scheduler, resume,
@@ -121,14 +122,15 @@ def align_cmd(imu, gnss_path, method, start, duration, position, roll_window, he
         from ..io.gnss_csv import check_gnss_against_imu
         check_gnss_against_imu(gnss, imu_log.t0 if imu_log.t0 is not None else float(imu_log.time[0]),
                                float(imu_log.time[-1]))
+    # the readers (pyarrow, rosbags) and the unit checks load when the command runs: --help stays light
+    from ..io.readers import _is_log
+    from ..nav.earth import gravity
+    from ..nav.sanity import accel_unit_check, gyro_unit_check
+    t_first = imu_log.t0 if imu_log.t0 is not None else float(imu_log.time[0])
+    accel_unit_check(imu_log, t_first, cfg.imu, force, ros=_is_log(imu))     # g read as m/s^2 (nav/sanity.py)
     lat = opts.position[0] if opts.position is not None else (
         float(np.radians(gnss.lat[0])) if gnss is not None and len(gnss) else None)
     if lat is not None:                       # gyros in deg/s read as rad/s (nav/sanity.py)
-        # the readers (pyarrow, rosbags) and the checks: only when the gyro-unit check runs
-        from ..io.readers import _is_log
-        from ..nav.earth import gravity
-        from ..nav.sanity import gyro_unit_check
-        t_first = imu_log.t0 if imu_log.t0 is not None else float(imu_log.time[0])
         spec = opts.sensor
         sensor = {"gyro": {"bias_sigma": spec.gyro_bias}} if spec is not None and spec.gyro_bias else None
         gyro_unit_check(imu_log, t_first, gravity(np.sin(lat), 0.0), lat, cfg.imu, sensor, force,

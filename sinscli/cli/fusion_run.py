@@ -28,8 +28,8 @@ from ..io.receiver import is_receiver_log
 from ..io.trajectory import check_trajectory_output, guard_trajectory, write_trajectory
 from ..nav.earth import gravity, radii_py
 from ..nav.pipeline import concat
-from ..nav.sanity import gyro_unit_check, mounting_warning
-from ..nav.timesync import estimate_offset, offset_refusal
+from ..nav.sanity import accel_unit_check, gyro_unit_check, mounting_warning
+from ..nav.timesync import estimate_offset, offset_refusal, offset_warning
 from ..nav.window import Window, check_in_log, check_init, clip_imu, from_start, trim
 from ..sensors import read_sensor
 from ..types import ImuLog
@@ -62,6 +62,8 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
     imu = read_imu(imu_path, cfg, allow_gaps=cfg.navigation.allow_gaps)
     if len(imu) == 0:
         raise SinsError(f"{imu_path}: no IMU samples")
+    # accelerometers in g read as m/s^2 (or the reverse): before anything uses the specific force
+    accel_unit_check(imu, imu.t0 if imu.t0 is not None else float(imu.time[0]), cfg.imu, force, ros=_is_log(imu_path))
     spp = None
     if raw is not None:
         obs, nav, spp, gnss = _read_raw(raw, fopts, cfg)
@@ -99,6 +101,9 @@ def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_
         text = offset_refusal(est, str(gnss.source), cfg.gnss.time_offset)
         if text:
             raise SinsError(text)
+        note = offset_warning(est, str(gnss.source), cfg.gnss.time_offset)    # periodic motion: candidates only
+        if note:
+            log.warning(note)
 
     def gyro_units(lat_g, height):
         """Before anything runs on the increments (the mounting too): at the first fix, or (raw observations

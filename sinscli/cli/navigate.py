@@ -99,8 +99,8 @@ def _count_rows(path: Path) -> int:
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=Path("trajectory.csv"),
               show_default=True, help="Trajectory output: .csv, .parquet, .mcap, .tum, .geojson, .kml.")
 @click.option("--force", is_flag=True,
-              help="Navigate data that a plausibility check refuses (gyro rates impossible in their declared unit, "
-                   "a GNSS time offset found by cross-correlation): for the rare real case.")
+              help="Navigate data that a plausibility check refuses (gyro rates or specific forces impossible in "
+                   "their declared unit, a GNSS time offset found by cross-correlation): for the rare real case.")
 @quiet_option
 def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, smooth, innovations_path, odom_path, vehicle, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
@@ -200,7 +200,8 @@ def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, s
         log.warning(note)
     # the readers (pyarrow, rosbags) and the checks load when the command runs: --help stays light
     from ..io.readers import _is_log
-    from ..nav.sanity import gyro_unit_check
+    from ..nav.sanity import accel_unit_check, gyro_unit_check
+    accel_unit_check(first, max(t_start, init.time), cfg.imu, force, ros=_is_log(imu))
     gyro_unit_check(first, max(t_start, init.time), gravity(math.sin(init.lat), init.height), init.lat, cfg.imu,
                     _sensor_description(cfg, config_path), force, ros=_is_log(imu))
 

@@ -6,6 +6,9 @@ the initial attitude ``Cbn`` predicts it, and a gross mismatch (tens of degrees)
 an axis mistake: a missing or wrong ``imu.mounting``, FRD data read as FLU (``imu.body``), or a wrong
 roll/pitch in the init.  Without an initial attitude (``--align`` takes it from the log), the body's up axis
 is checked instead: +z of FLU/RFU, -z of FRD.  No I/O here: the caller logs the warning.
+
+The unit checks below refuse gyros (:func:`gyro_unit_check`) and accelerometers (:func:`accel_unit_check`)
+whose data are impossible in their declared unit and plausible in another, naming the key to set.
 """
 from __future__ import annotations
 
@@ -14,10 +17,11 @@ import math
 
 import numpy as np
 
-from ..config import ImuSection, mounting_angles, mounting_matrix
+from ..config import ACCEL_UNITS, ImuSection, mounting_angles, mounting_matrix
 from ..conventions import FRD
 from ..errors import SinsError
 from ..types import time_tolerance
+from ..units import G0, MG
 from .earth import OMEGA_IE
 from .imu_stats import block_means
 from .rotation import rotvec_to_dcm
@@ -254,5 +258,76 @@ def gyro_unit_check(imu, t0: float, g: float, lat: float | None, imu_cfg: ImuSec
     fix = "the publisher writes deg/s where sensor_msgs/Imu holds rad/s: convert the log" if ros else None
     text = gyro_unit_refusal(imu.time[k:], imu.dtheta_b[k:], imu.dvel_b[k:], t0, g, lat, declared,
                              str(imu.source or "IMU log"), sensor, fix)
+    if text:
+        raise SinsError(text)
+
+
+# --- accelerometer units --------------------------------------------------------------------------------
+#
+# Whatever a vehicle on (or near) the earth does, its specific force averages to about gravity: over one second
+# a car, a walker, a robot or an aircraft in a coordinated turn or a pull-up measures |f| between ~0.5 g and
+# ~2 g, and the median of the one-second magnitudes over a log is within a factor 3 of g (vibration averages
+# out over a second; a log that starts moving changes a few seconds).  The unit mistakes are a factor 9.81
+# (g read as m/s^2, or m/s^2 read as g) or 1000 (mg): the median then lies outside that factor 3 as declared,
+# and near g in the other unit.  Only free fall (a coasting rocket, a drop test, a parabolic flight) or a boost
+# longer than half the log give such a median with the right unit: --force covers them.
+
+ACCEL_PLAUSIBLE = 3.0      # the median 1-s |f| as declared is refused outside g/3 .. 3 g
+ACCEL_MATCH = 0.25         # and accepted in another unit within this fraction of g
+ACCEL_MIN_BLOCKS = 5       # one-second blocks needed (a shorter log is not judged)
+
+
+def accel_unit_refusal(time, dtheta_b, dvel_b, t0: float, declared: str, source: str, kind: str = "rates",
+                       fix: str | None = None, g: float = G0) -> str | None:
+    """The refusal text when the specific force, read in ``declared`` units (``m/s^2``, ``g``, ``mg`` for
+    rates, ``m/s`` for increments), is implausible for any vehicle and plausible in another unit (see
+    above); else None.  ``dvel_b`` is in SI as the reader converted it; ``fix`` replaces the config advice
+    (a ROS log, whose messages are m/s^2 by definition)."""
+    time = np.asarray(time, dtype=float)
+    if time.shape[0] < 2 or time[-1] - t0 < ACCEL_MIN_BLOCKS:
+        return None
+    _, f = block_means(time, np.asarray(dtheta_b), np.asarray(dvel_b), t0, 1.0)
+    if f.shape[0] < ACCEL_MIN_BLOCKS:
+        return None
+    med = float(np.median(np.linalg.norm(f, axis=1)))
+    if g / ACCEL_PLAUSIBLE <= med <= ACCEL_PLAUSIBLE * g:
+        return None
+    if kind == "rates":
+        units = dict(ACCEL_UNITS)
+        key = "imu.units.accel"
+    else:                           # increments: m/s is the only unit the config offers for dvel
+        units = {"m/s": 1.0, "g*s": G0, "mg*s": MG}
+        key = "imu.units.dvel"
+    scale = units.get(declared, 1.0)
+    for unit, factor in units.items():
+        if unit == declared:
+            continue
+        other = med / scale * factor
+        if abs(other - g) <= ACCEL_MATCH * g:
+            break
+    else:
+        return None
+    shown = "m/s^2" if kind == "rates" else "m/s^2 (as dvel / dt)"
+    if fix is None:
+        fix = (f"set {key}: {unit} in the config" if unit in ACCEL_UNITS and kind == "rates" else
+               f"convert the dvel columns to m/s ({key} takes m/s only)")
+    return (f"{source}: accelerometer units: the median specific force over {f.shape[0]} one-second blocks from "
+            f"t = {t0:.6g} s is {med:.3g} {shown} read as {declared}, far from gravity ({g:.4g} m/s^2, what any "
+            f"vehicle averages to within a factor {ACCEL_PLAUSIBLE:g}); read as {unit} it is {other:.3g} m/s^2: the "
+            f"data are in {unit}; {fix} (--force takes them as {declared})")
+
+
+def accel_unit_check(imu, t0: float, imu_cfg: ImuSection | None, force: bool = False, ros: bool = False) -> None:
+    """Refuse (:func:`accel_unit_refusal`) an IMU block read with the config's ``imu`` section, unless ``force``.
+    ``ros``: the log is a ROS/MCAP log (sensor_msgs/Imu is m/s^2; no unit key applies)."""
+    if force or len(imu) < 2:
+        return
+    units = imu_cfg.units if imu_cfg is not None else ImuSection().units
+    kind = "rates" if (ros or imu.kind == "rates") else "increments"
+    declared = "m/s^2" if ros else (units.get("accel", "m/s^2") if kind == "rates" else units.get("dvel", "m/s"))
+    k = int(np.searchsorted(imu.time, t0, side="right"))
+    fix = "the publisher writes g where sensor_msgs/Imu holds m/s^2: convert the log" if ros else None
+    text = accel_unit_refusal(imu.time[k:], imu.dtheta_b[k:], imu.dvel_b[k:], t0, declared,
+                              str(imu.source or "IMU log"), kind, fix)
     if text:
         raise SinsError(text)

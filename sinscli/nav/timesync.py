@@ -14,6 +14,11 @@ the IMU signal averaged over the window that the GNSS differences span (its velo
 its positions' second differences when it has no velocity).  Their normalized cross-correlation,
 summed over the two signals, peaks at the lag ``tau`` at which the GNSS event at ``t`` shows in the IMU
 at ``t + tau``: ``tau`` is the shift to add to the GNSS times (``gnss.time_offset``).
+
+Periodic motion (a weave, a roll or a sway of constant period) correlates as well at every multiple of its
+period: the best lag is then a choice among equals, not a measurement.  It is named only when no other peak of the correlation (a local maximum set apart from it by a dip) comes within
+:data:`UNIQUE_SE` standard errors of a correlation over the logs' independent samples (:func:`_margin`); otherwise the candidates are listed in a
+warning (:func:`offset_warning`) and nothing is refused.
 """
 from __future__ import annotations
 
@@ -30,6 +35,8 @@ MAX_LAG = 120.0          # s: the lags searched (at most half of the overlap)
 MIN_OFFSET = 1.0         # s: smaller offsets (latency) are the filter's business, not reported
 MIN_PEAK = 0.6           # mean correlation of the two signals at the peak
 MIN_GAIN = 0.3           # the peak beats the correlation without a shift by this much
+UNIQUE_SE = 3.0          # standard errors by which the peak must beat every other local maximum (_margin)
+LISTED = 6               # candidate shifts named in the warning of an ambiguous estimate
 MIN_MOTION = 8           # GNSS epochs with motion (turns or accelerations) needed
 MAX_EPOCHS = 20_000      # GNSS epochs compared at most (a longer log is thinned evenly)
 COARSE_LAGS = 1_000      # lags of the first search; the second refines around its best over FINE_LAGS
@@ -40,11 +47,21 @@ POSITION_SMOOTH = 5      # GNSS epochs: both signals averaged over this many mor
 @dataclass
 class OffsetEstimate:
     """The lag of best agreement: ``shift`` s to add to the GNSS times, the mean correlation there and
-    without a shift, and the number of GNSS epochs compared."""
+    without a shift, and the number of GNSS epochs compared; ``margin`` how far above every other peak
+    the best must be (:func:`_margin`, over ``n_eff`` independent samples) and ``candidates`` the shifts
+    (s, nearest zero first, the best among them) of the peaks within it: empty when the best is unique."""
     shift: float
     peak: float
     at_zero: float
     epochs: int
+    margin: float = 0.0
+    n_eff: float = 0.0
+    candidates: tuple = ()
+
+    @property
+    def ambiguous(self) -> bool:
+        """Several lags agree about as well (periodic or repeated motion): none can be named."""
+        return len(self.candidates) > 1
 
 
 def _enu_velocity(t, lat_deg, lon_deg, h):
@@ -146,7 +163,9 @@ def estimate_offset(imu_time, dtheta_b, dvel_b, imu_t0: float, gnss_time, lat_de
     fine = max(step, dt_g / 10.0)               # coarse, then fine around the coarse best: bounded work
     coarse = max(fine, 2.0 * max_lag / COARSE_LAGS)
     lags = np.arange(-max_lag, max_lag + 0.5 * coarse, coarse)
-    best = float(lags[int(np.argmax([score(tau)[0] for tau in lags]))])
+    coarse_scores = np.array([score(tau)[0] for tau in lags])
+    best = float(lags[int(np.argmax(coarse_scores))])
+    coarse_lags = lags
     if coarse > fine:
         half = min(2.0 * coarse, 0.5 * FINE_LAGS * fine)
         lags = np.arange(best - half, best + half + 0.5 * fine, fine)
@@ -159,13 +178,59 @@ def estimate_offset(imu_time, dtheta_b, dvel_b, imu_t0: float, gnss_time, lat_de
         if den < 0:
             tau += 0.5 * (a - c) / den * float(lags[1] - lags[0])
     peak, n = score(tau)
-    return OffsetEstimate(shift=tau, peak=peak, at_zero=score(0.0)[0], epochs=n)
+    at_zero = score(0.0)[0]
+    margin, n_eff = _margin(coarse_lags, coarse_scores, overlap)
+    cands = _rivals(coarse_lags, coarse_scores, margin)
+    return OffsetEstimate(shift=tau, peak=peak, at_zero=at_zero, epochs=n, margin=margin, n_eff=n_eff,
+                          candidates=tuple(sorted([tau] + cands, key=abs)) if cands else ())
+
+
+def _margin(lags, scores, overlap):
+    """``(margin, n_eff)``: how much higher than any other the best correlation must be to be told from it.
+
+    Samples of the signals closer than their correlation time are not independent: the time is the full
+    width at half maximum of the correlation's main lobe, so the logs hold ``n_eff = overlap / width``
+    independent samples, and a sample correlation over them has the standard error ``1 / sqrt(n_eff)``
+    (that of a correlation coefficient of ``n_eff`` independent pairs).  Two peaks closer than
+    :data:`UNIQUE_SE` standard errors could trade places with other noise: the margin (:func:`_rivals`)."""
+    k = int(np.argmax(scores))
+    half = 0.5 * scores[k]
+    i0 = i1 = k
+    while i0 > 0 and scores[i0 - 1] > half:
+        i0 -= 1
+    while i1 < scores.size - 1 and scores[i1 + 1] > half:
+        i1 += 1
+    width = max(float(lags[i1] - lags[i0]), float(lags[1] - lags[0]) if lags.size > 1 else 1.0)
+    n_eff = max(overlap / width, 1.0)
+    return UNIQUE_SE / math.sqrt(n_eff), n_eff
+
+
+def _rivals(lags, scores, margin):
+    """The lags (s) of the other peaks of ``scores`` that rival the best: local maxima within ``margin`` of
+    it and separated from it by a dip of at least ``margin`` (a ripple on the best one's flank is not another
+    peak), each refined by the parabola through its neighbours."""
+    k = int(np.argmax(scores))
+    floor = scores[k] - margin
+    step = float(lags[1] - lags[0]) if lags.size > 1 else 0.0
+    out = []
+    for j in range(1, scores.size - 1):
+        if j == k or scores[j] < floor or scores[j] < scores[j - 1] or scores[j] < scores[j + 1]:
+            continue
+        dip = float(scores[min(j, k):max(j, k) + 1].min())
+        if scores[j] - dip < margin:
+            continue
+        a, b, c = scores[j - 1], scores[j], scores[j + 1]
+        den = a - 2.0 * b + c
+        out.append(float(lags[j]) + (0.5 * (a - c) / den * step if den < 0 else 0.0))
+    return out
 
 
 def offset_refusal(est: OffsetEstimate | None, gnss_name: str, configured: float = 0.0) -> str | None:
-    """The one-line refusal for a clear offset (:data:`MIN_OFFSET`, :data:`MIN_PEAK`, :data:`MIN_GAIN`), naming
-    the shift to set; None otherwise.  ``configured``: the ``gnss.time_offset`` already applied."""
-    if est is None or abs(est.shift) < MIN_OFFSET or est.peak < MIN_PEAK or est.peak - est.at_zero < MIN_GAIN:
+    """The one-line refusal for a clear offset (:data:`MIN_OFFSET`, :data:`MIN_PEAK`, :data:`MIN_GAIN`, and a
+    unique peak), naming the shift to set; None otherwise.  ``configured``: the ``gnss.time_offset`` already
+    applied."""
+    if est is None or abs(est.shift) < MIN_OFFSET or est.peak < MIN_PEAK or est.peak - est.at_zero < MIN_GAIN \
+            or est.ambiguous:
         return None
     total = configured + est.shift
     late = "late" if est.shift < 0 else "early"
@@ -173,3 +238,19 @@ def offset_refusal(est: OffsetEstimate | None, gnss_name: str, configured: float
             f"and accelerations agree best with the GNSS times shifted by {est.shift:+.2f} s (correlation "
             f"{est.peak:.2f} there, {est.at_zero:.2f} unshifted, {est.epochs} fixes); set gnss.time_offset: "
             f"{total:.2f} (or --time-offset {total:.2f}), or --force to navigate as they are")
+
+
+def offset_warning(est: OffsetEstimate | None, gnss_name: str, configured: float = 0.0) -> str | None:
+    """The warning for an ambiguous estimate (several lags agree within the margin, none near zero): the run
+    goes on with the times as they are, and the text names ``gnss.time_offset`` and the candidate shifts
+    (the total to set: ``configured`` plus each); None when the estimate is unique, weak, or zero is among
+    the lags that agree."""
+    if est is None or not est.ambiguous or est.peak < MIN_PEAK or est.peak - est.at_zero <= est.margin:
+        return None
+    shown = ", ".join(f"{configured + c:+.2f}" for c in est.candidates[:LISTED])
+    more = f" and {len(est.candidates) - LISTED} more" if len(est.candidates) > LISTED else ""
+    return (f"{gnss_name}: the GNSS-IMU time offset cannot be told: the motion repeats (periodic turns or "
+            f"accelerations), and the GNSS times shifted by {shown} s{more} agree about as well with the IMU "
+            f"(correlation {est.peak:.2f}, none ahead by the {est.margin:.2f} that {est.n_eff:.0f} independent samples "
+            f"would need; {est.at_zero:.2f} unshifted); navigating with the times as they are: if the clocks "
+            f"differ, set gnss.time_offset to the right one of these")
