@@ -125,14 +125,15 @@ CV = Layout("fusion config", [
     ("C_FADE_THR", 1),        # their mean NIS per component over which the filter is too confident
     ("C_FADE_MAX", 1),        # the largest covariance factor of one widening
     ("C_GE", 1),              # the first of the GNSS position error states (E, N, U; Gauss-Markov), or -1
-    ("C_GE_VAR", 3),          # their steady-state variances, m^2
+    ("C_GE_RATIO2", 3),       # their steady variance per stated variance of the fix (a float fix's larger sigma
+                              # is a larger correlated error)
     ("C_GE_TAU", 3),          # their correlation times, s
 ], total=87)
 (C_NX, C_NCORE, C_LA, C_TD, C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT, C_GATE, C_ROBUST,
  C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA, C_SF_TAU, C_REJ_RUN, C_RADAPT_N,
  C_RADAPT_MAX, C_RADAPT_BAND, C_RBASE, C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT,
  C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD, C_CLK, C_ISB, C_QCLK, C_QISB, C_CLK_JUMP,
- C_CLK_P0, C_FADE_ALPHA, C_FADE_THR, C_FADE_MAX, C_GE, C_GE_VAR, C_GE_TAU) = CV.offsets(*(name for name, _ in CV.fields))
+ C_CLK_P0, C_FADE_ALPHA, C_FADE_THR, C_FADE_MAX, C_GE, C_GE_RATIO2, C_GE_TAU) = CV.offsets(*(name for name, _ in CV.fields))
 CV_SIZE = CV.total
 
 # the filter's scalars (read and written by the kernel, carried between blocks)
@@ -169,11 +170,12 @@ FS = Layout("fusion filter scalars", [
     ("F_CJ", 1),              # a jump of the fixes since the last one taken cleanly (no widening then)
     ("F_CN", 1),              # fixes in the statistics since they last restarted
     ("F_GE", 3),              # the GNSS position error estimate (E, N, U, m): the fixes are the antenna plus it
-], total=217)
+    ("F_GE_V", 3),            # its steady variance now (m^2): the ratio times the last fix's stated variance
+], total=220)
 (F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD, F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA, F_ACC_T, F_ACC_DV,
  F_ACC_DTH, F_W, F_HAVE_W, F_LPW, F_LPF, F_F, F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH, F_ERR,
  F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC, F_CLK, F_ISB, F_EP_T, F_EP_ACC, F_EP_REJ, F_EP_NREJ,
- F_EP_T0, F_CL, F_CD, F_CZ, F_CS, F_CT, F_CJ, F_CN, F_GE) = FS.offsets(*(name for name, _ in FS.fields))
+ F_EP_T0, F_CL, F_CD, F_CZ, F_CS, F_CT, F_CJ, F_CN, F_GE, F_GE_V) = FS.offsets(*(name for name, _ in FS.fields))
 FS_SIZE = FS.total
 
 ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
@@ -396,9 +398,10 @@ def _propagate_clock(P, nx, cv, fs, T, Phi, store):
 @njit(cache=True)
 def _propagate_gnss_error(P, nx, cv, fs, T, Phi, store):
     """The GNSS position error states over ``T`` s: a first-order Gauss-Markov process per axis (Brown &
-    Hwang 2012, "Introduction to Random Signals and Applied Kalman Filtering", 4th ed., sec. 9.x: colored
+    Hwang 2012, "Introduction to Random Signals and Applied Kalman Filtering", 4th ed., sec. 8.x: colored
     measurement noise by state augmentation; Gelb 1974, table 3.8-1), ``e' = -e / tau + w`` with the steady
-    variance ``s^2``: ``phi = exp(-T / tau)``, ``Qd = s^2 (1 - phi^2)``.  The estimate decays as ``e *= phi``;
+    variance ``s^2`` (the last fix's, :func:`_gnss_error_level`): ``phi = exp(-T / tau)``,
+    ``Qd = s^2 (1 - phi^2)``.  The estimate decays as ``e *= phi``;
     uncoupled from the other states in F, so ``P <- Phi P Phi^T`` scales its rows and columns; with ``store``
     the smoother's transition matrix gets the same ``phi``."""
     g = int(cv[C_GE])
@@ -409,9 +412,27 @@ def _propagate_gnss_error(P, nx, cv, fs, T, Phi, store):
         for j in range(nx):
             P[k, j] *= d
             P[j, k] *= d
-        P[k, k] += cv[C_GE_VAR + a] * (1.0 - d * d)
+        P[k, k] += fs[F_GE_V + a] * (1.0 - d * d)
         if store:
             Phi[k, k] *= d
+
+
+@njit(cache=True)
+def _gnss_error_level(row, fs, cv, P, Pm, store):
+    """A fix sets the steady variance of the GNSS error states: its stated variance times the ratio
+    ``C_GE_RATIO2`` (a float fix's larger sigma is a larger slowly varying error, a fixed one's smaller).  A
+    rise is added to the states' variance at once (a positive increment, given to the smoother's prior too);
+    a fall lets the states decay to the new level with their correlation time."""
+    g = int(cv[C_GE])
+    for a in range(3):
+        s = row[RW_S + a]
+        v = cv[C_GE_RATIO2 + a] * s * s
+        dv = v - fs[F_GE_V + a]
+        if dv > 0.0:
+            P[g + a, g + a] += dv
+            if store:
+                Pm[g + a, g + a] += dv
+        fs[F_GE_V + a] = v
 
 
 @njit(cache=True)
@@ -998,6 +1019,8 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
     m, axis0, a0, a1, a2 = _model(row, kind, st, fs, cv, nx, H, z, r, sat)
     if m == 0:
         return n_inn, n_evs
+    if kind == MT_GNSS_POS and int(cv[C_GE]) >= 0:
+        _gnss_error_level(row, fs, cv, P, mats[W_PM], cv[C_SMOOTH_DT] > 0.0)
     k = K_OF_KIND[kind]
     if k >= 0:
         for a in range(m):

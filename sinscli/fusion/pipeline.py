@@ -346,7 +346,7 @@ class Fusion:
         self.sat = raw.sat if raw is not None else np.zeros((0, kn.SW))
         # the fixes' time-correlated error (loosely coupled): (sigma_h, sigma_v, tau_h, tau_v), given or found by a
         # calibration pass (gnss_gm_from)
-        self.gnss_gm = gnss_gm if gnss_gm is not None else configured_gm(fopts)
+        self.gnss_gm = gnss_gm if gnss_gm is not None else configured_gm(fopts, gnss)
         self.ge = -1
         if self.gnss_gm is not None and raw is None:
             self.ge, nx = nx, nx + 3
@@ -485,8 +485,8 @@ class Fusion:
         cv[kn.C_FADE_MAX] = f.adapt_max_scale
         cv[kn.C_GE] = self.ge
         if self.ge >= 0:
-            sh, sv, th, tv = self.gnss_gm
-            cv[kn.C_GE_VAR:kn.C_GE_VAR + 3] = (sh * sh, sh * sh, sv * sv)
+            kh, kv, th, tv = self.gnss_gm
+            cv[kn.C_GE_RATIO2:kn.C_GE_RATIO2 + 3] = (kh * kh, kh * kh, kv * kv)
             cv[kn.C_GE_TAU:kn.C_GE_TAU + 3] = (th, th, tv)
         return cv
 
@@ -515,9 +515,12 @@ class Fusion:
             P[self.la:self.la + 3, self.la:self.la + 3] = np.eye(3) * f.lever_arm_sigma ** 2
         if self.td >= 0:
             P[self.td, self.td] = f.time_offset_sigma ** 2
-        if self.ge >= 0:
-            sh, sv = self.gnss_gm[:2]
-            P[self.ge:self.ge + 3, self.ge:self.ge + 3] = np.diag([sh * sh, sh * sh, sv * sv])
+        if self.ge >= 0:                # the first fix's level (kernel._gnss_error_level)
+            kh, kv = self.gnss_gm[:2]
+            s0 = self.gnss.position_sigma(f.gnss_pos_sigma)[0] if len(self.gnss) else np.ones(3)
+            v0 = np.array([kh, kh, kv]) ** 2 * s0 ** 2
+            P[self.ge:self.ge + 3, self.ge:self.ge + 3] = np.diag(v0)
+            self.fs[kn.F_GE_V:kn.F_GE_V + 3] = v0
         if self.clk >= 0:
             P[self.clk, self.clk] = max(f.clock_bias_sigma, self.raw.clock0_sigma[0]) ** 2
             P[self.clk + 1, self.clk + 1] = f.clock_drift_sigma ** 2
@@ -881,12 +884,15 @@ class Fusion:
                 f"the start: calibrated by a first pass on the log's innovations (their variance and their "
                 f"correlation from one measurement to the next)")
         if self.ge >= 0:
-            sh, sv, th, tv = self.gnss_gm
-            src = ("fusion.gnss_error" if configured_gm(self.fopts) is not None else
+            kh, kv, th, tv = self.gnss_gm
+            med = stated_sigma(self.gnss, self.fopts)
+            sh, sv = kh * med[0], kv * med[1]
+            src = ("fusion.gnss_error" if configured_gm(self.fopts, self.gnss) is not None else
                    "found by a first pass: the innovations of the fixes were correlated from one fix to the next")
             s.adaptations.append(
-                f"the fixes' time-correlated error estimated as states (Gauss-Markov, 1-sigma {sh:.3g} m horizontal, "
-                f"{sv:.3g} m vertical, correlation time {th:.3g} s / {tv:.3g} s): {src}")
+                f"the fixes' time-correlated error estimated as states (Gauss-Markov, 1-sigma {kh:.3g} / {kv:.3g} "
+                f"times each fix's stated sigma horizontal / vertical, {sh:.3g} / {sv:.3g} m at the median fix, "
+                f"correlation time {th:.3g} s / {tv:.3g} s): {src}")
         if self.bias_var is not None:
             d = 3600.0 / DEG
             sg, sa = np.sqrt(self.model.p0_bg), np.sqrt(self.model.p0_ba)
@@ -1058,14 +1064,22 @@ def r_base_from(fusion: Fusion, min_n: int = 30) -> np.ndarray:
     return out
 
 
-def configured_gm(fopts: FusionOptions):
-    """``(sigma_h, sigma_v, tau_h, tau_v)`` of the GNSS error states the config sets in full
-    (``fusion.gnss_error`` with both ``tau`` > 0 and ``sigma``), else None (off, or to be found by
-    :func:`gnss_gm_from`)."""
+def stated_sigma(gnss: GnssLog, fopts: FusionOptions) -> np.ndarray:
+    """``(2,)`` the median stated 1-sigma of the fixes (m): horizontal (east and north pooled), vertical."""
+    sp = gnss.position_sigma(fopts.gnss_pos_sigma) if len(gnss) else np.tile(fopts.gnss_pos_sigma, (1, 1))
+    return np.array([float(np.median(sp[:, :2])), float(np.median(sp[:, 2]))])
+
+
+def configured_gm(fopts: FusionOptions, gnss: GnssLog):
+    """``(k_h, k_v, tau_h, tau_v)`` of the GNSS error states the config sets in full (``fusion.gnss_error`` with
+    both ``tau`` > 0 and ``sigma``): ``k`` the configured sigma over the fixes' median stated sigma (each fix's
+    correlated error is its stated sigma times ``k``, kernel._gnss_error_level); else None (off, or to be
+    found by :func:`gnss_gm_from`)."""
     tau, sig = fopts.gnss_error_tau, fopts.gnss_error_sigma
     if tau is None or sig is None or not np.all(tau > 0):
         return None
-    return (float(sig[0]), float(sig[1]), float(tau[0]), float(tau[1]))
+    med = stated_sigma(gnss, fopts)
+    return (float(sig[0] / med[0]), float(sig[1] / med[1]), float(tau[0]), float(tau[1]))
 
 
 GM_MIN_RHO = 0.5        # a lag-1 correlation of the fixes' innovations over this (and significant): a correlated error
@@ -1107,10 +1121,11 @@ def _acf_gm(t, z, min_n):
 
 
 def gnss_gm_from(fusion: Fusion, min_n: int = 60):
-    """The GNSS error states (``(sigma_h, sigma_v, tau_h, tau_v)``) a pass over the log implies, or None: where
-    the innovations of its fixes (outage exits left out) are correlated from one fix to the next
-    (:func:`_acf_gm`), their correlated share of the innovations' mean square is the steady variance and the
-    fitted decay its correlation time; the horizontal axes pooled, the vertical on its own (an axis without a
+    """The GNSS error states a pass over the log implies, ``((k_h, k_v, tau_h, tau_v), white (3,))``, or None:
+    where the innovations of its fixes (outage exits left out), in units of each fix's stated sigma, are
+    correlated from one fix to the next (:func:`_acf_gm`), their correlated share of the mean square is the
+    steady variance ``k^2`` (per stated variance) and the fitted decay the correlation time, the rest the
+    white noise's share ``white``; the horizontal axes pooled, the vertical on its own (an axis without a
     correlated part gets the other's time and 1/10 of its stated sigma).  Off when the config set
     ``fusion.gnss_error.tau: 0``, when the pass already had them, and for a tightly coupled run."""
     f = fusion.fopts
@@ -1118,12 +1133,12 @@ def gnss_gm_from(fusion: Fusion, min_n: int = 60):
         return None
     inn = np.vstack(fusion.inn_parts) if fusion.inn_parts else np.zeros((0, kn.NREC))
     x = inn[(inn[:, 1] == kn.MT_GNSS_POS) & (inn[:, 9] == 0)]
-    fits, ms, rs = [], [], []
+    fits, ms = [], []
     for a in range(3):
         y = x[x[:, 10] == a]
-        fits.append(_acf_gm(y[:, 0], y[:, 3], min_n) if len(y) else None)
-        ms.append(float(np.mean(y[:, 3] ** 2)) if len(y) else 0.0)
-        rs.append(float(np.mean(y[:, 8])) if len(y) else 0.0)
+        zn = y[:, 3] / np.sqrt(y[:, 8]) if len(y) else y[:, 3]       # in units of each fix's stated sigma
+        fits.append(_acf_gm(y[:, 0], zn, min_n) if len(y) else None)
+        ms.append(float(np.mean(zn ** 2)) if len(y) else 0.0)
     if all(fi is None for fi in fits):
         return None
     out = []
@@ -1134,20 +1149,21 @@ def gnss_gm_from(fusion: Fusion, min_n: int = 60):
             var = float(np.mean([fits[a][1] * ms[a] for a in got]))
             tau = float(np.exp(np.mean([math.log(fits[a][0]) for a in got])))
             for a in got:               # the rest of the innovations' mean square is the white noise's
-                white[a] = _white_scale((1.0 - fits[a][1]) * ms[a], rs[a])
+                white[a] = _white_scale((1.0 - fits[a][1]) * ms[a], 1.0)
         else:
             var, tau = None, None
         out.append((var, tau))
     taus = [tau for _, tau in out if tau is not None]
     res = []
     for (var, tau), axes in zip(out, ((0, 1), (2,))):
-        if var is None:
-            var, tau = 0.01 * float(np.mean([rs[a] for a in axes])), float(np.exp(np.mean(np.log(taus))))
+        if var is None:                 # an axis without a correlated part: a tenth of its stated sigma
+            var, tau = 0.01, float(np.exp(np.mean(np.log(taus))))
         if f.gnss_error_tau is not None:
             tau = float(f.gnss_error_tau[0 if axes == (0, 1) else 1])
         res.append((math.sqrt(max(var, 1e-12)), tau))
     if f.gnss_error_sigma is not None:
-        res = [(float(f.gnss_error_sigma[0]), res[0][1]), (float(f.gnss_error_sigma[1]), res[1][1])]
+        med = stated_sigma(fusion.gnss, f)
+        res = [(float(f.gnss_error_sigma[0] / med[0]), res[0][1]), (float(f.gnss_error_sigma[1] / med[1]), res[1][1])]
     return (res[0][0], res[1][0], res[0][1], res[1][1]), white
 
 
@@ -1170,9 +1186,9 @@ def gnss_gm_mstep(fusion: Fusion, traj: Trajectory):
     errors are correlated does not follow them as a filter of white fixes does), their mean square less the
     white noise's is the steady variance, the 1/e time of their autocorrelation the correlation time (the
     maximization step of Shumway & Stoffer 1982, "An approach to time series smoothing and forecasting using
-    the EM algorithm", J. Time Series Analysis 3(4), with the smoothed residuals for the expectation).
-    Returns the new ``(sigma_h, sigma_v, tau_h, tau_v)``, or None when every sigma is within
-    :data:`EM_CHANGE` of the pass's and every tau within 2x."""
+    the EM algorithm", J. Time Series Analysis 3(4), with the smoothed residuals for the expectation), all in
+    units of each fix's stated sigma.  Returns ``((k_h, k_v, tau_h, tau_v), white (3,))``, or None when every
+    ratio is within :data:`EM_CHANGE` of the pass's and every tau within 2x."""
     from .summary import antenna_offsets        # the summary's residual geometry
     f, g = fusion.fopts, fusion.gnss
     if fusion.ge < 0 or len(traj) < 2:
@@ -1181,10 +1197,8 @@ def gnss_gm_mstep(fusion: Fusion, traj: Trajectory):
     sel = (g.time >= t0) & (g.time <= t1) & ~exit_fixes(g.time, f.outage)
     if sel.sum() < 60:
         return None
-    res = -antenna_offsets(traj, g, fusion.fs[kn.F_LEVER:kn.F_LEVER + 3], sel)
     t = g.time[sel]
-    k = kn.K_OF_KIND[kn.MT_GNSS_POS]
-    rw = g.position_sigma(f.gnss_pos_sigma)[sel] ** 2 * fusion.r_base[3 * k:3 * k + 3][None, :]
+    res = -antenna_offsets(traj, g, fusion.fs[kn.F_LEVER:kn.F_LEVER + 3], sel) / g.position_sigma(f.gnss_pos_sigma)[sel]
     old = fusion.gnss_gm
     new = []
     white = np.ones(3)
@@ -1195,7 +1209,7 @@ def gnss_gm_mstep(fusion: Fusion, traj: Trajectory):
             ms = float(np.mean(r * r))
             share = _lag1(r)           # the correlated share of the residuals' mean square
             vs.append(share * ms)
-            white[a] = _white_scale((1.0 - share) * ms, float(np.mean(rw[:, a])))
+            white[a] = _white_scale((1.0 - share) * ms, 1.0)
             tau = _efold(t, r)
             if tau is not None:
                 taus.append(tau)
@@ -1205,7 +1219,8 @@ def gnss_gm_mstep(fusion: Fusion, traj: Trajectory):
     if f.gnss_error_tau is not None:
         new = [(new[0][0], float(f.gnss_error_tau[0])), (new[1][0], float(f.gnss_error_tau[1]))]
     if f.gnss_error_sigma is not None:
-        new = [(float(f.gnss_error_sigma[0]), new[0][1]), (float(f.gnss_error_sigma[1]), new[1][1])]
+        med = stated_sigma(g, f)
+        new = [(float(f.gnss_error_sigma[0] / med[0]), new[0][1]), (float(f.gnss_error_sigma[1] / med[1]), new[1][1])]
     out = (new[0][0], new[1][0], new[0][1], new[1][1])
     same = all(abs(a / b - 1.0) <= EM_CHANGE for a, b in zip(out[:2], old[:2])) and \
         all(0.5 <= a / b <= 2.0 for a, b in zip(out[2:], old[2:]))
