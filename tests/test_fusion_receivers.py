@@ -119,7 +119,7 @@ def test_comma2k19_horizontal_velocity_real_log(tmp_path):
     """A real highway log whose u-blox fixes give speed and bearing only (comma2k19 example; no vertical
     velocity, no accuracy): fused with the horizontal-only velocity against the same fixes without it.  The
     heading against comma.ai's reference (the camera's, whose mounting is not given: its scatter about the mean
-    offset after the first 5 s) 0.084 deg with the velocity, 0.117 deg without; the residual against the fixes
+    offset after the first 5 s) 0.087 deg with the velocity, 0.096 deg without; the residual against the fixes
     0.215 m against 0.414 m; the heading from the course 0.1 s after the start against 1.3 s."""
     import pyarrow.csv as pc
     from click.testing import CliRunner
@@ -145,4 +145,6 @@ def test_comma2k19_horizontal_velocity_real_log(tmp_path):
         inn = pc.read_csv(tmp_path / f"inn_{k}.csv").to_pydict()
         axes = {a for ty, a in zip(inn["type"], inn["axis"]) if ty == "gnss_vel"}
         assert axes == ({"e", "n"} if k == "gnss_hv" else set())
-    assert scatter["gnss_hv"] <= 0.09 and scatter["gnss_pos"] >= 0.11, scatter
+    # the velocity sharpens the heading: 0.087 deg against 0.096 deg without it (0.117 before the filter took the
+    # phone gyro's biases and the fixes' correlated error from the log itself)
+    assert scatter["gnss_hv"] <= 0.09 and scatter["gnss_hv"] < 0.95 * scatter["gnss_pos"], scatter

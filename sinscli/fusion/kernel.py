@@ -936,9 +936,10 @@ def _exit_drift_scale(ratio, r_share, fs, cv, evs, n_evs, t):
 
 
 @njit(cache=True)
-def _inflate(P, Pm, nx, ncore, lam, store):
-    """Widen the core states' covariance (navigation and sensor errors) by ``lam`` >= 1:
-    ``P <- P + (lam - 1) E P E^T`` with ``E`` the core block's selector, a positive semi-definite increment
+def _inflate(P, Pm, nx, ncore, ge, lam, store):
+    """Widen the core states' covariance (navigation and sensor errors, and the GNSS error states ``ge..ge+2``
+    when carried: the drift may be the fixes') by ``lam`` >= 1: ``P <- P + (lam - 1) E P E^T`` with ``E`` the
+    selector of those states, a positive semi-definite increment
     (a principal block of P embedded with zeros), so that the filter stays positive definite; with ``store``
     the smoother's prior ``Pm`` of this epoch gets the same increment, so that ``Q = P^- - Phi P^+ Phi^T``
     stays positive semi-definite (the widening is process noise of the interval, not a break in the
@@ -947,8 +948,12 @@ def _inflate(P, Pm, nx, ncore, lam, store):
     f = lam - 1.0
     if f <= 0.0:
         return
-    for i in range(ncore):
-        for j in range(ncore):
+    for i in range(nx):
+        if not (i < ncore or (ge >= 0 and ge <= i < ge + 3)):
+            continue
+        for j in range(nx):
+            if not (j < ncore or (ge >= 0 and ge <= j < ge + 3)):
+                continue
             d = f * P[i, j]
             if store:
                 Pm[i, j] += d
@@ -1062,7 +1067,7 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
                 trs += S[a, a]
                 trr += r[a]
             lam = min(max((lam_s * trs - trr) / max(trs - trr, 1e-300), 1.0), cv[C_FADE_MAX])
-            _inflate(P, mats[W_PM], nx, ncore, lam, store)
+            _inflate(P, mats[W_PM], nx, ncore, int(cv[C_GE]), lam, store)
             n_evs = _event(evs, n_evs, t, EV_WIDEN, lam_s, lam)
             innovation_covariance(P, nx, H, r, m, HP, S)
             nis = nis_of(S, z, m, Si)
@@ -1077,7 +1082,7 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
         if not acc:
             # reacquisition: the dead reckoning's covariance was too small by about the ratio (_inflate)
             n_evs = _event(evs, n_evs, t, EV_REACQUIRE, nis, ratio)
-            _inflate(P, mats[W_PM], nx, ncore, ratio, store)
+            _inflate(P, mats[W_PM], nx, ncore, int(cv[C_GE]), ratio, store)
             innovation_covariance(P, nx, H, r, m, HP, S)
             nis_of(S, z, m, Si)
             acc = True                          # a reacquired fix is taken (the widening made room)
@@ -1089,8 +1094,8 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
             # a run of rejected fixes: the filter diverged (or the GNSS jumped and stays): the navigation
             # block widened by the fix's horizontal innovation against its variance (_inflate), the fix taken
             n_evs = _event(evs, n_evs, t, EV_REJECTION_RUN, fs[F_TREJ0], fs[F_NREJ])
-            _inflate(P, mats[W_PM], nx, ncore, max((z[0] * z[0] + z[1] * z[1]) / (S[0, 0] + S[1, 1]), nis / m),
-                     store)
+            run_ratio = max((z[0] * z[0] + z[1] * z[1]) / (S[0, 0] + S[1, 1]), nis / m)
+            _inflate(P, mats[W_PM], nx, ncore, int(cv[C_GE]), run_ratio, store)
             innovation_covariance(P, nx, H, r, m, HP, S)
             nis_of(S, z, m, Si)
             acc = True

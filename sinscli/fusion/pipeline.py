@@ -395,6 +395,10 @@ class Fusion:
             rows = [gnss_rows(gnss, fopts, t_min)]
         else:                               # the satellites' measurements; the fixes give the course only
             rows = [raw.rows[raw.rows[:, 0] > t_min], self.course.rows]
+        # body-velocity rows measure the lateral and vertical body velocity the NHC would constrain: the two
+        # together would count the same information twice (a filter sure of itself twice over); the
+        # odometry's rows replace the NHC's
+        self.nhc_by_odometry = bool(body_vel is not None and fopts.odometry and len(body_vel.time) and fopts.nhc)
         if body_vel is not None and fopts.odometry and len(body_vel.time):
             # the log's sigma (a wheel-odometry controller's covariance is often a placeholder: 1e-3) no
             # smaller than the floor (wheel slip of a skid-steered vehicle, ~10 % at 1 m/s); or the config's
@@ -538,9 +542,10 @@ class Fusion:
         bias[0] = self.fs[:kn.NBIAS]
         traj = Trajectory(np.array([s.time]), np.array([s.lat]), np.array([s.lon]), np.array([s.height]),
                           np.asarray(s.vel_n, float)[None, :].copy(), np.asarray(s.Cbn, float)[None].copy())
-        traj.extra = self._columns(var, bias)      # the filter's rows (a smoothed pass may end as the final one)
         if self.smooth:
             self.forward_rows.append((traj, var, bias))
+        else:
+            traj.extra = self._columns(var, bias)
         return traj
 
     def _measurement_rows(self, imu_t, dth, dv, t_start):
@@ -562,7 +567,7 @@ class Fusion:
                     sig = f.zaru_sigma if f.zaru_sigma is not None else self._zaru_sigma(t1 - t0)
                     sig = np.broadcast_to(sig, (n,))
                     parts.append(np.column_stack([t1, np.full(n, kn.MT_ZARU), w, sig, sig, sig, np.zeros((n, 2))]))
-        if f.nhc:
+        if f.nhc and not self.nhc_by_odometry:
             tn = np.arange(self._t_nhc + f.nhc_interval, imu_t[-1] + 1e-9, f.nhc_interval)
             if len(tn):
                 self._t_nhc = float(tn[-1])
@@ -640,9 +645,10 @@ class Fusion:
         out_t, out_pos, out_vel, out_cbn, out_var, out_bias = out
         traj = Trajectory(out_t[:n], out_pos[:n, 0], out_pos[:n, 1], out_pos[:n, 2], out_vel[:n], out_cbn[:n])
         var, bias = out_var[:n], out_bias[:n]
-        traj.extra = self._columns(var, bias)      # the filter's rows (a smoothed pass may end as the final one)
         if self.smooth:
             self.forward_rows.append((traj, var, bias))
+        else:
+            traj.extra = self._columns(var, bias)
         return traj
 
     def _log_event(self, e):
@@ -711,18 +717,12 @@ class Fusion:
     def events(self) -> np.ndarray:
         return np.vstack(self.ev_parts) if self.ev_parts else np.zeros((0, 4))
 
-    def smoothed(self, keep: bool = False) -> Trajectory:
-        """The RTS-smoothed trajectory at the forward output rows (the forward rows are consumed, unless
-        ``keep``: a calibration pass's look at its smoothed track)."""
+    def smoothed(self) -> Trajectory:
+        """The RTS-smoothed trajectory at the forward output rows (the forward rows are consumed)."""
         traj = concat([r[0] for r in self.forward_rows])
         var = np.concatenate([r[1] for r in self.forward_rows])
         bias = np.concatenate([r[2] for r in self.forward_rows])
-        if keep:
-            traj = Trajectory(traj.time.copy(), traj.lat.copy(), traj.lon.copy(), traj.height.copy(),
-                              traj.vel_n.copy(), traj.Cbn.copy())
-            var, bias = var.copy(), bias.copy()
-        else:
-            self.forward_rows = []
+        self.forward_rows = []
         epochs = self.epochs.trimmed()
         self.smoother_guard = smooth_rows(traj.time, traj.lat, traj.lon, traj.height, traj.vel_n, traj.Cbn, var,
                                           bias, epochs, self.ncore, self.nx, int(self.cv[kn.C_FWD]), self.clk)
@@ -809,6 +809,9 @@ class Fusion:
                     f"the IMU's mounting yaw is likely off by that much (imu.mounting, or imu.mounting: auto)")
         if self.la < 0 and self.raw is None:
             self._lever_check(rec, traj, s)
+        if self.nhc_by_odometry:
+            s.hints.append("NHC not applied: the body-velocity (odometry) rows measure the lateral and vertical "
+                           "velocity it would constrain")
         if f.vehicle == "none":
             hint = ground_vehicle_hint(self.gnss)
             if hint:
@@ -1176,121 +1179,30 @@ def _white_scale(var_white: float, r_stated: float) -> float:
     return float(min(max(var_white / max(r_stated, 1e-300), WHITE_MIN), 1.0))
 
 
-EM_STEPS = 2            # re-estimations of the GNSS error states from a smoothed pass, at most
-EM_CHANGE = 0.25        # a re-estimated sigma within this share of the pass's (and tau within 2x): converged
-
-
-def gnss_gm_mstep(fusion: Fusion, traj: Trajectory):
-    """The GNSS error states re-estimated from a pass that carried them, smoothed (``traj``): the fixes minus
-    the smoothed antenna track are the fixes' errors as the model now sees them (a smoother that knows the
-    errors are correlated does not follow them as a filter of white fixes does), their mean square less the
-    white noise's is the steady variance, the 1/e time of their autocorrelation the correlation time (the
-    maximization step of Shumway & Stoffer 1982, "An approach to time series smoothing and forecasting using
-    the EM algorithm", J. Time Series Analysis 3(4), with the smoothed residuals for the expectation), all in
-    units of each fix's stated sigma.  Returns ``((k_h, k_v, tau_h, tau_v), white (3,))``, or None when every
-    ratio is within :data:`EM_CHANGE` of the pass's and every tau within 2x."""
-    from .summary import antenna_offsets        # the summary's residual geometry
-    f, g = fusion.fopts, fusion.gnss
-    if fusion.ge < 0 or len(traj) < 2:
-        return None
-    t0, t1 = float(traj.time[0]), float(traj.time[-1])
-    sel = (g.time >= t0) & (g.time <= t1) & ~exit_fixes(g.time, f.outage)
-    if sel.sum() < 60:
-        return None
-    t = g.time[sel]
-    res = -antenna_offsets(traj, g, fusion.fs[kn.F_LEVER:kn.F_LEVER + 3], sel) / g.position_sigma(f.gnss_pos_sigma)[sel]
-    old = fusion.gnss_gm
-    new = []
-    white = np.ones(3)
-    for axes, s_old, t_old in (((0, 1), old[0], old[2]), ((2,), old[1], old[3])):
-        vs, taus = [], []
-        for a in axes:
-            r = res[:, a]
-            ms = float(np.mean(r * r))
-            share = _lag1(r)           # the correlated share of the residuals' mean square
-            vs.append(share * ms)
-            white[a] = _white_scale((1.0 - share) * ms, 1.0)
-            tau = _efold(t, r)
-            if tau is not None:
-                taus.append(tau)
-        var = max(float(np.mean(vs)), (0.1 * s_old) ** 2)
-        tau = float(np.exp(np.mean(np.log(taus)))) if taus else t_old
-        new.append((math.sqrt(var), tau))
-    if f.gnss_error_tau is not None:
-        new = [(new[0][0], float(f.gnss_error_tau[0])), (new[1][0], float(f.gnss_error_tau[1]))]
-    if f.gnss_error_sigma is not None:
-        med = stated_sigma(g, f)
-        new = [(float(f.gnss_error_sigma[0] / med[0]), new[0][1]), (float(f.gnss_error_sigma[1] / med[1]), new[1][1])]
-    out = (new[0][0], new[1][0], new[0][1], new[1][1])
-    same = all(abs(a / b - 1.0) <= EM_CHANGE for a, b in zip(out[:2], old[:2])) and \
-        all(0.5 <= a / b <= 2.0 for a, b in zip(out[2:], old[2:]))
-    return None if same else (out, white)
-
-
-def _lag1(r) -> float:
-    """The lag-1 autocorrelation of ``r`` (about its mean), within [0, 1]."""
-    rc = r - r.mean()
-    v = float(np.mean(rc * rc))
-    return float(min(max(np.mean(rc[:-1] * rc[1:]) / v, 0.0), 1.0)) if v > 0.0 and len(r) > 2 else 0.0
-
-
-def _efold(t, r):
-    """The lag (s) at which the autocorrelation of ``r`` (sampled at nearly regular ``t``) falls to 1/e of its
-    value at one sample (linear between lags), or None when it never does within a quarter of the record."""
-    n = len(r)
-    dt = float(np.median(np.diff(t)))
-    rc = r - r.mean()
-    v = float(np.mean(rc * rc))
-    if not (v > 0.0 and dt > 0.0):
-        return None
-    a1 = float(np.mean(rc[:-1] * rc[1:])) / v
-    if a1 <= 0.0:
-        return None
-    prev = a1
-    for lag in range(2, n // 4):
-        a = float(np.mean(rc[:-lag] * rc[lag:])) / v
-        if a < a1 / math.e:
-            return dt * (lag - 1 + (prev - a1 / math.e) / max(prev - a, 1e-12))
-        prev = a
-    return None
-
-
 def calibrated_run(make, run, smooth: bool = False, passes: int = 3):
     """Run the log through ``make(smooth=.., drift_base=b, r_base=rb, bias_var=bv, gnss_gm=gm)`` (a
     :class:`Fusion`; ``run(f)`` feeds it the log and returns its chunks), then again with the turn-on bias
     priors (:func:`bias_var_from`), the drift process noise (:func:`drift_base_from`), the measurement noise
     (:func:`r_base_from`) and the fixes' correlated error (:func:`gnss_gm_from`, from the first pass whose bias
-    priors held) its innovations imply, and with the correlated error re-estimated from a smoothed pass
-    (:func:`gnss_gm_mstep`, at most :data:`EM_STEPS` times), until a pass confirms its own (at most
-    ``passes`` plus the re-estimations; a consistent log costs one).  Returns ``(fusion, chunks)`` of the last
-    pass (smoothed when ``smooth``)."""
+    priors held) its innovations imply, until a pass confirms its own (at most ``passes``; a consistent log
+    costs one).  Returns ``(fusion, chunks)`` of the last pass."""
     base, rb, bv, gm = 1.0, None, None, None
-    em = 0
-    for i in range(passes + EM_STEPS):
-        # a pass with found GNSS error states is smoothed for their re-estimation
-        f = make(smooth=smooth or (gm is not None and em < EM_STEPS), drift_base=base, r_base=rb, bias_var=bv,
-                 gnss_gm=gm)
+    for i in range(passes):
+        f = make(smooth=smooth, drift_base=base, r_base=rb, bias_var=bv, gnss_gm=gm)
         chunks = run(f)
-        if not f.fopts.adapt or i == passes + EM_STEPS - 1:
+        if not f.fopts.adapt or i == passes - 1:
             break
-        new_bv = bias_var_from(f)
+        new_bv = bias_var_from(f) if bv is None else None        # the bias priors once: the next pass is honest
         new_base = drift_base_from(f) if has_outages(f.gnss, f.fopts) else base
         # the measurement noise (and the fixes' correlated error) from a pass whose bias priors held (else its
-        # innovations hold the filter's own excursion), once; then the correlated error re-estimated
+        # innovations hold the filter's own excursion), once
         new_gm, new_rb = None, f.r_base
-        k = 3 * kn.K_OF_KIND[kn.MT_GNSS_POS]
         if rb is None and new_bv is None:
             got = gnss_gm_from(f)
             new_rb = r_base_from(f)
             if got is not None:             # the fixes' correlated error is now a state: their white R the rest
+                k = 3 * kn.K_OF_KIND[kn.MT_GNSS_POS]
                 new_gm, new_rb[k:k + 3] = got
-        elif new_bv is None and gm is not None and f.smooth and em < EM_STEPS:
-            em += 1
-            got = gnss_gm_mstep(f, f.smoothed(keep=True))
-            if got is not None:
-                new_gm, white = got
-                new_rb = new_rb.copy()
-                new_rb[k:k + 3] = white
         if new_bv is None and new_gm is None and new_base == base and np.array_equal(new_rb, f.r_base):
             break
         base, rb = new_base, (rb if new_bv is not None else new_rb)
