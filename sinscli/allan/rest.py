@@ -38,12 +38,14 @@ TRUE_REST_ANGLE = 1.0e-3   # rad (0.06 deg): the RMS rotation of the bounded mot
 
 
 def white_floor(step: float, dt: float, kind: str) -> float:
-    """The white-noise density (unit/sqrt(s)) that a resolution of ``step`` sets at sample interval ``dt``:
-    a rounding error uniform over one step (variance ``step^2 / 12``) on every sample (Widrow & Kollar 2008,
-    "Quantization Noise", ch. 4), ``step sqrt(dt / 12)`` for rates and ``step / sqrt(12 dt)`` for increments."""
-    if step <= 0.0 or dt <= 0.0:
+    """The white-noise density (unit/sqrt(s)) that a resolution of ``step`` sets at sample interval ``dt``: a
+    rate log rounds every sample on its own, an error uniform over one step (variance ``step^2 / 12``, Widrow &
+    Kollar 2008, "Quantization Noise", ch. 4), ``step sqrt(dt / 12)``.  An increment log's counters carry the
+    remainder to the next sample (the error of any sum stays under one step: an Allan term in ``1/tau^2``, not
+    white noise): no floor (0)."""
+    if step <= 0.0 or dt <= 0.0 or kind != "rates":
         return 0.0
-    return step * np.sqrt(dt / 12.0) if kind == "rates" else step / np.sqrt(12.0 * dt)
+    return step * np.sqrt(dt / 12.0)
 
 
 def rest_intervals(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> list[tuple[float, float]]:

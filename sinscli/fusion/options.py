@@ -76,7 +76,11 @@ FUSION_DEFAULTS = {
     "rejection_run": 10,             # consecutive rejected fixes that inflate P and re-accept
     "outage": 3.0,                   # a GNSS gap over this many nominal fix intervals is an outage
     "adapt": {
-        "enabled": True,             # measurement-noise adaptation (covariance matching, per kind)
+        "enabled": True,             # every adaptive mechanism below (false: none of them)
+        "measurement_noise": True,   # online measurement-noise scale per kind (consecutive innovations' differences)
+        "outage_exits": True,        # drift process noise raised by an outage exit far outside its prediction
+        "widen": True,               # covariance widened when consistent fixes drift away from the prediction
+        "passes": True,              # calibration passes: bias priors, drift and measurement noise, GNSS error
         "window": 20,                # measurements per window
         "max_scale": 1.0e4,          # largest measurement-noise variance scale
         "max_bias_scale": 100.0,     # largest scale of the bias process noise raised at outage exits
@@ -173,6 +177,10 @@ class FusionOptions:
     rejection_run: int = 10
     outage: float = 3.0
     adapt: bool = True
+    adapt_measurement_noise: bool = True
+    adapt_outage_exits: bool = True
+    adapt_widen: bool = True
+    adapt_passes: bool = True
     adapt_window: int = 20
     adapt_max_scale: float = 1.0e4
     adapt_max_bias_scale: float = 100.0
@@ -317,6 +325,8 @@ def build_fusion_options(section, src: str, base_dir=None, vehicle: str | None =
     kw["outage"] = _num(src, "outage", d["outage"], gt=1.0, le=MAX_TIME)
     ad = d["adapt"]
     kw["adapt"] = _bool(src, "adapt.enabled", ad["enabled"])
+    for k in ("measurement_noise", "outage_exits", "widen", "passes"):
+        kw[f"adapt_{k}"] = _bool(src, f"adapt.{k}", ad[k])
     kw["adapt_window"] = sc.integer(src, "fusion.adapt.window", ad["window"], 2, MAX_COUNT)
     kw["adapt_max_scale"] = _num(src, "adapt.max_scale", ad["max_scale"], ge=1.0)
     kw["adapt_max_bias_scale"] = _num(src, "adapt.max_bias_scale", ad["max_bias_scale"], ge=1.0)

@@ -27,7 +27,7 @@ from ..types import GnssLog, ImuLog, NavState, Trajectory, time_tolerance
 from ..units import DEG, UG_DECIMAL
 from . import kernel as kn
 from .model import BA, BG, PHI, SA, SG, V
-from .noise import apply_data_noise
+from .noise import FACTOR, apply_data_noise
 from .raw import satellite_counts
 from .summary import (FusionSummary, RawSummary, clock, exit_fixes, few_satellite_spans, fix_residuals,
                       ground_vehicle_hint, heading_course_check, lever_arm_check, outages, standstill_intervals)
@@ -452,7 +452,7 @@ class Fusion:
         cv[kn.C_SFA] = m.sfmis_a * f.scale_factor_tau
         cv[kn.C_SF_TAU] = f.scale_factor_tau
         cv[kn.C_REJ_RUN] = f.rejection_run
-        cv[kn.C_RADAPT_N] = f.adapt_window if f.adapt else 0.0
+        cv[kn.C_RADAPT_N] = f.adapt_window if f.adapt and f.adapt_measurement_noise else 0.0
         cv[kn.C_RADAPT_MAX] = f.adapt_max_scale
         cv[kn.C_RBASE:kn.C_RBASE + 3 * kn.NK] = self.r_base
         # consecutive differences share a measurement: the window's estimate has about 2/3 of its count's
@@ -460,7 +460,7 @@ class Fusion:
         nw = max(int(round(f.adapt_window / 1.5)), 1)
         cv[kn.C_RADAPT_BAND] = chi2_gate(1e-4, nw) / nw
         cv[kn.C_RADAPT_BAND + 1] = chi2_gate(1.0 - 1e-4, nw) / nw
-        cv[kn.C_QB_MAX] = f.adapt_max_bias_scale if f.adapt else 1.0
+        cv[kn.C_QB_MAX] = f.adapt_max_bias_scale if f.adapt and f.adapt_outage_exits else 1.0
         cv[kn.C_QB_TAU] = f.adapt_decay
         cv[kn.C_QB_THR] = f.adapt_exit_ratio
         cv[kn.C_QB_BASE] = self.drift_base
@@ -484,7 +484,7 @@ class Fusion:
         # 1 - 1e-4 quantile is its threshold
         a = 1.0 / f.adapt_window
         nu = 3.0 * (2.0 - a) / a
-        cv[kn.C_FADE_ALPHA] = a if f.adapt else 0.0
+        cv[kn.C_FADE_ALPHA] = a if f.adapt and f.adapt_widen else 0.0
         cv[kn.C_FADE_THR] = chi2_gate(1.0 - 1e-4, nu) / nu
         cv[kn.C_FADE_MAX] = f.adapt_max_scale
         cv[kn.C_GE] = self.ge
@@ -587,12 +587,14 @@ class Fusion:
 
     def _zaru_sigma(self, span):
         """The ZARU 1-sigma of windows ``span`` s long: the spread of a window's mean rate at rest, from the
-        log's own standstill (white noise and vibration, :func:`apply_data_noise`) when known, never under the
-        model's ``ARW / sqrt(span)``."""
+        log's own standstill (white noise and vibration, :func:`apply_data_noise`) where it is more than
+        :data:`~sinscli.fusion.noise.FACTOR` over the model's ``ARW / sqrt(span)``, else the model's."""
         dn = self.data_noise
         white = self.model.arw2.max() / span
         if dn is not None and self.fopts.noise_from_data:
-            return np.sqrt(np.maximum(np.max(dn.rate_mean_var(span), axis=-1), white))
+            # the data's spread where it proves the model's too small (beyond FACTOR in sigma), else the model's
+            data = np.max(dn.rate_mean_var(span), axis=-1)
+            return np.sqrt(np.where(data > FACTOR ** 2 * white, data, white))
         return np.sqrt(white)
 
     def feed(self, imu: ImuLog) -> Trajectory | None:
@@ -874,18 +876,23 @@ class Fusion:
         """Every adaptation of the run with its cause (:mod:`sinscli.fusion.kernel`)."""
         t0 = self.t_log0
         if not len(ev):
-            return
+            ev = np.zeros((0, 4))
         for code in np.unique(ev[ev[:, 1] == kn.EV_RSCALE, 2]).astype(int):
             e = ev[(ev[:, 1] == kn.EV_RSCALE) & (ev[:, 2] == code)]
             s.adaptations.append(
                 f"{self._axis_name(code)} noise variance x{e[-1, 3]:.3g} at the end (max x{e[:, 3].max():.3g}, "
                 f"{len(e)} change(s) from {clock(float(e[0, 0]), t0)}): its innovations said it was noisier "
                 f"than its stated sigma")
+        kpos = 3 * kn.K_OF_KIND[kn.MT_GNSS_POS]
         for i in np.nonzero(self.r_base != 1.0)[0]:
+            name = self._axis_name(3 * kn.K_OF_KIND.index(i // 3) + i % 3)
+            if self.ge >= 0 and kpos <= i < kpos + 3:
+                s.adaptations.append(f"{name} white noise variance x{self.r_base[i]:.3g} of the stated: the rest "
+                                     f"of the fixes' error is in the GNSS error states")
+                continue
             s.adaptations.append(
-                f"{self._axis_name(3 * kn.K_OF_KIND.index(i // 3) + i % 3)} noise variance x{self.r_base[i]:.3g} from "
-                f"the start: calibrated by a first pass on the log's innovations (their variance and their "
-                f"correlation from one measurement to the next)")
+                f"{name} noise variance x{self.r_base[i]:.3g} from the start: calibrated by a first pass on the "
+                f"log's innovations (their variance and their correlation from one measurement to the next)")
         if self.ge >= 0:
             kh, kv, th, tv = self.gnss_gm
             med = stated_sigma(self.gnss, self.fopts)
@@ -1086,6 +1093,9 @@ def configured_gm(fopts: FusionOptions, gnss: GnssLog):
 
 
 GM_MIN_RHO = 0.5        # a lag-1 correlation of the fixes' innovations over this (and significant): a correlated error
+GM_TAU_MIN = 20.0       # s: the shortest correlation time taken for it (receivers' position errors, multipath and
+                        # atmosphere, stay correlated over minutes: Groves 2013, "Principles of GNSS, Inertial, and
+                        # Multisensor Integrated Navigation Systems", 2nd ed., sec. 9.3)
 GM_MAX_LAG = 400        # fixes: the longest lag of the autocorrelation fitted
 
 
@@ -1128,7 +1138,8 @@ def gnss_gm_from(fusion: Fusion, min_n: int = 60):
     where the innovations of its fixes (outage exits left out), in units of each fix's stated sigma, are
     correlated from one fix to the next (:func:`_acf_gm`), their correlated share of the mean square is the
     steady variance ``k^2`` (per stated variance) and the fitted decay the correlation time, the rest the
-    white noise's share ``white``; the horizontal axes pooled, the vertical on its own (an axis without a
+    white noise's share ``white``: of the mean square, never under the stated variance, and the time never
+    under :data:`GM_TAU_MIN`; the horizontal axes pooled, the vertical on its own (an axis without a
     correlated part gets the other's time and 1/10 of its stated sigma).  Off when the config set
     ``fusion.gnss_error.tau: 0``, when the pass already had them, and for a tightly coupled run."""
     f = fusion.fopts
@@ -1149,10 +1160,14 @@ def gnss_gm_from(fusion: Fusion, min_n: int = 60):
     for axes in ((0, 1), (2,)):
         got = [a for a in axes if fits[a] is not None]
         if got:
-            var = float(np.mean([fits[a][1] * ms[a] for a in got]))
-            tau = float(np.exp(np.mean([math.log(fits[a][0]) for a in got])))
-            for a in got:               # the rest of the innovations' mean square is the white noise's
-                white[a] = _white_scale((1.0 - fits[a][1]) * ms[a], 1.0)
+            # the fixes' error is never taken smaller than the receiver states it (a first pass's filter follows
+            # part of a slow error, its innovations are smaller than the error); the correlation time never
+            # shorter than GM_TAU_MIN (the same following shortens the innovations' correlation)
+            tot = [max(ms[a], 1.0) for a in got]
+            var = float(np.mean([fits[a][1] * m for a, m in zip(got, tot)]))
+            tau = max(float(np.exp(np.mean([math.log(fits[a][0]) for a in got]))), GM_TAU_MIN)
+            for a, m in zip(got, tot):      # the rest of the mean square is the white noise's
+                white[a] = _white_scale((1.0 - fits[a][1]) * m, 1.0)
         else:
             var, tau = None, None
         out.append((var, tau))
@@ -1190,7 +1205,7 @@ def calibrated_run(make, run, smooth: bool = False, passes: int = 3):
     for i in range(passes):
         f = make(smooth=smooth, drift_base=base, r_base=rb, bias_var=bv, gnss_gm=gm)
         chunks = run(f)
-        if not f.fopts.adapt or i == passes - 1:
+        if not (f.fopts.adapt and f.fopts.adapt_passes) or i == passes - 1:
             break
         new_bv = bias_var_from(f) if bv is None else None        # the bias priors once: the next pass is honest
         new_base = drift_base_from(f) if has_outages(f.gnss, f.fopts) else base

@@ -182,7 +182,26 @@ def gnss_still(gnss, t0, t1, min_span: float = 10.0):
     pad = np.maximum(0.5 * (min_span - (t1 - t0)), 0.0)
     i = np.searchsorted(t, t0 - pad, side="left")
     j = np.searchsorted(t, t1 + pad, side="right") - 1
+    # a window inside an outage (no fix in its span, or one): the fixes that bracket it (a cruise at constant
+    # speed through a tunnel looks still to the IMU; the fixes before and after it are far apart)
+    gap = j <= i
+    i = np.where(gap, np.searchsorted(t, t0, side="right") - 1, i)
+    j = np.where(gap, np.searchsorted(t, t1, side="left"), j)
+    gap &= (i >= 0) & (j < len(t))
+    i = np.clip(i, 0, len(t) - 1)
+    j = np.clip(j, 0, len(t) - 1)
     have = j >= i
+    if gap.any():                   # their displacement decides, the velocity columns aside
+        e, n = local_en(gnss.lat, gnss.lon, gnss.height)
+        sp = gnss.position_sigma([1.5, 1.5, 3.0])
+        sh = np.hypot(sp[:, 0], sp[:, 1]) / np.sqrt(2.0)
+        k = np.nonzero(gap & (j > i))[0]
+        span = np.maximum(t[j[k]] - t[i[k]], 1e-9)
+        v = np.hypot(e[j[k]] - e[i[k]], n[j[k]] - n[i[k]]) / span
+        sv = np.hypot(sh[i[k]], sh[j[k]]) / span
+        out[k] = np.where(v - 3.0 * sv > STILL_SPEED, 0, np.where(v < STILL_SPEED + 3.0 * sv, 1, 0))
+        out[k[3.0 * sv > 1.0]] = -1
+        have &= ~gap
     if gnss.vel_n is not None:
         sv = gnss.std_vel if gnss.std_vel is not None else np.full((len(gnss), 3), 0.1)
         sv = np.where(np.isfinite(sv) & (sv > 0), sv, 0.1)
