@@ -32,9 +32,20 @@ TAU_MIN = 0.25             # s: the shortest cluster time fitted (five periods o
                            # variance is in its 1/tau^2 regime from there)
 G_NOMINAL = G0             # the detector's gravity (its 0.3 m/s^2 tolerance covers every latitude)
 SEPARATION = 2.0           # standard errors of N^2 above zero for the fit to tell white noise apart
+GAP = 1.5                  # a sample interval over this many median ones: dropped rows, the span is cut there
 TRUE_REST_ANGLE = 1.0e-3   # rad (0.06 deg): the RMS rotation of the bounded motion at rest (the gyro's 1/tau^2
                            # term Q) under which the rest is a true rest: an engine's vibration turns the mount by
                            # hundredths of a degree, a hand holding a device by tenths to degrees
+
+
+def true_rest(fits) -> bool:
+    """Whether the windows were a true rest, evidence about the sensor's own terms: the sensor did not turn
+    beyond a mount's vibration (gyro ``Q`` under :data:`TRUE_REST_ANGLE`), and at the shortest cluster time fitted
+    the bounded motion's term ``3 Q^2 / tau^2`` stays under the white noise's ``N^2 / tau`` on every axis (an
+    engine's vibration that dominates there leaves the white-noise fit a vibration figure, not the sensor's).
+    ``fits`` (6, 4): ``(Q, N, B, separated)`` of the gyro then accelerometer axes."""
+    q, n = fits[:, 0], fits[:, 1]
+    return bool(np.max(fits[:3, 0]) < TRUE_REST_ANGLE and np.all(3.0 * q * q / TAU_MIN <= n * n))
 
 
 def white_floor(step: float, dt: float, kind: str) -> float:
@@ -98,11 +109,17 @@ def noise_from_rest(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> RestNois
     w = fopts.standstill_window
     windows = [(a + w, b - w) for a, b in rest_intervals(imu, fopts, gnss) if b - a - 2 * w >= MIN_WINDOW]
     t = imu.time
+    # a span of uniform samples each: an Allan variance over a gap (dropped rows: one increment over two or more
+    # intervals) would take the gap's increment for noise
+    dtm = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    gaps = np.nonzero(np.diff(t) > GAP * dtm)[0] + 1
     spans = []
     for a, b in windows:
         i, j = int(np.searchsorted(t, a, side="right")), int(np.searchsorted(t, b, side="right"))
-        if j - i >= 20:
-            spans.append((i, j))
+        cuts = [i] + [int(g) for g in gaps if i < g < j] + [j]
+        for x, y in zip(cuts[:-1], cuts[1:]):
+            if y - x >= 20:
+                spans.append((x, y))
     if not spans or sum(t[j - 1] - t[i] for i, j in spans) < MIN_REST:
         return None
     tau0 = float(np.median(np.diff(t)))
@@ -144,4 +161,4 @@ def noise_from_rest(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> RestNois
                      gyro_separated=fits[:3, 3] > 0, accel_separated=fits[3:, 3] > 0,
                      gyro_floor=white_floor(imu.resolution[0], tau0, kind),
                      accel_floor=white_floor(imu.resolution[1], tau0, kind),
-                     true_rest=bool(np.max(fits[:3, 0]) < TRUE_REST_ANGLE))
+                     true_rest=true_rest(fits))

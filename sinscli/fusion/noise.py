@@ -129,8 +129,8 @@ def apply_data_noise(model, dn: RestNoise, g: float, handheld: bool = False):
                          f"{math.sqrt(ka):.2g}x too")
     elif max(k2.values(), default=1.0) > CREDIBILITY ** 2 and not model.default:
         notes.append("the rest was not a true rest (" + ("a handheld device" if handheld else
-                     "the sensor turned by more than a mount's vibration") + "): the description's bias, "
-                     "instability, scale factor and misalignment kept")
+                     "the mount's motion or vibration dominates the fit where white noise is read") + "): the "
+                     "description's bias, instability, scale factor and misalignment kept")
     model = replace(model, **upd)
     # bias magnitudes: the mean rate at rest is the bias plus the earth rate's projection (<= 15 deg/h)
     p0_bg = model.p0_bg.copy()

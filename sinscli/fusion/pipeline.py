@@ -30,7 +30,7 @@ from .model import BA, BG, PHI, SA, SG, V
 from .noise import FACTOR, apply_data_noise
 from .raw import satellite_counts
 from .summary import (FusionSummary, RawSummary, clock, exit_fixes, few_satellite_spans, fix_residuals,
-                      ground_vehicle_hint, heading_course_check, lever_arm_check, outages, standstill_intervals)
+                      ground_vehicle_hint, heading_course_check, LeverCheck, outages, standstill_intervals)
 from .options import FusionOptions
 from .standstill import StandstillDetector, gnss_still
 from .smoother import smooth_rows
@@ -305,14 +305,18 @@ class Fusion:
     def __init__(self, init: NavState, nav: NavOptions, fopts: FusionOptions, gnss: GnssLog,
                  init_sigma: dict | None = None, body_vel=None, smooth: bool = False, src: str = "config",
                  init_bias: dict | None = None, data_noise=None, t_log0: float | None = None,
-                 drift_base: float = 1.0, r_base=None, raw=None, bias_var=None, gnss_gm=None):
+                 drift_base: float = 1.0, r_base=None, raw=None, bias_var=None, gnss_gm=None,
+                 lever_diagnosis: bool = False):
         nav.check()
         if nav.attitude not in ("quat", "dcm") or nav.frame != "enu":
             raise SinsError(f"--gnss: the fusion filter runs with --attitude quat or dcm in the ENU frame, "
                             f"not {nav.attitude} / {nav.frame}")
         self.nav, self.fopts, self.gnss, self.init = nav, fopts, gnss, init
         self.smooth = smooth
-        self.model = filter_model(fopts.sensor, 21 if "lever_arm" in fopts.estimate else fopts.states,
+        # the lever arm as states: asked by fusion.estimate, or for a diagnosis of the configured one
+        # (calibrated_run: a pass whose fixes contradicted the filter)
+        est_lever = "lever_arm" in fopts.estimate or lever_diagnosis
+        self.model = filter_model(fopts.sensor, 21 if est_lever else fopts.states,
                                   src, fopts.bias_model)
         self.data_notes = []
         if data_noise is not None and fopts.noise_from_data:
@@ -326,11 +330,11 @@ class Fusion:
                                  p0_ba=np.maximum(self.model.p0_ba, self.bias_var[3:]))
         # an unestimated gyro scale factor (0.5 % for a consumer IMU) biases the lever arm by centimetres
         # through the turns that make it observable: estimating the lever arm estimates the scale factors
-        ncore = 21 if "lever_arm" in fopts.estimate else fopts.states
+        ncore = 21 if est_lever else fopts.states
         self.sf_for_lever = ncore != fopts.states
         nx = ncore
         self.la = self.td = -1
-        if "lever_arm" in fopts.estimate:
+        if est_lever:
             self.la, nx = nx, nx + 3
         if "time_offset" in fopts.estimate:
             self.td, nx = nx, nx + 1
@@ -423,7 +427,7 @@ class Fusion:
         self._block_t0 = init.time
         self.t_log0 = init.time if t_log0 is None else float(t_log0)
         self.heading_check = None
-        self.lever_check = None
+        self.lever_check = None         # a diagnosis pass's contradiction of the configured lever arm (LeverCheck)
 
     # ------------------------------------------------------------------ set-up
     def _config_vector(self):
@@ -809,8 +813,14 @@ class Fusion:
                     f"the heading is {hc.median_offset:+.1f} deg off the GNSS course on {hc.segments} straight "
                     f"segments (beyond 3 sigma on {100 * hc.beyond_3sigma:.0f} %, sigma {hc.median_sigma:.2g} deg): "
                     f"the IMU's mounting yaw is likely off by that much (imu.mounting, or imu.mounting: auto)")
-        if self.la < 0 and self.raw is None:
-            self._lever_check(rec, traj, s)
+        lc = self.lever_check
+        if lc is not None and lc.contradicted.any():
+            bad = [a for a, c in zip("xyz", lc.contradicted) if c]
+            s.warnings.append(
+                f"the fixes contradict the lever arm {[round(float(v), 3) for v in self.lever]} m: a pass that "
+                f"estimated it found [{lc.estimate[0]:.3f}, {lc.estimate[1]:.3f}, {lc.estimate[2]:.3f}] m +- "
+                f"[{lc.sigma[0]:.2g}, {lc.sigma[1]:.2g}, {lc.sigma[2]:.2g}] m (body axes; off along "
+                f"{', '.join(bad)}): set gnss.lever_arm, or fusion.estimate: [lever_arm]")
         if self.nhc_by_odometry:
             s.hints.append("NHC not applied: the body-velocity (odometry) rows measure the lateral and vertical "
                            "velocity it would constrain")
@@ -819,29 +829,6 @@ class Fusion:
             if hint:
                 s.hints.append(hint)
         return s
-
-    def _lever_check(self, rec, traj: Trajectory, s: FusionSummary) -> None:
-        """A warning when the innovations of the accepted fixes (outage exits left out) turn with the attitude as a
-        wrong lever arm makes them (:func:`sinscli.fusion.summary.lever_arm_check`)."""
-        m = (rec["type"] == "gnss_pos") & rec["accepted"]
-        g = rec[m]
-        if len(g) < 3 or len(g) % 3:
-            return
-        t = g["time"][0::3]
-        z = np.column_stack([g["innovation"][0::3], g["innovation"][1::3], g["innovation"][2::3]])
-        keep = ~np.isin(t, self.gnss.time[exit_fixes(self.gnss.time, self.fopts.outage)])
-        lc = lever_arm_check(t[keep], z[keep], traj)
-        if lc is None or not lc.contradicted.any():
-            return
-        self.lever_check = lc
-        bad = [a for a, c in zip("xyz", lc.contradicted) if c]
-        est = self.lever - lc.error
-        s.warnings.append(
-            f"the fixes' innovations turn with the attitude as a lever arm error of [{lc.error[0]:+.2f}, "
-            f"{lc.error[1]:+.2f}, {lc.error[2]:+.2f}] m (1-sigma [{lc.sigma[0]:.2g}, {lc.sigma[1]:.2g}, "
-            f"{lc.sigma[2]:.2g}] m, body axes) would: the antenna is nearer [{est[0]:.2f}, {est[1]:.2f}, "
-            f"{est[2]:.2f}] m than the {[round(float(v), 3) for v in self.lever]} m used along {', '.join(bad)} "
-            f"(gnss.lever_arm, or fusion.estimate: [lever_arm])")
 
     def _raw_summary(self, rec, t1: float) -> RawSummary:
         """What the tightly coupled run did with the satellites (:class:`sinscli.fusion.summary.RawSummary`)."""
@@ -991,6 +978,8 @@ UNOBSERVED = 0.3            # an estimated parameter whose sigma stays over this
 EXIT_QUANTILE = 4.605170185988091 / 2.0     # the 99 % quantile of chi-square(2) / 2: an exit's ratio
 EXIT_FAR = 18.420680743952364 / 2.0         # its 1 - 1e-4 quantile
 BIAS_OUTSIDE = 3.0          # a first pass's bias estimate beyond this many prior sigmas: the prior was wrong
+MAX_TURN_ON_GYRO = 10.0 * DEG       # rad/s: the largest turn-on gyro bias taken from a pass (a phone's: 4 deg/s)
+MAX_TURN_ON_ACCEL = 0.5 * G0        # m/s^2: the same of an accelerometer (a consumer chip's: under 0.1 g)
 
 
 def bias_var_from(fusion: Fusion):
@@ -1003,7 +992,9 @@ def bias_var_from(fusion: Fusion):
     m = fusion.model
     p0 = np.concatenate([m.p0_bg, m.p0_ba])
     est = np.asarray(fusion.fs[kn.F_BG:kn.F_BA + 3], dtype=float) ** 2
-    out = np.where(est > BIAS_OUTSIDE ** 2 * p0, est, p0)
+    # an estimate beyond what any IMU turns on with is the pass's divergence, not a bias: not taken
+    plausible = est <= np.repeat(np.array([MAX_TURN_ON_GYRO, MAX_TURN_ON_ACCEL]) ** 2, 3)
+    out = np.where((est > BIAS_OUTSIDE ** 2 * p0) & plausible, est, p0)
     return out if np.any(out != p0) else None
 
 
@@ -1141,10 +1132,14 @@ def gnss_gm_from(fusion: Fusion, min_n: int = 60):
     white noise's share ``white``: of the mean square, never under the stated variance, and the time never
     under :data:`GM_TAU_MIN`; the horizontal axes pooled, the vertical on its own (an axis without a
     correlated part gets the other's time and 1/10 of its stated sigma).  Off when the config set
-    ``fusion.gnss_error.tau: 0``, when the pass already had them, and for a tightly coupled run."""
+    ``fusion.gnss_error.tau: 0``, when the pass already had them, for a tightly coupled run, and (unless the
+    config asks for them) when the GNSS time offset is estimated: along the track a slowly varying fix error
+    and a time offset look alike."""
     f = fusion.fopts
     if fusion.ge >= 0 or fusion.raw is not None or (f.gnss_error_tau is not None and not np.all(f.gnss_error_tau > 0)):
         return None
+    if fusion.td >= 0 and f.gnss_error_tau is None:
+        return None             # along the track a slow fix error and a time offset are one: the offset is asked for
     inn = np.vstack(fusion.inn_parts) if fusion.inn_parts else np.zeros((0, kn.NREC))
     x = inn[(inn[:, 1] == kn.MT_GNSS_POS) & (inn[:, 9] == 0)]
     fits, ms = [], []
@@ -1223,7 +1218,30 @@ def calibrated_run(make, run, smooth: bool = False, passes: int = 3):
         base, rb = new_base, (rb if new_bv is not None else new_rb)
         bv = new_bv if new_bv is not None else bv
         gm = new_gm if new_gm is not None else gm
+    if f.fopts.adapt and f.fopts.adapt_passes and f.la < 0 and f.raw is None and contradicted(f):
+        # the fixes contradicted the filter: one pass with the lever arm as states says whether the configured
+        # lever arm is the cause (a wrong one shows in every turn); its output is not used
+        d = make(smooth=False, drift_base=base, r_base=rb, bias_var=bv, gnss_gm=gm, lever_diagnosis=True)
+        run(d)
+        f.lever_check = lever_diagnosis(d)
     return f, chunks
+
+
+def contradicted(fusion: Fusion) -> bool:
+    """Whether the fixes contradicted a pass: a widening of its covariance or a rejection run."""
+    ev = fusion.events()
+    return bool(len(ev) and np.any((ev[:, 1] == kn.EV_WIDEN) | (ev[:, 1] == kn.EV_REJECTION_RUN)))
+
+
+def lever_diagnosis(d: Fusion) -> LeverCheck | None:
+    """The configured lever arm against a diagnosis pass's estimate of it (:class:`LeverCheck`), or None when
+    the motion did not observe it (every axis' sigma over :data:`UNOBSERVED` of its prior)."""
+    sig = np.sqrt(np.diag(d.P)[d.la:d.la + 3])
+    observed = sig < UNOBSERVED * d.fopts.lever_arm_sigma
+    if not observed.any():
+        return None
+    est = np.asarray(d.fs[kn.F_LEVER:kn.F_LEVER + 3], dtype=float)
+    return LeverCheck(estimate=est, error=d.lever - est, sigma=np.where(observed, sig, np.inf))
 
 
 def has_outages(gnss: GnssLog, fopts: FusionOptions) -> bool:

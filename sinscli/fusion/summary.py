@@ -123,54 +123,18 @@ def fix_residuals(traj: Trajectory, gnss: GnssLog, lever, inside, factor: float)
 
 @dataclass
 class LeverCheck:
-    """The lever arm error that the fixes' innovations imply (body axes, m) with its 1-sigma."""
-    error: np.ndarray               # (3,) used minus what the fixes say (add -error to gnss.lever_arm)
-    sigma: np.ndarray               # (3,)
-    fixes: int = 0
+    """The lever arm a diagnosis pass estimated (body axes, m), the configured one minus it, and its 1-sigma."""
+    estimate: np.ndarray            # (3,)
+    error: np.ndarray               # (3,) configured minus estimated
+    sigma: np.ndarray               # (3,) (inf where the motion did not observe the axis)
 
     @property
     def contradicted(self) -> np.ndarray:
-        """Per axis: the error beyond 4 sigma and beyond :data:`LEVER_MIN` (a few centimetres are the
-        fixes' business)."""
+        """Per axis: the configured value beyond 4 sigma and :data:`LEVER_MIN` of the estimate."""
         return (np.abs(self.error) > 4.0 * self.sigma) & (np.abs(self.error) > LEVER_MIN)
 
 
 LEVER_MIN = 0.05            # m: a lever arm error under this is not worth a warning
-
-
-def lever_arm_check(t_inn, z_enu, traj: Trajectory, min_fixes: int = 60) -> LeverCheck | None:
-    """The lever arm error the innovations of the GNSS fixes imply (``t_inn`` their times, ``z_enu`` (n, 3) the
-    predicted antenna minus the fix, ENU): an antenna offset ``dl`` (body) wrongly taken shows as ``Cbn dl`` in
-    every innovation, turning with the attitude, while the filter's own errors between fixes do not; least
-    squares of ``z = Cbn dl + c`` over the log (a constant ``c`` for what does not turn: a biased receiver)
-    gives ``dl``.  Its sigma is the residual scatter's, inflated by the innovations' correlation from one fix
-    to the next (``(1 + rho) / (1 - rho)``: a receiver's slow errors carry less information than as many
-    independent fixes).  None when fewer than ``min_fixes`` or the attitude never turned enough to tell a
-    lever arm from a constant (the normal matrix singular)."""
-    n = len(t_inn)
-    if n < min_fixes or len(traj) < 2:
-        return None
-    k = np.clip(np.searchsorted(traj.time, t_inn), 0, len(traj) - 1)
-    C = traj.Cbn[k]                                   # (n, 3, 3)
-    A = np.zeros((3 * n, 6))
-    A[:, :3] = C.reshape(3 * n, 3)
-    A[:, 3:] = np.tile(np.eye(3), (n, 1))
-    y = np.asarray(z_enu, float).reshape(3 * n)
-    N = A.T @ A
-    w = np.linalg.eigvalsh(N)
-    if w.min() <= 1e-6 * w.max():
-        return None
-    x = np.linalg.solve(N, A.T @ y)
-    r = (y - A @ x).reshape(n, 3)
-    rho = 0.0
-    if n > 10:
-        rc = r - r.mean(axis=0)
-        num = float(np.sum(rc[:-1] * rc[1:]))
-        den = float(np.sum(rc * rc))
-        rho = min(max(num / den, 0.0), 0.99) if den > 0 else 0.0
-    s2 = float(np.sum(r * r)) / max(3 * n - 6, 1) * (1.0 + rho) / (1.0 - rho)
-    cov = np.linalg.inv(N) * s2
-    return LeverCheck(error=x[:3], sigma=np.sqrt(np.diag(cov)[:3]), fixes=n)
 
 
 @dataclass
