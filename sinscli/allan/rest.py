@@ -19,14 +19,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fusion.noise import RestNoise
+from ..fusion.noise import MIN_REST_FIT, RestNoise
 from ..fusion.standstill import StandstillDetector, gnss_still
 from ..types import GnssLog, ImuLog
 from ..units import G0
 from .adev import overlapping_avar
 from .fit import _nnls_small
 
-MIN_REST = 10.0            # s at rest in all, at least
+MIN_REST = MIN_REST_FIT     # s at rest in all, at least
 MIN_WINDOW = 3.0           # s: shorter intervals at rest are not used
 TAU_MIN = 0.25             # s: the shortest cluster time fitted (five periods of a 20 Hz vibration: its Allan
                            # variance is in its 1/tau^2 regime from there)
@@ -36,6 +36,13 @@ GAP = 1.5                  # a sample interval over this many median ones: dropp
 TRUE_REST_ANGLE = 1.0e-3   # rad (0.06 deg): the RMS rotation of the bounded motion at rest (the gyro's 1/tau^2
                            # term Q) under which the rest is a true rest: an engine's vibration turns the mount by
                            # hundredths of a degree, a hand holding a device by tenths to degrees
+
+
+def _unfitted(rest_seconds: float) -> RestNoise:
+    """The rest noise of a log whose windows at rest are too short to fit: nothing but their time."""
+    z = np.zeros(3)
+    return RestNoise(rest_seconds=rest_seconds, windows=0, gyro_white=z, accel_white=z, gyro_q=z, accel_q=z,
+                     gyro_mean=z, accel_mean=z, fitted=False, true_rest=False)
 
 
 def true_rest(fits) -> bool:
@@ -102,7 +109,9 @@ def _fit(tau, m, avar, rel, trapezoid):
 
 def noise_from_rest(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> RestNoise | None:
     """The :class:`~sinscli.fusion.noise.RestNoise` of the log's standstill windows (where the GNSS, when
-    given, does not move), or None when they hold under ``MIN_REST`` s in all."""
+    given, does not move); when they hold some rest but under ``MIN_REST`` s in all (or too few cluster times),
+    one that says so (``fitted`` False, its rest time: the description's values kept, said in the summary);
+    None without any rest."""
     if len(imu) < 10:
         return None
     # each interval less a detector window at both ends (where a start or a stop ramps in unseen)
@@ -120,8 +129,11 @@ def noise_from_rest(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> RestNois
         for x, y in zip(cuts[:-1], cuts[1:]):
             if y - x >= 20:
                 spans.append((x, y))
-    if not spans or sum(t[j - 1] - t[i] for i, j in spans) < MIN_REST:
-        return None
+    if not spans:
+        rest = sum(b - a for a, b in rest_intervals(imu, fopts, gnss))
+        return _unfitted(rest) if rest > 0.0 else None
+    if sum(t[j - 1] - t[i] for i, j in spans) < MIN_REST:
+        return _unfitted(float(sum(t[j - 1] - t[i] for i, j in spans)))
     tau0 = float(np.median(np.diff(t)))
     n_max = max(j - i for i, j in spans)
     m_lo = max(1, int(round(TAU_MIN / tau0)))
@@ -148,7 +160,7 @@ def noise_from_rest(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> RestNois
         ksum[ok] += n / ms[ok]
     use = wsum > 0
     if use.sum() < 3:
-        return None
+        return _unfitted(float(sum(t[j - 1] - t[i] for i, j in spans)))
     tau = ms[use] * tau0
     avar = acc[use] / wsum[use][:, None]
     rel = 1.0 / np.sqrt(2.0 * np.maximum(ksum[use] - 1.0, 1.0))

@@ -27,6 +27,7 @@ from ..nav.earth import OMEGA_IE
 from ..units import DEG, UG_DECIMAL
 
 FACTOR = 2.0            # a description's white noise under the data's by more than this yields to the data
+MIN_REST_FIT = 10.0     # s at rest a noise fit needs (sinscli.allan.rest.MIN_REST)
 CREDIBILITY = 3.0       # under it by more than this (at a true rest): the description's other terms are widened too
 
 
@@ -46,6 +47,7 @@ class RestNoise:
     gyro_floor: float = 0.0     # rad/sqrt(s): the white noise the log's resolution sets (0: not known)
     accel_floor: float = 0.0    # m/s/sqrt(s)
     true_rest: bool = True      # the sensor did not turn at rest beyond a mount's vibration
+    fitted: bool = True         # False: the windows were too short to fit (only rest_seconds holds)
 
     def rate_mean_var(self, span):
         """Variance (rad/s)^2 of the mean rate over a window of ``span`` s at rest, per axis: the Allan
@@ -85,6 +87,10 @@ def apply_data_noise(model, dn: RestNoise, g: float, handheld: bool = False):
     * Bias magnitudes: the turn-on gyro bias variance is raised to the rest's mean rate (less the earth
       rate), the accelerometer's along the vertical to ``| |f| - g |``; never lowered.
     """
+    if not dn.fitted:
+        return model, [f"the log's rest windows hold {dn.rest_seconds:.1f} s, under the {MIN_REST_FIT:g} s a noise "
+                       f"fit needs: the " + ("default preset's" if model.default else "description's") +
+                       " values kept"]
     notes = []
     arw2, vrw2 = model.arw2.copy(), model.vrw2.copy()
     k2 = {}                     # data / description, in variance, where the data raised the description

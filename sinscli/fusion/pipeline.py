@@ -595,7 +595,7 @@ class Fusion:
         :data:`~sinscli.fusion.noise.FACTOR` over the model's ``ARW / sqrt(span)``, else the model's."""
         dn = self.data_noise
         white = self.model.arw2.max() / span
-        if dn is not None and self.fopts.noise_from_data:
+        if dn is not None and dn.fitted and self.fopts.noise_from_data:
             # the data's spread where it proves the model's too small (beyond FACTOR in sigma), else the model's
             data = np.max(dn.rate_mean_var(span), axis=-1)
             return np.sqrt(np.where(data > FACTOR ** 2 * white, data, white))
