@@ -45,14 +45,17 @@ def _unfitted(rest_seconds: float) -> RestNoise:
                      gyro_mean=z, accel_mean=z, fitted=False, true_rest=False)
 
 
-def true_rest(fits) -> bool:
+def true_rest(fits, quant=(0.0, 0.0)) -> bool:
     """Whether the windows were a true rest, evidence about the sensor's own terms: the sensor did not turn
     beyond a mount's vibration (gyro ``Q`` under :data:`TRUE_REST_ANGLE`), and at the shortest cluster time fitted
     the bounded motion's term ``3 Q^2 / tau^2`` stays under the white noise's ``N^2 / tau`` on every axis (an
     engine's vibration that dominates there leaves the white-noise fit a vibration figure, not the sensor's).
-    ``fits`` (6, 4): ``(Q, N, B, separated)`` of the gyro then accelerometer axes."""
-    q, n = fits[:, 0], fits[:, 1]
-    return bool(np.max(fits[:3, 0]) < TRUE_REST_ANGLE and np.all(3.0 * q * q / TAU_MIN <= n * n))
+    ``fits`` (6, 4): ``(Q, N, B, separated)`` of the gyro then accelerometer axes; ``quant`` the part of ``Q``
+    the counters' quantization explains (gyro, accelerometer: ``step / sqrt(3)`` for increment logs, IEEE Std
+    952-1997 Annex C), which is not motion."""
+    q2 = fits[:, 0] ** 2 - np.repeat(np.asarray(quant, dtype=float) ** 2, 3)
+    n = fits[:, 1]
+    return bool(np.max(fits[:3, 0]) < TRUE_REST_ANGLE and np.all(3.0 * np.maximum(q2, 0.0) / TAU_MIN <= n * n))
 
 
 def white_floor(step: float, dt: float, kind: str) -> float:
@@ -173,4 +176,4 @@ def noise_from_rest(imu: ImuLog, fopts, gnss: GnssLog | None = None) -> RestNois
                      gyro_separated=fits[:3, 3] > 0, accel_separated=fits[3:, 3] > 0,
                      gyro_floor=white_floor(imu.resolution[0], tau0, kind),
                      accel_floor=white_floor(imu.resolution[1], tau0, kind),
-                     true_rest=true_rest(fits))
+                     true_rest=true_rest(fits, (0.0, 0.0) if trap else np.asarray(imu.resolution) / np.sqrt(3.0)))

@@ -16,7 +16,7 @@ from ..io.ubx_solution import write_ubx_solutions
 from ..io.trajectory import write_trajectory
 from ..nav.rotation import conv_to_flu
 from ..sensors import load_sensor
-from ..types import BodyVelLog, GnssLog, ImuLog, NavState, Trajectory
+from ..types import BodyVelLog, GnssLog, ImuLog, NavState, Trajectory, value_step
 from . import pinned as pm
 from . import truth as truth_mod
 from .errors import apply_imu_errors, gnss_seedseq
@@ -139,7 +139,8 @@ def assemble(sc: Scenario, td: truth_mod.TruthData, tau_g: np.ndarray, sensor: d
     if not perfect and sc.quantization is not None and sc.imu_output == "increments":
         dtheta, dvel = quantize_increments(dtheta, dvel, sc.quantization, sc.imu_rate)
     imu = ImuLog(time=sc.t0 + tau[1:], dtheta_b=dtheta, dvel_b=dvel, t0=sc.t0,
-                 source=f"simulate:{sc.name}", kind="increments")
+                 source=f"simulate:{sc.name}", kind="increments",
+                 resolution=(value_step(dtheta), value_step(dvel)))     # as a reader of its file finds it
     rates = imu_rates(sc, td, c_out, sensor, seed, perfect) if sc.imu_output == "rates" else None
     stamps = imu_stamps(sc, tau, seed, perfect)
     dropped = None
