@@ -216,11 +216,11 @@ def tdcp_rows_of(obs, sig, ok, idx, t_epoch, el, az, cdts, var_rate, pos0, ion, 
     from ..gnss.phase import carrier_pairs, slip_counts, unknown_wavelength  # --gnss-raw --tdcp only
     from ..gnss.spp import IONO_OFF, O_IONO, O_TROPO
     step = float(np.median(np.diff(obs.time))) if len(obs) > 1 else 1.0
-    prev, dz, shape, status = carrier_pairs(
+    prev, dz, shape, status, _ = carrier_pairs(
         opts, ion, obs.time, obs.start, obs.sys.astype(np.int64), obs.prn.astype(np.int64), ok, sig.l1, sig.lli1,
         sig.f1, sig.l2, sig.lli2, sig.f2, sig.dop, var_rate, sig.cn0, el, az, cdts, np.ascontiguousarray(pos0),
         opts[O_IONO] != IONO_OFF, opts[O_TROPO] > 0.0, MAX_TDCP_GAP * step, DOPPLER_K, fopts.raw_slip_doppler,
-        fopts.raw_slip_gf)
+        fopts.raw_slip_gf, False)
     ep = obs.epoch_of_record()
     cur = np.nonzero(prev >= 0)[0]
     pv = prev[cur]

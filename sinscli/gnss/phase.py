@@ -72,14 +72,20 @@ def _atmosphere(ion, lat, lon, hgt, t, az, el, f, iono_on, tropo_on):
 
 @njit(cache=True)
 def carrier_pairs(opts, ion, t_rx, start, rsys, rprn, ok, l1, lli1, f1, l2, lli2, f2, dop, var_dop, cn0, el, az,
-                  cdts, pos0, iono_on, tropo_on, max_gap, doppler_k, doppler_min, gf_min):
+                  cdts, pos0, iono_on, tropo_on, max_gap, doppler_k, doppler_min, gf_min, iono_free):
     """Per record r (epochs ``start[e]:start[e+1]``, receiver times ``t_rx``): ``prev[r]`` the record of the same
     satellite one epoch before whose pair with r is free of slips by the tests above (-1: none), ``dz[r]`` the
     corrected delta range of the pair (m, the module's ``Delta Phi_c``), ``shape[r]`` its variance relative to the
-    reference C/N0 (the two carriers' :func:`carrier_shape`), ``status[r]`` (``PH_*``).  Records not ``ok`` (no ephemeris,
-    below the mask: :func:`sinscli.gnss.tc.tc_records`) or without a carrier or a wavelength take no part.
+    reference C/N0 (the two carriers' :func:`carrier_shape`), ``status[r]`` (``PH_*``), ``own[r]`` the record's
+    own :func:`carrier_shape`.  Records not ``ok`` (no ephemeris, below the mask:
+    :func:`sinscli.gnss.tc.tc_records`) or without a carrier or a wavelength take no part.
     ``el``, ``az`` (rad) and ``cdts`` (m) per record from ``tc_records``; ``pos0 (E, 3)`` approximate ECEF
-    positions; ``iono_on``/``tropo_on`` whether the Klobuchar and troposphere terms are applied."""
+    positions; ``iono_on``/``tropo_on`` whether the Klobuchar and troposphere terms are applied; ``iono_free``:
+    where both carriers are continuous, the ionosphere-free combination's change
+    ``(f_1^2 Delta L_1 lambda_1 - f_2^2 Delta L_2 lambda_2) / (f_1^2 - f_2^2)`` instead of the first carrier's
+    and Klobuchar (its noise ``(f_1^4 + f_2^4) / (f_1^2 - f_2^2)^2`` times larger: 6.7 for L1/L5).  Mixing it with
+    single-frequency satellites is harmless here, unlike for the code: a receiver's inter-frequency bias is
+    constant and cancels in the difference."""
     nr = rsys.shape[0]
     prev = np.full(nr, -1, np.int64)
     dz = np.full(nr, np.nan)
@@ -114,21 +120,30 @@ def carrier_pairs(opts, ion, t_rx, start, rsys, rprn, ok, l1, lli1, f1, l2, lli2
                         var_dop[p] == var_dop[p] else 0.0
                     if abs(dl - pred) > max(doppler_min, doppler_k * sd):
                         st = PH_DOPPLER
+                dual = False
                 if st == PH_PAIR and l2[r] == l2[r] and l2[p] == l2[p] and f2[r] > 0.0 and f2[r] == f2[p] \
                         and f2[r] != f1[r] and (lli2[r] & 1) == 0:
-                    gf = dl - C_LIGHT / f2[r] * (l2[r] - l2[p])
-                    if abs(gf) > gf_min:
+                    dl2 = C_LIGHT / f2[r] * (l2[r] - l2[p])
+                    if abs(dl - dl2) > gf_min:
                         st = PH_GF
+                    dual = True
                 if st == PH_PAIR:
                     prev[r] = p
-                    dz[r] = dl + cdts[r] - cdts[p] + _atmosphere(ion, lat, lon, hgt, t_rx[e], az[r], el[r], f1[r],
-                                                                 iono_on, tropo_on) \
-                        - _atmosphere(ion, lat, lon, hgt, t_rx[e - 1], az[p], el[p], f1[p], iono_on, tropo_on)
                     shape[r] = own[r] + own[p]
+                    if dual and iono_free:
+                        a, b = f1[r] * f1[r], f2[r] * f2[r]
+                        dz[r] = (a * dl - b * dl2) / (a - b) + cdts[r] - cdts[p] \
+                            + _atmosphere(ion, lat, lon, hgt, t_rx[e], az[r], el[r], f1[r], False, tropo_on) \
+                            - _atmosphere(ion, lat, lon, hgt, t_rx[e - 1], az[p], el[p], f1[p], False, tropo_on)
+                        shape[r] *= (a * a + b * b) / ((a - b) * (a - b))
+                    else:
+                        dz[r] = dl + cdts[r] - cdts[p] \
+                            + _atmosphere(ion, lat, lon, hgt, t_rx[e], az[r], el[r], f1[r], iono_on, tropo_on) \
+                            - _atmosphere(ion, lat, lon, hgt, t_rx[e - 1], az[p], el[p], f1[p], iono_on, tropo_on)
             status[r] = st
             last_r[k] = r
             last_e[k] = e
-    return prev, dz, shape, status
+    return prev, dz, shape, status, own
 
 
 def unknown_wavelength(obs) -> dict:
