@@ -23,7 +23,8 @@ A pair (k-1, k) of a satellite is not formed (the satellite restarts at k) when
   (trapezoidal) by more than ``max(doppler_min, k sigma)``, sigma from the Dopplers' variances;
 * with a second frequency in both epochs: the geometry-free combination ``lambda_1 L_1 - lambda_2 L_2`` changes
   by more than ``gf_min`` (geometry, clocks and troposphere cancel; the ionosphere moves it by millimetres per
-  second; a slip of n_1, n_2 cycles moves it by ``lambda_1 n_1 - lambda_2 n_2``).
+  second; a slip of n_1, n_2 cycles moves it by ``lambda_1 n_1 - lambda_2 n_2``), ``gf_min`` at the reference
+  C/N0 and growing with the carriers' noise below it (:func:`carrier_shape`).
 
 Slips smaller than these tests see are the filter's business (:mod:`sinscli.fusion.tdcp`: the carrier change
 against the INS-predicted displacement).
@@ -124,7 +125,7 @@ def carrier_pairs(opts, ion, t_rx, start, rsys, rprn, ok, l1, lli1, f1, l2, lli2
                 if st == PH_PAIR and l2[r] == l2[r] and l2[p] == l2[p] and f2[r] > 0.0 and f2[r] == f2[p] \
                         and f2[r] != f1[r] and (lli2[r] & 1) == 0:
                     dl2 = C_LIGHT / f2[r] * (l2[r] - l2[p])
-                    if abs(dl - dl2) > gf_min:
+                    if abs(dl - dl2) > gf_min * math.sqrt(max(1.0, 0.5 * (own[r] + own[p]))):
                         st = PH_GF
                     dual = True
                 if st == PH_PAIR:
