@@ -177,13 +177,13 @@ def test_clone_is_the_antenna_and_clock_then():
     P = A @ A.T + nx * np.eye(nx)
     mats, vecs, s3 = kn.workspace(nx)
     J = np.zeros((3, nx))
-    rx, ry, rz, *_ = td.antenna_jacobian(st, fs, cv, nx, J)
+    rx, ry, rz, *_ = td.antenna_jacobian(st, fs, cv, nx, J, kn.TDCP_SLOTS)
     Jf = np.zeros((4, nx))
     Jf[:3] = J
     Jf[3, CLK] = 1.0
     others = [i for i in range(nx) if not Q <= i < Q + 4]
     P0 = P.copy()
-    td.clone(st, fs, cv, P, nx, 7.0, mats, True)
+    td.clone(st, fs, cv, P, nx, 7.0, mats, True, kn.TDCP_SLOTS)
     Pk = P0[np.ix_(others, others)]
     Jk = Jf[:, others]
     assert np.allclose(P[np.ix_(others, others)], Pk)

@@ -99,7 +99,7 @@ def spp_cmd(obs_path, nav_paths, output, systems, elev_mask, iono, no_tropo, no_
     if time_base == "tow":
         t = t - np.floor(res.time / SECONDS_PER_WEEK) * SECONDS_PER_WEEK
     elif time_base in ("utc", "posix-gpst"):
-        from ..io.timebase import from_gps
+        from ..io.timebase import from_gps  # the command's modules load when it runs: --help stays light
         t = from_gps(t, "utc" if time_base == "utc" else "gps")
     t = t + time_offset
     data = {"time": t[ok], "lat": lat[ok], "lon": lon[ok], "height": h[ok]}
@@ -138,9 +138,9 @@ def spp_cmd(obs_path, nav_paths, output, systems, elev_mask, iono, no_tropo, no_
 def _tdcp_velocity(res, nav, opts, carrier_sigma, vel, std_v, obs_path):
     """The fixes' velocities (ENU, m/s) and sigmas from TDCP (:func:`sinscli.gnss.tdcp.tdcp_velocity`) where it
     has one, the Doppler's elsewhere (NaN where neither); and the summary's note."""
-    import numpy as np
-    from ..gnss.tdcp import tdcp_velocity
-    from ..nav.earth import ecef_to_lla, enu_rotation
+    import numpy as np  # the command's modules load when it runs: --help stays light
+    from ..gnss.tdcp import tdcp_velocity  # the command's modules load when it runs
+    from ..nav.earth import ecef_to_lla, enu_rotation  # the command's modules load when it runs
     tv = tdcp_velocity(res, nav, opts, carrier_sigma=carrier_sigma)
     if tv["carriers"] == 0:
         log.warning("%s: no carrier-phase observation of the satellites used: --tdcp off, Doppler velocities",

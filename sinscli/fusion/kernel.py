@@ -57,6 +57,8 @@ from ..nav.earth import OMEGA_IE, dlon_nb, enu_axes, geodetic_to_ecef, gravity, 
 from ..nav.rotation import (dcm_to_euler, dcm_to_quat, euler_to_dcm, m_mul, m_trans, m_tvec, m_vec, orthonormalize_t,
                             quat_mul_t, quat_normalize_t, quat_to_dcm_t, rotvec_to_dcm_t, rotvec_to_quat_t)
 from ..nav.linalg import cholesky
+from . import tdcp
+from .antenna import _antenna_velocity, _cross, _dvant_dlever
 from .model import BA, BG, PHI, R, SA, SG, V, add_process_noise, f_blocks, propagate, transition_step
 from .updates import innovation_covariance, kalman_apply, nis_of, skew_into
 
@@ -198,6 +200,10 @@ WM = Layout("fusion workspace matrices", [("W_F", 1), ("W_W", 1), ("W_PM", 1), (
 W_F, W_W, W_PM, W_A, W_L, W_PHI = WM.offsets(*(name for name, _ in WM.fields))
 WV = Layout("fusion workspace rows", [("V_X", 1), ("V_H", 3), ("V_HP", 3), ("V_KT", 3), ("V_Z", 1), ("V_R", 1)])
 V_X, V_H, V_HP, V_KT, V_Z, V_R = WV.offsets(*(name for name, _ in WV.fields))
+# the slots of the layouts above that fusion/tdcp.py reads, in the order of its SLOT_NAMES (passed to its kernels:
+# it does not import this module)
+TDCP_SLOTS = tuple(globals()[name] for name in tdcp.SLOT_NAMES)
+TDCP_SLIP = RW_S + 1          # a TDCP row's slot that its slip test sets to the row's w (0: no slip found)
 # per-row variances written with every output row
 NVAR = 9             # pos E N U, vel E N U, roll, pitch, heading (heading < 0: not yet known)
 NREC = 12            # columns of an innovation record (_record)
@@ -276,7 +282,7 @@ def feedback(st, fs, cv, x, nx, method):
             if k >= 0:
                 fs[F_ISB + s] -= x[k]
         if int(cv[C_TDCP]) >= 0:
-            tdcp.feedback(fs, cv, x, lat, st[sd.S_LON])
+            tdcp.feedback(fs, cv, x, lat, st[sd.S_LON], TDCP_SLOTS)
     if la >= 0:
         for i in range(3):
             fs[F_LEVER + i] -= x[la + i]
@@ -561,38 +567,6 @@ def _heading_from_course(row, st, fs, cv, P, nx, evs, n_evs):
 
 
 @njit(cache=True)
-def _antenna_velocity(c, vel, lat, h, w, lever):
-    """``(v_ant, Cbn (w x l), Cbn l, w_in)`` of the antenna at ``lever`` (body) with body rate ``w``."""
-    wxl = (w[1] * lever[2] - w[2] * lever[1], w[2] * lever[0] - w[0] * lever[2], w[0] * lever[1] - w[1] * lever[0])
-    cw = m_vec(c, wxl)
-    l_n = m_vec(c, lever)
-    rm, rn = radii(np.sin(lat))
-    w_in = (-vel[1] / (rm + h), OMEGA_IE * np.cos(lat) + vel[0] / (rn + h),
-            OMEGA_IE * np.sin(lat) + vel[0] * np.tan(lat) / (rn + h))
-    wl = (w_in[1] * l_n[2] - w_in[2] * l_n[1], w_in[2] * l_n[0] - w_in[0] * l_n[2], w_in[0] * l_n[1] - w_in[1] * l_n[0])
-    v_ant = (vel[0] + cw[0] - wl[0], vel[1] + cw[1] - wl[1], vel[2] + cw[2] - wl[2])
-    return v_ant, cw, l_n, w_in
-
-
-@njit(cache=True, inline="always")
-def _cross(a, b):
-    """``a x b`` of 3-tuples (``a^T [b x] = (a x b)^T``)."""
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-@njit(cache=True)
-def _dvant_dlever(c, w, w_in):
-    """``d v_ant / d l = Cbn [w x] - [w_in x] Cbn`` (:func:`_antenna_velocity`)."""
-    wx = ((0.0, -w[2], w[1]), (w[2], 0.0, -w[0]), (-w[1], w[0], 0.0))
-    wix = ((0.0, -w_in[2], w_in[1]), (w_in[2], 0.0, -w_in[0]), (-w_in[1], w_in[0], 0.0))
-    a1 = m_mul(c, wx)
-    a2 = m_mul(wix, c)
-    return ((a1[0][0] - a2[0][0], a1[0][1] - a2[0][1], a1[0][2] - a2[0][2]),
-            (a1[1][0] - a2[1][0], a1[1][1] - a2[1][1], a1[1][2] - a2[1][2]),
-            (a1[2][0] - a2[2][0], a1[2][1] - a2[2][1], a1[2][2] - a2[2][2]))
-
-
-@njit(cache=True)
 def _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat):
     """One satellite's pseudorange (``MT_PR``) or range rate (``MT_DOP``) at the filter's antenna (docs/raw_gnss.md,
     "Tightly coupled"; IS-GPS-200 20.3.3.3.3 for the range, the clock states of :func:`_propagate_clock`).
@@ -753,7 +727,7 @@ def _model(row, kind, st, fs, cv, nx, H, z, r, sat):
     if kind == MT_PR or kind == MT_DOP:
         return _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat)
     if kind == MT_TDCP:
-        return tdcp.model(row, st, fs, cv, nx, H, z, r, sat)
+        return tdcp.model(row, st, fs, cv, nx, H, z, r, sat, TDCP_SLOTS)
     c = sd._cbn(st)
     lat, lon, h = st[sd.S_LAT], st[sd.S_LON], st[sd.S_H]
     vel = (st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2])
@@ -1061,9 +1035,9 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
     rst = (r[0] / fs[F_RS + 3 * k] if k >= 0 else r[0], r[1] / fs[F_RS + 3 * k + 1] if k >= 0 else r[1],
            r[2] / fs[F_RS + 3 * k + 2] if k >= 0 else r[2])
     acc = nis < gate
-    if kind == MT_TDCP and row[tdcp.SLIP_MARK] != 0.0:     # a slip (tdcp.screen): left out, an event
+    if kind == MT_TDCP and row[TDCP_SLIP] != 0.0:     # a slip (tdcp.screen): left out, an event
         acc = False
-        n_evs = _event(evs, n_evs, t, EV_SLIP, row[RW_AUX], row[tdcp.SLIP_MARK])
+        n_evs = _event(evs, n_evs, t, EV_SLIP, row[RW_AUX], row[TDCP_SLIP])
     nis_report = nis
     exit_fix = False
     if kind == MT_GNSS_POS:
@@ -1255,7 +1229,7 @@ def _measure_group(tm, meas, im, st, fs, cv, P, ws, rec, ep, n_ep, tol, sat):
         if kind >= MT_PR and meas[im, RW_T] != t_raw:
             t_raw = meas[im, RW_T]
             if int(cv[C_TDCP]) >= 0:            # a new raw epoch: its TDCP rows against the INS prediction
-                tdcp.screen(meas, im, st, fs, cv, P, nx, sat, mats, vecs)
+                tdcp.screen(meas, im, st, fs, cv, P, nx, sat, mats, vecs, TDCP_SLOTS)
         n_inn, n_evs = _apply(meas[im], st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat)
         im += 1
     if not _health(P, nx, fs, tm, mats[W_L], True):
@@ -1264,7 +1238,7 @@ def _measure_group(tm, meas, im, st, fs, cv, P, ws, rec, ep, n_ep, tol, sat):
         n_ep = _store_epoch(tm, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]),
                             int(cv[C_TDCP]))
     if t_raw > -np.inf and int(cv[C_TDCP]) >= 0:
-        tdcp.clone(st, fs, cv, P, nx, t_raw, mats, store)
+        tdcp.clone(st, fs, cv, P, nx, t_raw, mats, store, TDCP_SLOTS)
     return im, n_inn, n_evs, n_ep
 
 
@@ -1410,6 +1384,3 @@ def fuse(imu, nav, meas, ws, out, rec, ep, n_ep, sat):
     sd.save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now)
     return n_out, im, n_inn, n_evs, n_ep
 
-
-# the TDCP rows' model, clones and slip test (their module reads this one's layouts: imported last)
-from . import tdcp  # noqa: E402

@@ -214,7 +214,7 @@ def tdcp_rows_of(obs, sig, ok, idx, t_epoch, el, az, cdts, var_rate, pos0, ion, 
     two carriers' elevation/C/N0 shape, ``aux = (satellite-table row, system)``.  Returns ``(rows, info)``, info
     the carriers seen, the pairs, the pairs left out per test and the phases of signals without a wavelength."""
     from ..gnss.phase import carrier_pairs, slip_counts, unknown_wavelength  # --gnss-raw --tdcp only
-    from ..gnss.spp import IONO_OFF, O_IONO, O_TROPO
+    from ..gnss.spp import IONO_OFF, O_IONO, O_TROPO  # --gnss-raw --tdcp only
     step = float(np.median(np.diff(obs.time))) if len(obs) > 1 else 1.0
     prev, dz, shape, status, _ = carrier_pairs(
         opts, ion, obs.time, obs.start, obs.sys.astype(np.int64), obs.prn.astype(np.int64), ok, sig.l1, sig.lli1,

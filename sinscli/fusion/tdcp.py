@@ -45,20 +45,28 @@ from ..gnss.model import geo_range
 from ..gnss.orbits import earth_rate
 from ..nav.earth import enu_axes, geodetic_to_ecef
 from ..nav.linalg import chol_solve_into, cholesky
+from ..nav import strapdown as sd
 from ..nav.rotation import m_mul
-from . import kernel as kn
+from .antenna import _antenna_velocity, _dvant_dlever
 from .model import BG, PHI, R, V
 
+# the kernel's layout slots these kernels read, passed as the tuple ``sl`` (kernel.TDCP_SLOTS, in this order): the
+# kernel imports this module, not the reverse
+SLOT_NAMES = ("F_LEVER", "F_TD", "F_W", "F_HEAD_KNOWN", "F_HAVE_W", "F_CLK", "F_TDCP", "C_LA", "C_TD", "C_CLK", "C_TDCP",
+              "RW_T", "RW_KIND", "RW_Z", "RW_S", "RW_AUX", "SAT_POS", "SAT_SYS", "MT_TDCP", "AX_LOS", "W_F", "W_W",
+              "W_A", "W_L", "W_PHI", "V_KT", "V_H", "V_Z", "V_R", "V_HP")
+(I_F_LEVER, I_F_TD, I_F_W, I_F_HEAD_KNOWN, I_F_HAVE_W, I_F_CLK, I_F_TDCP, I_C_LA, I_C_TD, I_C_CLK, I_C_TDCP, I_RW_T,
+ I_RW_KIND, I_RW_Z, I_RW_S, I_RW_AUX, I_SAT_POS, I_SAT_SYS, I_MT_TDCP, I_AX_LOS, I_W_F, I_W_W, I_W_A, I_W_L, I_W_PHI,
+ I_V_KT, I_V_H, I_V_Z, I_V_R, I_V_HP) = range(len(SLOT_NAMES))
 CLONE_FLOOR = 1.0e-8            # m^2: the clones' own variance (0.1 mm): P stays numerically positive definite
-# the slots of F_TDCP (kn.FS): the clones' nominal values
+# the slots of F_TDCP (kernel.FS): the clones' nominal values
 TD_ANT, TD_B, TD_T = 0, 3, 4    # antenna ECEF at the cloned epoch (m, 3), clock bias then (m), its time (s)
-# the slots of C_TDCP (kn.CV)
+# the slots of C_TDCP (kernel.CV)
 TC_CLONE, TC_SLIP_W = 0, 1      # the first of the 4 clone states (-1: no TDCP), the slip test's threshold on |w|
-SLIP_MARK = kn.RW_S + 1         # a TDCP row's slot that the slip test sets to its w (0: no slip found)
 
 
 @njit(cache=True)
-def antenna_jacobian(st, fs, cv, nx, J):
+def antenna_jacobian(st, fs, cv, nx, J, sl):
     """The antenna's ECEF position at the stamp plus the time offset, ``r(lat, lon, h) + C_n^e (Cbn l + tau
     v_ant)`` (the pseudorange model's antenna, :func:`sinscli.fusion.kernel._raw_model`), and its Jacobian in ENU
     into rows 0-2 of ``J`` (``nx`` columns; the rest zero):
@@ -67,13 +75,13 @@ def antenna_jacobian(st, fs, cv, nx, J):
                 + (Cbn + tau d v_ant / d l) dl + v_ant dtau.
 
     Returns ``(x, y, z)`` and the ENU axes ``(east, north, up)``."""
-    c = kn.sd._cbn(st)
-    lat, lon, h = st[kn.sd.S_LAT], st[kn.sd.S_LON], st[kn.sd.S_H]
-    vel = (st[kn.sd.S_VEL], st[kn.sd.S_VEL + 1], st[kn.sd.S_VEL + 2])
-    lever = (fs[kn.F_LEVER], fs[kn.F_LEVER + 1], fs[kn.F_LEVER + 2])
-    tau = fs[kn.F_TD]
-    w = (fs[kn.F_W], fs[kn.F_W + 1], fs[kn.F_W + 2])
-    v_ant, cw, l_n, w_in = kn._antenna_velocity(c, vel, lat, h, w, lever)
+    c = sd._cbn(st)
+    lat, lon, h = st[sd.S_LAT], st[sd.S_LON], st[sd.S_H]
+    vel = (st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2])
+    lever = (fs[sl[I_F_LEVER]], fs[sl[I_F_LEVER] + 1], fs[sl[I_F_LEVER] + 2])
+    tau = fs[sl[I_F_TD]]
+    w = (fs[sl[I_F_W]], fs[sl[I_F_W] + 1], fs[sl[I_F_W] + 2])
+    v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
     ue, un, uu = enu_axes(lat, lon)
     x0, y0, z0 = geodetic_to_ecef(lat, lon, h)
     d = (l_n[0] + v_ant[0] * tau, l_n[1] + v_ant[1] * tau, l_n[2] + v_ant[2] * tau)
@@ -105,9 +113,9 @@ def antenna_jacobian(st, fs, cv, nx, J):
         for a in range(3):
             for b in range(3):
                 J[a, BG + b] = -tau * clx[a][b]
-    la, td = int(cv[kn.C_LA]), int(cv[kn.C_TD])
+    la, td = int(cv[sl[I_C_LA]]), int(cv[sl[I_C_TD]])
     if la >= 0:
-        dl = kn._dvant_dlever(c, w, w_in)
+        dl = _dvant_dlever(c, w, w_in)
         for a in range(3):
             for b in range(3):
                 J[a, la + b] = c[a][b] + tau * dl[a][b]
@@ -118,26 +126,26 @@ def antenna_jacobian(st, fs, cv, nx, J):
 
 
 @njit(cache=True)
-def model(row, st, fs, cv, nx, H, z, r, sat):
+def model(row, st, fs, cv, nx, H, z, r, sat, sl):
     """Innovation (computed minus measured), Jacobian (row 0 of ``H``; rows 1-2 scratch, left zero) and variance
     of one TDCP row (module docstring): ``z = rho_k(r_a) - rho_k-1(r_c) + b - b_c - Delta Phi_c``.  The row:
     ``z = (Delta Phi_c, satellite-table row of epoch k-1, time of epoch k-1)``, ``s[0]`` its sigma, ``aux =
     (satellite-table row of epoch k, system)``.  Returns as :func:`sinscli.fusion.kernel._model`: 0 components
     while there is no clone of epoch k-1 (the filter had no raw epoch there), while the heading is unknown (the
     lever arm's direction) or before the first propagation (the antenna's rate)."""
-    q = int(cv[kn.C_TDCP + TC_CLONE])
-    clk = int(cv[kn.C_CLK])
-    if q < 0 or clk < 0 or fs[kn.F_HEAD_KNOWN] == 0.0 or fs[kn.F_HAVE_W] == 0.0:
+    q = int(cv[sl[I_C_TDCP] + TC_CLONE])
+    clk = int(cv[sl[I_C_CLK]])
+    if q < 0 or clk < 0 or fs[sl[I_F_HEAD_KNOWN]] == 0.0 or fs[sl[I_F_HAVE_W]] == 0.0:
         return 0, 0, 0, 1, 2
-    if fs[kn.F_TDCP + TD_T] != row[kn.RW_Z + 2]:
+    if fs[sl[I_F_TDCP] + TD_T] != row[sl[I_RW_Z] + 2]:
         return 0, 0, 0, 1, 2
-    k = int(row[kn.RW_AUX])
-    kp = int(row[kn.RW_Z + 1])
-    omge = earth_rate(int(sat[k, kn.SAT_SYS]))
-    rx, ry, rz, ue, un, uu = antenna_jacobian(st, fs, cv, nx, H)
-    rho, ex, ey, ez = geo_range(sat[k, kn.SAT_POS], sat[k, kn.SAT_POS + 1], sat[k, kn.SAT_POS + 2], rx, ry, rz, omge)
-    a0 = kn.F_TDCP + TD_ANT
-    rho_p, px, py, pz = geo_range(sat[kp, kn.SAT_POS], sat[kp, kn.SAT_POS + 1], sat[kp, kn.SAT_POS + 2], fs[a0],
+    k = int(row[sl[I_RW_AUX]])
+    kp = int(row[sl[I_RW_Z] + 1])
+    omge = earth_rate(int(sat[k, sl[I_SAT_SYS]]))
+    rx, ry, rz, ue, un, uu = antenna_jacobian(st, fs, cv, nx, H, sl)
+    rho, ex, ey, ez = geo_range(sat[k, sl[I_SAT_POS]], sat[k, sl[I_SAT_POS] + 1], sat[k, sl[I_SAT_POS] + 2], rx, ry, rz, omge)
+    a0 = sl[I_F_TDCP] + TD_ANT
+    rho_p, px, py, pz = geo_range(sat[kp, sl[I_SAT_POS]], sat[kp, sl[I_SAT_POS] + 1], sat[kp, sl[I_SAT_POS] + 2], fs[a0],
                                   fs[a0 + 1], fs[a0 + 2], omge)
     e = (ue[0] * ex + ue[1] * ey + ue[2] * ez, un[0] * ex + un[1] * ey + un[2] * ez,
          uu[0] * ex + uu[1] * ey + uu[2] * ez)
@@ -152,24 +160,24 @@ def model(row, st, fs, cv, nx, H, z, r, sat):
         H[0, q + i] = ep[i]
     H[0, clk] = 1.0
     H[0, q + 3] = -1.0
-    z[0] = rho - rho_p + fs[kn.F_CLK] - fs[kn.F_TDCP + TD_B] - row[kn.RW_Z]
-    s0 = row[kn.RW_S]
+    z[0] = rho - rho_p + fs[sl[I_F_CLK]] - fs[sl[I_F_TDCP] + TD_B] - row[sl[I_RW_Z]]
+    s0 = row[sl[I_RW_S]]
     r[0] = s0 * s0
-    return 1, kn.AX_LOS, 0, 1, 2
+    return 1, sl[I_AX_LOS], 0, 1, 2
 
 
 @njit(cache=True)
-def clone(st, fs, cv, P, nx, t, mats, store):
+def clone(st, fs, cv, P, nx, t, mats, store, sl):
     """After the updates of the raw epoch at ``t`` (module docstring): the clone states take the antenna position
     error and the clock bias error, ``x_c = J x`` (their rows and columns of P ``J P``, their block ``J P J^T``,
     plus :data:`CLONE_FLOOR`), and ``F_TDCP`` the antenna's ECEF position, the clock bias estimate and ``t``.
     With ``store`` (smoothing) the transition since the smoother's last epoch (the identity: this runs right after
     :func:`sinscli.fusion.kernel._store_epoch`) gets the clone rows ``J``.  ``mats``: the kernel's workspace
     (rows 0-5 of its ``W_F`` matrix as scratch)."""
-    q = int(cv[kn.C_TDCP + TC_CLONE])
-    clk = int(cv[kn.C_CLK])
-    J = mats[kn.W_F]
-    rx, ry, rz, ue, un, uu = antenna_jacobian(st, fs, cv, nx, J)
+    q = int(cv[sl[I_C_TDCP] + TC_CLONE])
+    clk = int(cv[sl[I_C_CLK]])
+    J = mats[sl[I_W_F]]
+    rx, ry, rz, ue, un, uu = antenna_jacobian(st, fs, cv, nx, J, sl)
     for a in range(3):                          # rows 3-5: A = J P
         for j in range(nx):
             s = 0.0
@@ -202,13 +210,13 @@ def clone(st, fs, cv, P, nx, t, mats, store):
             P[q + b, q + a] = s
     for a in range(4):
         P[q + a, q + a] += CLONE_FLOOR
-    fs[kn.F_TDCP + TD_ANT] = rx
-    fs[kn.F_TDCP + TD_ANT + 1] = ry
-    fs[kn.F_TDCP + TD_ANT + 2] = rz
-    fs[kn.F_TDCP + TD_B] = fs[kn.F_CLK]
-    fs[kn.F_TDCP + TD_T] = t
+    fs[sl[I_F_TDCP] + TD_ANT] = rx
+    fs[sl[I_F_TDCP] + TD_ANT + 1] = ry
+    fs[sl[I_F_TDCP] + TD_ANT + 2] = rz
+    fs[sl[I_F_TDCP] + TD_B] = fs[sl[I_F_CLK]]
+    fs[sl[I_F_TDCP] + TD_T] = t
     if store:
-        Phi = mats[kn.W_PHI]
+        Phi = mats[sl[I_W_PHI]]
         for a in range(4):
             for j in range(nx):
                 Phi[q + a, j] = J[a, j] if a < 3 else 0.0
@@ -216,46 +224,46 @@ def clone(st, fs, cv, P, nx, t, mats, store):
 
 
 @njit(cache=True)
-def feedback(fs, cv, x, lat, lon):
+def feedback(fs, cv, x, lat, lon, sl):
     """The clones' error estimates removed from their nominal values (closed loop): the antenna then by the ENU
     estimate (the axes at ``lat``, ``lon``: the clone is of the previous epoch, a second away), the clock bias
     then."""
-    q = int(cv[kn.C_TDCP + TC_CLONE])
+    q = int(cv[sl[I_C_TDCP] + TC_CLONE])
     ue, un, uu = enu_axes(lat, lon)
     for i in range(3):
-        fs[kn.F_TDCP + TD_ANT + i] -= ue[i] * x[q] + un[i] * x[q + 1] + uu[i] * x[q + 2]
-    fs[kn.F_TDCP + TD_B] -= x[q + 3]
+        fs[sl[I_F_TDCP] + TD_ANT + i] -= ue[i] * x[q] + un[i] * x[q + 1] + uu[i] * x[q + 2]
+    fs[sl[I_F_TDCP] + TD_B] -= x[q + 3]
 
 
 @njit(cache=True)
-def screen(meas, i0, st, fs, cv, P, nx, sat, mats, vecs):
+def screen(meas, i0, st, fs, cv, P, nx, sat, mats, vecs, sl):
     """The INS-aided cycle-slip test of the TDCP rows of the raw epoch whose first row is ``meas[i0]`` (module
     docstring: data snooping with the rows' joint innovation covariance), run before any row of the epoch is
     applied: the carrier changes against the INS-predicted displacement and clock, not against a state that the
     epoch's pseudoranges have already moved (a pseudorange noisier than stated would pass for slips).  A row found
-    slipped gets its ``w`` in slot :data:`SLIP_MARK` (0 otherwise): :func:`sinscli.fusion.kernel._apply` then
+    slipped gets its ``w`` in the slot after its sigma (``kernel.TDCP_SLIP``; 0 otherwise): :func:`sinscli.fusion.kernel._apply` then
     records it as rejected and leaves it out.  Returns the number of slips found.  Scratch: the workspace's
     ``W_W`` (rows' H, then S^-1), ``W_L`` (H P, then the Cholesky factor), ``W_A`` (S), ``V_KT`` (z, r, active),
     ``V_HP`` (row indices)."""
-    thr = cv[kn.C_TDCP + TC_SLIP_W]
-    t0 = meas[i0, kn.RW_T]
+    thr = cv[sl[I_C_TDCP] + TC_SLIP_W]
+    t0 = meas[i0, sl[I_RW_T]]
     nm = meas.shape[0]
-    Hs = mats[kn.W_W]
-    A = mats[kn.W_A]
-    L = mats[kn.W_L]
-    kt = vecs[kn.V_KT:kn.V_KT + 3]
+    Hs = mats[sl[I_W_W]]
+    A = mats[sl[I_W_A]]
+    L = mats[sl[I_W_L]]
+    kt = vecs[sl[I_V_KT]:sl[I_V_KT] + 3]
     zs, rs, act = kt[0], kt[1], kt[2]
-    H3 = vecs[kn.V_H:kn.V_H + 3]
-    z1 = vecs[kn.V_Z]
-    r1 = vecs[kn.V_R]
-    rows = vecs[kn.V_HP]
-    idx = vecs[kn.V_HP + 1]
+    H3 = vecs[sl[I_V_H]:sl[I_V_H] + 3]
+    z1 = vecs[sl[I_V_Z]]
+    r1 = vecs[sl[I_V_R]]
+    rows = vecs[sl[I_V_HP]]
+    idx = vecs[sl[I_V_HP] + 1]
     n = 0
-    while i0 < nm and meas[i0, kn.RW_T] == t0 and int(meas[i0, kn.RW_KIND]) != kn.MT_TDCP:
+    while i0 < nm and meas[i0, sl[I_RW_T]] == t0 and int(meas[i0, sl[I_RW_KIND]]) != sl[I_MT_TDCP]:
         i0 += 1
     i = i0
-    while i < nm and meas[i, kn.RW_T] == t0 and int(meas[i, kn.RW_KIND]) == kn.MT_TDCP:
-        meas[i, SLIP_MARK] = 0.0
+    while i < nm and meas[i, sl[I_RW_T]] == t0 and int(meas[i, sl[I_RW_KIND]]) == sl[I_MT_TDCP]:
+        meas[i, sl[I_RW_S] + 1] = 0.0
         i += 1
     i1 = i
     cap = nx
@@ -265,7 +273,7 @@ def screen(meas, i0, st, fs, cv, P, nx, sat, mats, vecs):
         for a in range(3):
             for j in range(nx):
                 H3[a, j] = 0.0
-        m = model(meas[i], st, fs, cv, nx, H3, z1, r1, sat)[0]
+        m = model(meas[i], st, fs, cv, nx, H3, z1, r1, sat, sl)[0]
         if m == 0:
             continue
         for j in range(nx):
@@ -323,9 +331,9 @@ def screen(meas, i0, st, fs, cv, P, nx, sat, mats, vecs):
             break
         j = int(idx[worst])
         act[j] = 0.0
-        meas[int(rows[j]), SLIP_MARK] = w_worst
+        meas[int(rows[j]), sl[I_RW_S] + 1] = w_worst
         found += 1
     return found
 
 
-__all__ = ["antenna_jacobian", "model", "clone", "feedback", "screen", "CLONE_FLOOR", "SLIP_MARK"]
+__all__ = ["antenna_jacobian", "model", "clone", "feedback", "screen", "CLONE_FLOOR", "SLOT_NAMES"]

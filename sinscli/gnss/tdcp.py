@@ -27,6 +27,10 @@ from numba import njit
 
 from .model import geo_range
 from .orbits import earth_rate
+from .phase import carrier_pairs, slip_counts
+from .signals import N_SYS
+from .spp import IONO_OFF, O_IONO, O_TROPO
+from .tc import tc_records
 
 MIN_PAIRS = 4                  # displacement (3) and clock change (1)
 
@@ -218,10 +222,6 @@ def tdcp_velocity(res, nav, opts, carrier_sigma=0.003, slip_doppler=1.0, slip_gf
     (2 central difference, 1 one interval, 0 none), ``disp (E, 3)`` the one-interval displacements (ECEF, m; NaN
     where none), the unit variance ``s0sq`` applied (>= 1), and counts: ``carriers``, ``pairs``, ``slips`` per test
     before the solution, ``excluded`` by its data snooping."""
-    from .phase import carrier_pairs, slip_counts
-    from .signals import N_SYS
-    from .spp import IONO_OFF, O_IONO, O_TROPO
-    from .tc import tc_records
     obs, sig = res.obs, res.signals
     ne = len(obs)
     out = {"vel": np.full((ne, 3), np.nan), "cov": np.full((ne, 3, 3), np.nan), "kind": np.zeros(ne, np.int8),
