@@ -76,40 +76,18 @@ def _kernel_state():
 
 
 def _perturbed(st, fs, j, d):
-    """The state, scalars and clones with error-state component ``j`` (computed minus true) moved by ``d``."""
-    from sinscli.fusion.model import BG, PHI, R, V
+    """The state, scalars and clones with error-state component ``j`` (computed minus true) moved by ``d``: the
+    navigation, lever arm, time offset, clock and ISB as tests/test_fusion_tc.py moves them (the same layout), the
+    clones here."""
     from sinscli.nav import strapdown as sd
-    from sinscli.nav.earth import enu_rotation, radii_py
-    from sinscli.nav.rotation import rotvec_to_dcm
+    from sinscli.nav.earth import enu_rotation
+    from test_fusion_tc import _perturbed as perturbed_tc
+    if j < Q:
+        return perturbed_tc(st, fs, j, d)
     st, fs = st.copy(), fs.copy()
-    lat, h = st[sd.S_LAT], st[sd.S_H]
-    rm, rn = radii_py(math.sin(lat))
-    if R <= j < R + 3:
-        if j == R:
-            st[sd.S_LON] += d / ((rn + h) * math.cos(lat))
-        elif j == R + 1:
-            st[sd.S_LAT] += d / (rm + h)
-        else:
-            st[sd.S_H] += d
-    elif V <= j < V + 3:
-        st[sd.S_VEL + j - V] += d
-    elif PHI <= j < PHI + 3:
-        e = np.zeros(3)
-        e[j - PHI] = -d
-        st[sd.S_CBN:sd.S_CBN + 9] = (rotvec_to_dcm(e) @ np.array(sd._cbn(st))).ravel()
-    elif BG <= j < BG + 3:
-        fs[kn.F_W + j - BG] += d
-    elif LA <= j < LA + 3:
-        fs[kn.F_LEVER + j - LA] += d
-    elif j == TD:
-        fs[kn.F_TD] += d
-    elif j in (CLK, CLK + 1):
-        fs[kn.F_CLK + j - CLK] += d
-    elif j == ISB:
-        fs[kn.F_ISB + 2] += d
-    elif Q <= j < Q + 3:                       # the clone: the antenna then, in the ENU axes here
+    if j < Q + 3:                              # the clone: the antenna then, in the ENU axes here
         fs[kn.F_TDCP:kn.F_TDCP + 3] += d * enu_rotation(st[sd.S_LAT], st[sd.S_LON])[j - Q]
-    elif j == Q + 3:
+    else:
         fs[kn.F_TDCP + td.TD_B] += d
     return st, fs
 

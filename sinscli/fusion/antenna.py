@@ -3,7 +3,7 @@ shared by :mod:`sinscli.fusion.kernel` (fixes, pseudoranges, range rates) and :m
 import numpy as np
 from numba import njit
 
-from ..nav.earth import OMEGA_IE, radii
+from ..nav.earth import OMEGA_IE, enu_axes, geodetic_to_ecef, radii
 from ..nav.rotation import m_mul, m_vec
 
 
@@ -39,4 +39,15 @@ def _dvant_dlever(c, w, w_in):
             (a1[2][0] - a2[2][0], a1[2][1] - a2[2][1], a1[2][2] - a2[2][2]))
 
 
-__all__ = ["_antenna_velocity", "_cross", "_dvant_dlever"]
+@njit(cache=True)
+def antenna_ecef(lat, lon, h, l_n, v_ant, tau):
+    """The antenna's ECEF position ``r(lat, lon, h) + C_n^e (l_n + v_ant tau)`` (at the stamp plus the GNSS time
+    offset ``tau``) and the ENU axes ``(east, north, up)``."""
+    ue, un, uu = enu_axes(lat, lon)
+    x0, y0, z0 = geodetic_to_ecef(lat, lon, h)
+    d = (l_n[0] + v_ant[0] * tau, l_n[1] + v_ant[1] * tau, l_n[2] + v_ant[2] * tau)
+    return (x0 + ue[0] * d[0] + un[0] * d[1] + uu[0] * d[2], y0 + ue[1] * d[0] + un[1] * d[1] + uu[1] * d[2],
+            z0 + ue[2] * d[0] + un[2] * d[1] + uu[2] * d[2], ue, un, uu)
+
+
+__all__ = ["_antenna_velocity", "_cross", "_dvant_dlever", "antenna_ecef"]

@@ -53,12 +53,12 @@ from ..nav import strapdown as sd
 from ..gnss.model import geo_range, range_rate
 from ..gnss.orbits import earth_rate
 from ..gnss.signals import N_SYS
-from ..nav.earth import OMEGA_IE, dlon_nb, enu_axes, geodetic_to_ecef, gravity, radii
+from ..nav.earth import OMEGA_IE, dlon_nb, gravity, radii
 from ..nav.rotation import (dcm_to_euler, dcm_to_quat, euler_to_dcm, m_mul, m_trans, m_tvec, m_vec, orthonormalize_t,
                             quat_mul_t, quat_normalize_t, quat_to_dcm_t, rotvec_to_dcm_t, rotvec_to_quat_t)
 from ..nav.linalg import cholesky
 from . import tdcp
-from .antenna import _antenna_velocity, _cross, _dvant_dlever
+from .antenna import _antenna_velocity, _cross, _dvant_dlever, antenna_ecef
 from .model import BA, BG, PHI, R, SA, SG, V, add_process_noise, f_blocks, propagate, transition_step
 from .updates import innovation_covariance, kalman_apply, nis_of, skew_into
 
@@ -598,12 +598,7 @@ def _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat):
     tau = fs[F_TD]
     w = (fs[F_W], fs[F_W + 1], fs[F_W + 2])
     v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
-    ue, un, uu = enu_axes(lat, lon)
-    x0, y0, z0 = geodetic_to_ecef(lat, lon, h)
-    d = (l_n[0] + v_ant[0] * tau, l_n[1] + v_ant[1] * tau, l_n[2] + v_ant[2] * tau)
-    rx = x0 + ue[0] * d[0] + un[0] * d[1] + uu[0] * d[2]
-    ry = y0 + ue[1] * d[0] + un[1] * d[1] + uu[1] * d[2]
-    rz = z0 + ue[2] * d[0] + un[2] * d[1] + uu[2] * d[2]
+    rx, ry, rz, ue, un, uu = antenna_ecef(lat, lon, h, l_n, v_ant, tau)
     sx, sy, sz = sat[k, SAT_POS], sat[k, SAT_POS + 1], sat[k, SAT_POS + 2]
     omge = earth_rate(sys)
     rho, ex, ey, ez = geo_range(sx, sy, sz, rx, ry, rz, omge)

@@ -43,12 +43,13 @@ from numba import njit
 
 from ..gnss.model import geo_range
 from ..gnss.orbits import earth_rate
-from ..nav.earth import enu_axes, geodetic_to_ecef
+from ..nav.earth import enu_axes
 from ..nav.linalg import chol_solve_into, cholesky
 from ..nav import strapdown as sd
 from ..nav.rotation import m_mul
-from .antenna import _antenna_velocity, _dvant_dlever
+from .antenna import _antenna_velocity, _dvant_dlever, antenna_ecef
 from .model import BG, PHI, R, V
+from .updates import innovation_covariance
 
 # the kernel's layout slots these kernels read, passed as the tuple ``sl`` (kernel.TDCP_SLOTS, in this order): the
 # kernel imports this module, not the reverse
@@ -82,12 +83,7 @@ def antenna_jacobian(st, fs, cv, nx, J, sl):
     tau = fs[sl[I_F_TD]]
     w = (fs[sl[I_F_W]], fs[sl[I_F_W] + 1], fs[sl[I_F_W] + 2])
     v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
-    ue, un, uu = enu_axes(lat, lon)
-    x0, y0, z0 = geodetic_to_ecef(lat, lon, h)
-    d = (l_n[0] + v_ant[0] * tau, l_n[1] + v_ant[1] * tau, l_n[2] + v_ant[2] * tau)
-    rx = x0 + ue[0] * d[0] + un[0] * d[1] + uu[0] * d[2]
-    ry = y0 + ue[1] * d[0] + un[1] * d[1] + uu[1] * d[2]
-    rz = z0 + ue[2] * d[0] + un[2] * d[1] + uu[2] * d[2]
+    rx, ry, rz, ue, un, uu = antenna_ecef(lat, lon, h, l_n, v_ant, tau)
     for a in range(3):
         for j in range(nx):
             J[a, j] = 0.0
@@ -173,43 +169,30 @@ def clone(st, fs, cv, P, nx, t, mats, store, sl):
     plus :data:`CLONE_FLOOR`), and ``F_TDCP`` the antenna's ECEF position, the clock bias estimate and ``t``.
     With ``store`` (smoothing) the transition since the smoother's last epoch (the identity: this runs right after
     :func:`sinscli.fusion.kernel._store_epoch`) gets the clone rows ``J``.  ``mats``: the kernel's workspace
-    (rows 0-5 of its ``W_F`` matrix as scratch)."""
+    (its ``W_F``, ``W_W``, ``W_A`` matrices as scratch)."""
     q = int(cv[sl[I_C_TDCP] + TC_CLONE])
     clk = int(cv[sl[I_C_CLK]])
     J = mats[sl[I_W_F]]
+    A = mats[sl[I_W_W]]
+    C = mats[sl[I_W_A]]
     rx, ry, rz, ue, un, uu = antenna_jacobian(st, fs, cv, nx, J, sl)
-    for a in range(3):                          # rows 3-5: A = J P
-        for j in range(nx):
-            s = 0.0
-            for i in range(nx):
-                h = J[a, i]
-                if h != 0.0:
-                    s += h * P[i, j]
-            J[3 + a, j] = s
+    for a in range(3):
+        J[3, a] = CLONE_FLOOR
+    innovation_covariance(P, nx, J, J[3], 3, A, C)       # A = J P, C = J P J^T + floor (J is 0 on the clones)
     for j in range(nx):
         if q <= j < q + 4:
             continue
         for a in range(3):
-            P[q + a, j] = J[3 + a, j]
-            P[j, q + a] = J[3 + a, j]
+            P[q + a, j] = A[a, j]
+            P[j, q + a] = A[a, j]
         P[q + 3, j] = P[clk, j]
         P[j, q + 3] = P[clk, j]
     for a in range(3):
         for b in range(3):
-            s = 0.0
-            for i in range(nx):
-                s += J[3 + a, i] * J[b, i]
-            P[q + a, q + b] = s
-        P[q + a, q + 3] = J[3 + a, clk]
-        P[q + 3, q + a] = J[3 + a, clk]
-    P[q + 3, q + 3] = P[clk, clk]
-    for a in range(3):                          # exactly symmetric
-        for b in range(a + 1, 3):
-            s = 0.5 * (P[q + a, q + b] + P[q + b, q + a])
-            P[q + a, q + b] = s
-            P[q + b, q + a] = s
-    for a in range(4):
-        P[q + a, q + a] += CLONE_FLOOR
+            P[q + a, q + b] = 0.5 * (C[a, b] + C[b, a])
+        P[q + a, q + 3] = A[a, clk]
+        P[q + 3, q + a] = A[a, clk]
+    P[q + 3, q + 3] = P[clk, clk] + CLONE_FLOOR
     fs[sl[I_F_TDCP] + TD_ANT] = rx
     fs[sl[I_F_TDCP] + TD_ANT + 1] = ry
     fs[sl[I_F_TDCP] + TD_ANT + 2] = rz
@@ -285,21 +268,7 @@ def screen(meas, i0, st, fs, cv, P, nx, sat, mats, vecs, sl):
         n += 1
     if n == 0:
         return 0
-    for a in range(n):                          # A = Hs P, then S = A Hs^T + R (into the upper-left of A's rows)
-        for j in range(nx):
-            s = 0.0
-            for k in range(nx):
-                h = Hs[a, k]
-                if h != 0.0:
-                    s += h * P[k, j]
-            L[a, j] = s
-    for a in range(n):
-        for b in range(n):
-            s = 0.0
-            for j in range(nx):
-                s += L[a, j] * Hs[b, j]
-            A[a, b] = s
-        A[a, a] += rs[a]
+    innovation_covariance(P, nx, Hs, rs, n, L, A)       # L = Hs P, A = S = Hs P Hs^T + R
     found = 0
     while True:
         m = 0
