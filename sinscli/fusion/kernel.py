@@ -1224,7 +1224,12 @@ def _measure_group(tm, meas, im, st, fs, cv, P, ws, rec, ep, n_ep, tol, sat):
         if kind >= MT_PR and meas[im, RW_T] != t_raw:
             t_raw = meas[im, RW_T]
             if int(cv[C_TDCP]) >= 0:            # a new raw epoch: its TDCP rows against the INS prediction
-                tdcp.screen(meas, im, st, fs, cv, P, nx, sat, mats, vecs, TDCP_SLOTS)
+                wide = tdcp.screen(meas, im, st, fs, cv, P, nx, sat, mats, vecs, TDCP_SLOTS)
+                if wide < 0.0:                  # the prediction, not the carriers: widened (as a rejection run)
+                    _widen_nav(P, nx, -wide)
+                    _widen_state(P, nx, int(cv[C_CLK]), -wide)
+                    fs[F_RESET] = 1.0
+                    n_evs = _event(evs, n_evs, meas[im, RW_T], EV_WIDEN, -wide, -wide)
         n_inn, n_evs = _apply(meas[im], st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat)
         im += 1
     if not _health(P, nx, fs, tm, mats[W_L], True):

@@ -59,6 +59,7 @@ SLOT_NAMES = ("F_LEVER", "F_TD", "F_W", "F_HEAD_KNOWN", "F_HAVE_W", "F_CLK", "F_
 (I_F_LEVER, I_F_TD, I_F_W, I_F_HEAD_KNOWN, I_F_HAVE_W, I_F_CLK, I_F_TDCP, I_C_LA, I_C_TD, I_C_CLK, I_C_TDCP, I_RW_T,
  I_RW_KIND, I_RW_Z, I_RW_S, I_RW_AUX, I_SAT_POS, I_SAT_SYS, I_MT_TDCP, I_AX_LOS, I_W_F, I_W_W, I_W_A, I_W_L, I_W_PHI,
  I_V_KT, I_V_H, I_V_Z, I_V_R, I_V_HP) = range(len(SLOT_NAMES))
+MAJORITY_MIN = 4                # with this many rows or more, slips found on most of them are the prediction's fault
 CLONE_FLOOR = 1.0e-8            # m^2: the clones' own variance (0.1 mm): P stays numerically positive definite
 # the slots of F_TDCP (kernel.FS): the clones' nominal values
 TD_ANT, TD_B, TD_T = 0, 3, 4    # antenna ECEF at the cloned epoch (m, 3), clock bias then (m), its time (s)
@@ -225,7 +226,10 @@ def screen(meas, i0, st, fs, cv, P, nx, sat, mats, vecs, sl):
     applied: the carrier changes against the INS-predicted displacement and clock, not against a state that the
     epoch's pseudoranges have already moved (a pseudorange noisier than stated would pass for slips).  A row found
     slipped gets its ``w`` in the slot after its sigma (``kernel.TDCP_SLIP``; 0 otherwise): :func:`sinscli.fusion.kernel._apply` then
-    records it as rejected and leaves it out.  Returns the number of slips found.  Scratch: the workspace's
+    records it as rejected and leaves it out.  Returns the number of slips found; or, when they would be most of
+    :data:`MAJORITY_MIN` rows or more (the carriers agree with one another and not with the prediction: the filter
+    is too sure of itself, as after pseudoranges noisier than stated), minus the epoch's NIS per row (at least 1),
+    no row marked: the caller widens the navigation covariance by it.  Scratch: the workspace's
     ``W_W`` (rows' H, then S^-1), ``W_L`` (H P, then the Cholesky factor), ``W_A`` (S), ``V_KT`` (z, r, active),
     ``V_HP`` (row indices)."""
     thr = cv[sl[I_C_TDCP] + TC_SLIP_W]
@@ -270,6 +274,7 @@ def screen(meas, i0, st, fs, cv, P, nx, sat, mats, vecs, sl):
         return 0
     innovation_covariance(P, nx, Hs, rs, n, L, A)       # L = Hs P, A = S = Hs P Hs^T + R
     found = 0
+    nis_all = 0.0
     while True:
         m = 0
         for a in range(n):
@@ -293,6 +298,8 @@ def screen(meas, i0, st, fs, cv, P, nx, sat, mats, vecs, sl):
             s = 0.0
             for b in range(m):
                 s += Hs[a, b] * zs[int(idx[b])]
+            if m == n:
+                nis_all += zs[int(idx[a])] * s
             w = s / np.sqrt(Hs[a, a])
             if abs(w) > abs(w_worst):
                 worst, w_worst = a, w
@@ -302,6 +309,12 @@ def screen(meas, i0, st, fs, cv, P, nx, sat, mats, vecs, sl):
         act[j] = 0.0
         meas[int(rows[j]), sl[I_RW_S] + 1] = w_worst
         found += 1
+    if n >= MAJORITY_MIN and 2 * found > n:
+        # most of the epoch's carriers disagree with the prediction: the prediction is wrong (a filter too sure
+        # of itself), not the carriers; no slip marked, the caller widens the covariance by the epoch's NIS per row
+        for a in range(n):
+            meas[int(rows[a]), sl[I_RW_S] + 1] = 0.0
+        return -max(nis_all / n, 1.0)
     return found
 
 
