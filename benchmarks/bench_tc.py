@@ -7,7 +7,9 @@ simulated raw GNSS of its antenna (GPS, and GPS + a second constellation, at 1 H
 pseudorange and range rate.  Prints ``samples_per_s`` of each and the ratio of their costs per IMU sample
 (TC / LC; the target is 2 at most): of the filters alone, and from the raw data (both need the single-point
 solution: LC fuses its fixes, TC takes its approximate positions for the corrections; TC also prepares its rows,
-the satellite states and corrections of :func:`sinscli.fusion.raw.raw_measurements`).
+the satellite states and corrections of :func:`sinscli.fusion.raw.raw_measurements`).  Then TC with TDCP
+(``fusion.raw.tdcp``: the carrier rows, the 4 clone states, the epoch's slip test) against TC without, the filter
+alone, per IMU sample, in the same process.
 Run: ``python benchmarks/bench_tc.py``.
 """
 import sys
@@ -64,6 +66,13 @@ def main():
         print(f"  from the raw data (SPP {t_spp:.2f} s for both, TC rows {t_rows:.2f} s): LC "
               f"samples_per_s={n / (t_spp + t_lc):.0f}, TC samples_per_s={n / (t_spp + t_rows + t_tc):.0f}, "
               f"ratio_tc_to_lc={(t_spp + t_rows + t_tc) / (t_spp + t_lc):.3f}")
+        fo_td = build_fusion_options({"sensor": "tactical", "lever_arm": [0.8, 0.0, 1.5], "raw": {"tdcp": True}},
+                                     "bench")
+        rm_td = raw_measurements(raw.obs, raw.nav, fo_td, off, init, spp=spp)
+        run_fusion(small, init, fixes, fo_td, raw=rm_td)         # JIT warm-up
+        t_td = best_of(lambda: run_fusion(imu, init, fixes, fo_td, raw=rm_td))
+        print(f"  TC + TDCP ({rm_td.tdcp_info['pairs']} carrier rows, {len(rm_td.rows)} raw rows): "
+              f"samples_per_s={n / t_td:.0f}, ratio_tdcp_to_tc={t_td / t_tc:.3f}")
     return 0
 
 

@@ -22,14 +22,20 @@ def frame(cls, mid, payload: bytes) -> bytes:
     return b"\xb5\x62" + body + bytes([a, b])
 
 
-def rawx(t, sats, pr, cp, dop, cno) -> bytes:
+def rawx(t, sats, pr, cp, dop, cno, lock=None, trk_extra=None, cpstd=None) -> bytes:
+    """RXM-RAWX: per measurement ``lock`` time (ms, default 1000), ``trk_extra`` trkStat bits 2-3 (default 4: the
+    half cycle resolved, none subtracted), ``cpstd`` the cpStdev field (default 3)."""
     week = int(t // SECONDS_PER_WEEK)
     tow = t - week * SECONDS_PER_WEEK
     out = struct.pack("<dHbBBB2x", tow, week, 18, len(sats), 1, 1)
-    for (gid, sv, sig), p, c, d, n in zip(sats, pr, cp, dop, cno):
-        trk = (0 if np.isnan(p) else 1) | (0 if np.isnan(c) else 2)
+    n_m = len(sats)
+    lock = [1000] * n_m if lock is None else lock
+    trk_extra = [4] * n_m if trk_extra is None else trk_extra
+    cpstd = [3] * n_m if cpstd is None else cpstd
+    for (gid, sv, sig), p, c, d, n, lk, tx, cs in zip(sats, pr, cp, dop, cno, lock, trk_extra, cpstd):
+        trk = (0 if np.isnan(p) else 1) | (0 if np.isnan(c) else 2) | tx
         out += struct.pack("<ddfBBBBHBBBBBx", 0.0 if np.isnan(p) else p, 0.0 if np.isnan(c) else c,
-                           0.0 if np.isnan(d) else d, gid, sv, sig, 0, 1000, int(round(n)), 3, 3, 3, trk)
+                           0.0 if np.isnan(d) else d, gid, sv, sig, 0, lk, int(round(n)), 3, cs, 3, trk)
     return frame(0x02, 0x15, out)
 
 

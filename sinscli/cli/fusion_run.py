@@ -42,16 +42,19 @@ def _span(t) -> str:
 
 
 def run_fused(imu_path, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
-              opts, output, quiet, window=None, odom_path=None, vehicle=None, force=False, raw=None):
+              opts, output, quiet, window=None, odom_path=None, vehicle=None, force=False, raw=None, tdcp=False):
     """``raw = (OBS, NAV paths)``: tightly coupled on the raw observations (:mod:`sinscli.fusion.raw`), their
     single-point fixes standing in for the GNSS log where the filter needs fixes (heading from motion,
-    standstill test, ``--align``); else ``gnss_path`` the fixes (loosely coupled)."""
+    standstill test, ``--align``); else ``gnss_path`` the fixes (loosely coupled).  ``tdcp``: ``--tdcp``
+    (``fusion.raw.tdcp`` on)."""
     src = str(config_path) if config_path else "config"
     base = Path(config_path).parent if config_path else Path.cwd()
     section = cfg.fusion
     if sensor is not None and isinstance(section, dict):      # --sensor replaces fusion.sensor: not read
         section = {**section, "sensor": None}
     fopts = build_fusion_options(section, src, base_dir=base, vehicle=vehicle)
+    if tdcp:
+        fopts = replace(fopts, raw_tdcp=True)
     if sensor is not None:                  # the sensor description, read once, a typed value for the filter
         fopts = replace(fopts, sensor=read_sensor(sensor, "command line", Path.cwd(), key="--sensor"))
     if fopts.lever_arm is None:

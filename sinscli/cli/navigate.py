@@ -47,6 +47,9 @@ def _count_rows(path: Path) -> int:
                    "every satellite's pseudorange and Doppler in the filter (docs/raw_gnss.md).")
 @click.option("--nav", "nav_paths", multiple=True, type=click.Path(path_type=Path),
               help="With --gnss-raw: RINEX navigation file(s) (repeat for several); optional for a UBX log.")
+@click.option("--tdcp", is_flag=True,
+              help="With --gnss-raw: also the carrier phase, differenced between consecutive epochs (TDCP), with "
+                   "cycle-slip tests against the INS (fusion.raw.tdcp; docs/raw_gnss.md).")
 @click.option("--align", "align_method", default=None,
               type=click.Choice(cv.ALIGN_METHODS),
               help="With --gnss: initial state from `sins align --method METHOD` on the log's first window.")
@@ -102,7 +105,7 @@ def _count_rows(path: Path) -> int:
               help="Navigate data that a plausibility check refuses (gyro rates or specific forces impossible in "
                    "their declared unit, a GNSS time offset found by cross-correlation): for the rare real case.")
 @quiet_option
-def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, smooth, innovations_path, odom_path, vehicle, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
+def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, tdcp, align_method, smooth, innovations_path, odom_path, vehicle, sensor, attitude, dcm_variant, coning, subsamples, every, config_path, body,
                  allow_gaps, static_start, angles, euler_integrator, singularity_threshold, on_singularity,
                  frame, imu_topic, start, end, duration, time_offset, output, force, quiet):
     """Navigate IMU increments from an initial state and write the trajectory.
@@ -115,12 +118,16 @@ def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, s
     \b
     With --gnss-raw, tightly coupled (every satellite's pseudorange and Doppler, down to one satellite), e.g.
       sins navigate imu.csv --gnss-raw obs.rnx --nav nav.rnx --init init.yaml --smooth -o fused.csv
+    and with the carrier phase between epochs (TDCP): --gnss-raw obs.rnx --nav nav.rnx --tdcp
     """
     if gnss_path is not None and raw_path is not None:
         raise SinsError("give either --gnss (fixes, loosely coupled) or --gnss-raw (raw observations, tightly "
                         "coupled), not both")
     if nav_paths and raw_path is None:
         raise SinsError("--nav needs --gnss-raw (the raw observations' broadcast ephemerides)")
+    if tdcp and raw_path is None:
+        raise SinsError("--tdcp needs --gnss-raw OBS (raw observations with carrier phase); "
+                        f"{'--gnss gives fixes, which have none' if gnss_path is not None else 'none given'}")
     fused = gnss_path is not None or raw_path is not None
     if not fused:
         for name, value in (("--align", align_method), ("--smooth", smooth or None),
@@ -170,7 +177,7 @@ def navigate_cmd(imu, init_path, gnss_path, raw_path, nav_paths, align_method, s
         from .fusion_run import run_fused
         run_fused(imu, gnss_path, init_path, align_method, smooth, innovations_path, sensor, cfg, config_path,
                   opts, output, quiet, window, odom_path=odom_path, vehicle=vehicle, force=force,
-                  raw=(raw_path, nav_paths) if raw_path is not None else None)
+                  raw=(raw_path, nav_paths) if raw_path is not None else None, tdcp=tdcp)
         return
     # the command's modules load when it runs: --help stays light (tests/test_cli_startup.py)
     from .._numba_cache import set_compile_note

@@ -53,10 +53,12 @@ from ..nav import strapdown as sd
 from ..gnss.model import geo_range, range_rate
 from ..gnss.orbits import earth_rate
 from ..gnss.signals import N_SYS
-from ..nav.earth import OMEGA_IE, dlon_nb, enu_axes, geodetic_to_ecef, gravity, radii
+from ..nav.earth import OMEGA_IE, dlon_nb, gravity, radii
 from ..nav.rotation import (dcm_to_euler, dcm_to_quat, euler_to_dcm, m_mul, m_trans, m_tvec, m_vec, orthonormalize_t,
                             quat_mul_t, quat_normalize_t, quat_to_dcm_t, rotvec_to_dcm_t, rotvec_to_quat_t)
 from ..nav.linalg import cholesky
+from . import tdcp
+from .antenna import _antenna_velocity, _cross, _dvant_dlever, antenna_ecef
 from .model import BA, BG, PHI, R, SA, SG, V, add_process_noise, f_blocks, propagate, transition_step
 from .updates import innovation_covariance, kalman_apply, nis_of, skew_into
 
@@ -64,9 +66,11 @@ from .updates import innovation_covariance, kalman_apply, nis_of, skew_into
 MT_GNSS_POS, MT_GNSS_VEL, MT_ZUPT, MT_ZARU, MT_NHC, MT_ODOM, MT_COURSE = 0, 1, 2, 3, 4, 5, 6
 # raw GNSS (tightly coupled): one satellite's pseudorange (z = corrected pseudorange, m; s = sigma) or range
 # rate (z = corrected range rate, m/s), aux = (row of the satellite table SAT, system); the epoch's clock row
-# (z = its receiver clock from the pseudoranges, m, and drift, m/s; s = sigma): the clock-jump check
-MT_PR, MT_DOP, MT_CLOCK = 7, 8, 9
-MEAS_NAMES = ("gnss_pos", "gnss_vel", "zupt", "zaru", "nhc", "odom", "course", "pseudorange", "doppler", "clock")
+# (z = its receiver clock from the pseudoranges, m, and drift, m/s; s = sigma): the clock-jump check; one
+# satellite's time-differenced carrier phase since the previous epoch (:mod:`sinscli.fusion.tdcp`)
+MT_PR, MT_DOP, MT_CLOCK, MT_TDCP = 7, 8, 9, 10
+MEAS_NAMES = ("gnss_pos", "gnss_vel", "zupt", "zaru", "nhc", "odom", "course", "pseudorange", "doppler", "clock",
+              "tdcp")
 AX_LOS = 6                                  # axis code of a line-of-sight measurement
 
 # a measurement row; the course row (heading from the GNSS course) carries z = (course, v_e, v_n) and
@@ -84,9 +88,10 @@ SAT_POS, SAT_VEL, SAT_SYS, SAT_PRN, SAT_EL = SAT.offsets(*(name for name, _ in S
 
 # the kinds whose measurement noise is adapted (index into the FS fields F_RS, F_RA)
 NK = 4
-K_OF_KIND = (0, 1, -1, -1, 2, 3, -1, -1, -1, -1)   # gnss_pos, gnss_vel, -, -, nhc, odom, -, raw: -
+K_OF_KIND = (0, 1, -1, -1, 2, 3, -1, -1, -1, -1, -1)   # gnss_pos, gnss_vel, -, -, nhc, odom, -, raw: -
 ADAPT_NAMES = ("gnss_pos", "gnss_vel", "nhc", "odom")
-NX_MAX = 33                                 # 21 + lever arm (3) + time offset (1) + clock (2) + 3 ISB, or + GNSS error (3)
+NX_MAX = 34                                 # 21 + lever arm (3) + time offset (1) + clock (2) + 3 ISB + 4 TDCP clones,
+                                            # or + GNSS error (3)
 
 # configuration vector (read-only in the kernel)
 CV = Layout("fusion config", [
@@ -128,12 +133,14 @@ CV = Layout("fusion config", [
     ("C_GE_RATIO2", 3),       # their steady variance per stated variance of the fix (a float fix's larger sigma
                               # is a larger correlated error)
     ("C_GE_TAU", 3),          # their correlation times, s
-], total=87)
+    ("C_TDCP", 2),            # TDCP (fusion/tdcp.py): the first of its 4 clone states (-1: none), the slip test's |w|
+], total=89)
 (C_NX, C_NCORE, C_LA, C_TD, C_METHOD, C_ORDER, C_NSUB, C_EVERY, C_CONV, C_PROP_DT, C_GATE, C_ROBUST,
  C_ARW2, C_VRW2, C_QBG, C_QBA, C_ITG, C_ITA, C_SFG, C_SFA, C_SF_TAU, C_REJ_RUN, C_RADAPT_N,
  C_RADAPT_MAX, C_RADAPT_BAND, C_RBASE, C_QB_MAX, C_QB_TAU, C_QB_THR, C_QB_BASE, C_OUTAGE_DT,
  C_SMOOTH_DT, C_ZUPT_MAXV, C_NHC_AX, C_FWD, C_CLK, C_ISB, C_QCLK, C_QISB, C_CLK_JUMP,
- C_CLK_P0, C_FADE_ALPHA, C_FADE_THR, C_FADE_MAX, C_GE, C_GE_RATIO2, C_GE_TAU) = CV.offsets(*(name for name, _ in CV.fields))
+ C_CLK_P0, C_FADE_ALPHA, C_FADE_THR, C_FADE_MAX, C_GE, C_GE_RATIO2, C_GE_TAU,
+ C_TDCP) = CV.offsets(*(name for name, _ in CV.fields))
 CV_SIZE = CV.total
 
 # the filter's scalars (read and written by the kernel, carried between blocks)
@@ -171,25 +178,32 @@ FS = Layout("fusion filter scalars", [
     ("F_CN", 1),              # fixes in the statistics since they last restarted
     ("F_GE", 3),              # the GNSS position error estimate (E, N, U, m): the fixes are the antenna plus it
     ("F_GE_V", 3),            # its steady variance now (m^2): the ratio times the last fix's stated variance
-], total=220)
+    ("F_TDCP", 5),            # TDCP clones' nominal values (fusion/tdcp.py): antenna then (ECEF), clock bias, time
+], total=226)
 (F_BG, F_BA, F_SG, F_SA, F_LEVER, F_TD, F_QS_DRIFT, F_T_QS, F_RS, F_RP, F_RA, F_ACC_T, F_ACC_DV,
  F_ACC_DTH, F_W, F_HAVE_W, F_LPW, F_LPF, F_F, F_HEAD_KNOWN, F_NREJ, F_TREJ0, F_T_FIX, F_T_EPOCH, F_ERR,
  F_ERR_T, F_RESET, F_TPREV, F_NSAMP_OUT, F_XACC, F_CLK, F_ISB, F_EP_T, F_EP_ACC, F_EP_REJ, F_EP_NREJ,
- F_EP_T0, F_CL, F_CD, F_CZ, F_CS, F_CT, F_CJ, F_CN, F_GE, F_GE_V) = FS.offsets(*(name for name, _ in FS.fields))
+ F_EP_T0, F_CL, F_CD, F_CZ, F_CS, F_CT, F_CJ, F_CN, F_GE, F_GE_V,
+ F_TDCP) = FS.offsets(*(name for name, _ in FS.fields))
 FS_SIZE = FS.total
 
 ERR_NONFINITE, ERR_NOT_PD = 1.0, 2.0
 # events: (time, code, a, b)
 EV_REJECTION_RUN, EV_HEADING_INIT, EV_RSCALE, EV_REACQUIRE, EV_QSCALE, EV_EXIT = 1.0, 2.0, 3.0, 4.0, 5.0, 6.0
 EV_CLOCK_JUMP, EV_WIDEN = 7.0, 8.0
+EV_SLIP = 9.0               # a cycle slip found by the INS-aided test (a = the satellite-table row, b = its w)
 EV_NAMES = {1: "rejection_run", 2: "heading_init", 3: "r_scale", 4: "reacquire", 5: "drift_q_scale", 6: "outage_exit",
-            7: "clock_jump", 8: "widen"}
+            7: "clock_jump", 8: "widen", 9: "cycle_slip"}
 
 # workspace: matrices (nx, nx) and rows (nx,)
 WM = Layout("fusion workspace matrices", [("W_F", 1), ("W_W", 1), ("W_PM", 1), ("W_A", 1), ("W_L", 1), ("W_PHI", 1)])
 W_F, W_W, W_PM, W_A, W_L, W_PHI = WM.offsets(*(name for name, _ in WM.fields))
 WV = Layout("fusion workspace rows", [("V_X", 1), ("V_H", 3), ("V_HP", 3), ("V_KT", 3), ("V_Z", 1), ("V_R", 1)])
 V_X, V_H, V_HP, V_KT, V_Z, V_R = WV.offsets(*(name for name, _ in WV.fields))
+# the slots of the layouts above that fusion/tdcp.py reads, in the order of its SLOT_NAMES (passed to its kernels:
+# it does not import this module)
+TDCP_SLOTS = tuple(globals()[name] for name in tdcp.SLOT_NAMES)
+TDCP_SLIP = RW_S + 1          # a TDCP row's slot that its slip test sets to the row's w (0: no slip found)
 # per-row variances written with every output row
 NVAR = 9             # pos E N U, vel E N U, roll, pitch, heading (heading < 0: not yet known)
 NREC = 12            # columns of an innovation record (_record)
@@ -204,10 +218,11 @@ def workspace(nx):
     return mats, np.zeros((WV.total, nx)), np.zeros((2, 3, 3))
 
 
-def epoch_width(ncore: int, nx: int, clk: int = -1) -> int:
+def epoch_width(ncore: int, nx: int, clk: int = -1, clone: int = -1) -> int:
     """Floats of one smoother epoch's transition matrix: its navigation rows over the core states, the
-    diagonal of the rest and, with a receiver clock (state ``clk``), its bias-drift entry (:func:`_store_epoch`)."""
-    return 9 * ncore + (nx - 9) + (1 if clk >= 0 else 0)
+    diagonal of the rest, with a receiver clock (state ``clk``) its bias-drift entry and with TDCP clones (states
+    ``clone`` .. ``clone + 3``) their full rows (:func:`_store_epoch`)."""
+    return 9 * ncore + (nx - 9) + (1 if clk >= 0 else 0) + (4 * nx if clone >= 0 else 0)
 
 
 @njit(cache=True)
@@ -266,6 +281,8 @@ def feedback(st, fs, cv, x, nx, method):
             k = int(cv[C_ISB + s])
             if k >= 0:
                 fs[F_ISB + s] -= x[k]
+        if int(cv[C_TDCP]) >= 0:
+            tdcp.feedback(fs, cv, x, lat, st[sd.S_LON], TDCP_SLOTS)
     if la >= 0:
         for i in range(3):
             fs[F_LEVER + i] -= x[la + i]
@@ -550,38 +567,6 @@ def _heading_from_course(row, st, fs, cv, P, nx, evs, n_evs):
 
 
 @njit(cache=True)
-def _antenna_velocity(c, vel, lat, h, w, lever):
-    """``(v_ant, Cbn (w x l), Cbn l, w_in)`` of the antenna at ``lever`` (body) with body rate ``w``."""
-    wxl = (w[1] * lever[2] - w[2] * lever[1], w[2] * lever[0] - w[0] * lever[2], w[0] * lever[1] - w[1] * lever[0])
-    cw = m_vec(c, wxl)
-    l_n = m_vec(c, lever)
-    rm, rn = radii(np.sin(lat))
-    w_in = (-vel[1] / (rm + h), OMEGA_IE * np.cos(lat) + vel[0] / (rn + h),
-            OMEGA_IE * np.sin(lat) + vel[0] * np.tan(lat) / (rn + h))
-    wl = (w_in[1] * l_n[2] - w_in[2] * l_n[1], w_in[2] * l_n[0] - w_in[0] * l_n[2], w_in[0] * l_n[1] - w_in[1] * l_n[0])
-    v_ant = (vel[0] + cw[0] - wl[0], vel[1] + cw[1] - wl[1], vel[2] + cw[2] - wl[2])
-    return v_ant, cw, l_n, w_in
-
-
-@njit(cache=True, inline="always")
-def _cross(a, b):
-    """``a x b`` of 3-tuples (``a^T [b x] = (a x b)^T``)."""
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-@njit(cache=True)
-def _dvant_dlever(c, w, w_in):
-    """``d v_ant / d l = Cbn [w x] - [w_in x] Cbn`` (:func:`_antenna_velocity`)."""
-    wx = ((0.0, -w[2], w[1]), (w[2], 0.0, -w[0]), (-w[1], w[0], 0.0))
-    wix = ((0.0, -w_in[2], w_in[1]), (w_in[2], 0.0, -w_in[0]), (-w_in[1], w_in[0], 0.0))
-    a1 = m_mul(c, wx)
-    a2 = m_mul(wix, c)
-    return ((a1[0][0] - a2[0][0], a1[0][1] - a2[0][1], a1[0][2] - a2[0][2]),
-            (a1[1][0] - a2[1][0], a1[1][1] - a2[1][1], a1[1][2] - a2[1][2]),
-            (a1[2][0] - a2[2][0], a1[2][1] - a2[2][1], a1[2][2] - a2[2][2]))
-
-
-@njit(cache=True)
 def _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat):
     """One satellite's pseudorange (``MT_PR``) or range rate (``MT_DOP``) at the filter's antenna (docs/raw_gnss.md,
     "Tightly coupled"; IS-GPS-200 20.3.3.3.3 for the range, the clock states of :func:`_propagate_clock`).
@@ -613,12 +598,7 @@ def _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat):
     tau = fs[F_TD]
     w = (fs[F_W], fs[F_W + 1], fs[F_W + 2])
     v_ant, cw, l_n, w_in = _antenna_velocity(c, vel, lat, h, w, lever)
-    ue, un, uu = enu_axes(lat, lon)
-    x0, y0, z0 = geodetic_to_ecef(lat, lon, h)
-    d = (l_n[0] + v_ant[0] * tau, l_n[1] + v_ant[1] * tau, l_n[2] + v_ant[2] * tau)
-    rx = x0 + ue[0] * d[0] + un[0] * d[1] + uu[0] * d[2]
-    ry = y0 + ue[1] * d[0] + un[1] * d[1] + uu[1] * d[2]
-    rz = z0 + ue[2] * d[0] + un[2] * d[1] + uu[2] * d[2]
+    rx, ry, rz, ue, un, uu = antenna_ecef(lat, lon, h, l_n, v_ant, tau)
     sx, sy, sz = sat[k, SAT_POS], sat[k, SAT_POS + 1], sat[k, SAT_POS + 2]
     omge = earth_rate(sys)
     rho, ex, ey, ez = geo_range(sx, sy, sz, rx, ry, rz, omge)
@@ -741,6 +721,8 @@ def _model(row, kind, st, fs, cv, nx, H, z, r, sat):
             H[a, j] = 0.0
     if kind == MT_PR or kind == MT_DOP:
         return _raw_model(row, kind, st, fs, cv, nx, H, z, r, sat)
+    if kind == MT_TDCP:
+        return tdcp.model(row, st, fs, cv, nx, H, z, r, sat, TDCP_SLOTS)
     c = sd._cbn(st)
     lat, lon, h = st[sd.S_LAT], st[sd.S_LON], st[sd.S_H]
     vel = (st[sd.S_VEL], st[sd.S_VEL + 1], st[sd.S_VEL + 2])
@@ -1048,6 +1030,9 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
     rst = (r[0] / fs[F_RS + 3 * k] if k >= 0 else r[0], r[1] / fs[F_RS + 3 * k + 1] if k >= 0 else r[1],
            r[2] / fs[F_RS + 3 * k + 2] if k >= 0 else r[2])
     acc = nis < gate
+    if kind == MT_TDCP and row[TDCP_SLIP] != 0.0:     # a slip (tdcp.screen): left out, an event
+        acc = False
+        n_evs = _event(evs, n_evs, t, EV_SLIP, row[RW_AUX], row[TDCP_SLIP])
     nis_report = nis
     exit_fix = False
     if kind == MT_GNSS_POS:
@@ -1113,7 +1098,7 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
         acc = True
         fs[F_EP_NREJ] = 0.0
         fs[F_RESET] = 1.0
-    elif acc and (k >= 0 or kind == MT_PR or kind == MT_DOP):
+    elif acc and (k >= 0 or kind == MT_PR or kind == MT_DOP or kind == MT_TDCP):
         # IGG-III robust weight: above the full-weight bound the noise is inflated smoothly up to the gate
         k0 = cv[C_ROBUST + m - 1]
         if k0 > 0.0 and nis > k0:
@@ -1133,7 +1118,7 @@ def _apply(row, st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat):
         else:
             fs[F_EP_REJ] += 1.0
     axes = (a0, a1, a2)
-    sat_row = row[RW_AUX] if kind == MT_PR or kind == MT_DOP else -1.0
+    sat_row = row[RW_AUX] if kind == MT_PR or kind == MT_DOP or kind == MT_TDCP else -1.0
     for a in range(m):
         n_inn = _record(inn, n_inn, t, kind, axis0 + axes[a], z[a], S[a, a], nis_report, acc, hph[a], rst[a],
                         exit_fix, a, sat_row)
@@ -1178,11 +1163,11 @@ def _widen_nav(P, nx, ratio):
 
 
 @njit(cache=True)
-def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep, clk):
+def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep, clk, clone=-1):
     """One smoother epoch: P- and P+ (upper triangles, row by row), the transition matrix since the
     previous epoch (its navigation rows over the core states, then the diagonal of the other rows, then with
-    a receiver clock at state ``clk`` its bias-drift entry), the correction fed back since the previous
-    epoch, the reset flag; the transition matrix restarts at I."""
+    a receiver clock at state ``clk`` its bias-drift entry, then with TDCP clones at ``clone`` their 4 rows), the
+    correction fed back since the previous epoch, the reset flag; the transition matrix restarts at I."""
     ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset = ep
     if n_ep < ep_t.shape[0]:
         ep_t[n_ep] = t
@@ -1204,6 +1189,12 @@ def _store_epoch(t, P, Pm, nx, ncore, fs, Phi, ep, n_ep, clk):
             u += 1
         if clk >= 0:
             ep_ft[n_ep, u] = Phi[clk, clk + 1]
+            u += 1
+        if clone >= 0:
+            for i in range(clone, clone + 4):
+                for j in range(nx):
+                    ep_ft[n_ep, u] = Phi[i, j]
+                    u += 1
         ep_reset[n_ep] = fs[F_RESET]
     for i in range(nx):
         for j in range(nx):
@@ -1227,13 +1218,27 @@ def _measure_group(tm, meas, im, st, fs, cv, P, ws, rec, ep, n_ep, tol, sat):
             for j in range(nx):
                 Pm[i, j] = P[i, j]
     nm = meas.shape[0]
+    t_raw = -np.inf                             # the time of this group's raw GNSS rows (TDCP clones them)
     while im < nm and meas[im, RW_T] <= tm + tol:
+        kind = int(meas[im, RW_KIND])
+        if kind >= MT_PR and meas[im, RW_T] != t_raw:
+            t_raw = meas[im, RW_T]
+            if int(cv[C_TDCP]) >= 0:            # a new raw epoch: its TDCP rows against the INS prediction
+                wide = tdcp.screen(meas, im, st, fs, cv, P, nx, sat, mats, vecs, TDCP_SLOTS)
+                if wide < 0.0:                  # the prediction, not the carriers: widened (as a rejection run)
+                    _widen_nav(P, nx, -wide)
+                    _widen_state(P, nx, int(cv[C_CLK]), -wide)
+                    fs[F_RESET] = 1.0
+                    n_evs = _event(evs, n_evs, meas[im, RW_T], EV_WIDEN, -wide, -wide)
         n_inn, n_evs = _apply(meas[im], st, fs, cv, P, mats, vecs, s3, inn, n_inn, evs, n_evs, sat)
         im += 1
     if not _health(P, nx, fs, tm, mats[W_L], True):
         return im, n_inn, n_evs, n_ep
     if store:
-        n_ep = _store_epoch(tm, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]))
+        n_ep = _store_epoch(tm, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]),
+                            int(cv[C_TDCP]))
+    if t_raw > -np.inf and int(cv[C_TDCP]) >= 0:
+        tdcp.clone(st, fs, cv, P, nx, t_raw, mats, store, TDCP_SLOTS)
     return im, n_inn, n_evs, n_ep
 
 
@@ -1358,7 +1363,8 @@ def fuse(imu, nav, meas, ws, out, rec, ep, n_ep, sat):
                 for i in range(nx):
                     for j in range(nx):
                         Pm[i, j] = P[i, j]
-                n_ep = _store_epoch(tk, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]))
+                n_ep = _store_epoch(tk, P, Pm, nx, int(cv[C_NCORE]), fs, mats[W_PHI], ep, n_ep, int(cv[C_CLK]),
+                                    int(cv[C_TDCP]))
         if fs[F_NSAMP_OUT] >= per_out and n_out < out_t.shape[0]:
             fs[F_NSAMP_OUT] = 0.0
             out_t[n_out] = tk
@@ -1377,3 +1383,4 @@ def fuse(imu, nav, meas, ws, out, rec, ep, n_ep, sat):
             n_out += 1
     sd.save_fast(st, prev_dth, prev_dv, n_prev, sums, nsub_now)
     return n_out, im, n_inn, n_evs, n_ep
+

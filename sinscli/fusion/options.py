@@ -101,6 +101,11 @@ FUSION_DEFAULTS = {
         "iono_var": 0.5,             # the Klobuchar residual's 1-sigma as a share of its delay
         "tropo_sigma": 0.1,          # m: troposphere residual at the zenith (times the mapping function)
         "smooth_code": 0.0,          # s: carrier smoothing (Hatch) of the pseudoranges; 0: raw
+        "tdcp": False,               # time-differenced carrier phase between consecutive epochs (--tdcp)
+        "carrier_sigma": 0.003,      # m: carrier-phase sigma at cn0_ref (above it; growing as 1/C/N0 below)
+        "slip_test": 5.0,            # the INS-aided slip test's threshold on |w| (standard normal without a slip)
+        "slip_doppler": 1.0,         # m: the carrier's change this far from the Doppler's (and 6 sigma): a slip
+        "slip_gf": 0.05,             # m: the geometry-free combination's change beyond this: a slip
     },
     "clock": {                       # the receiver clock states (raw GNSS), defaults of a TCXO
         "h0": 2.0e-19,               # s: white frequency noise, Allan h_0 (Brown & Hwang table 9.1, TCXO)
@@ -199,6 +204,11 @@ class FusionOptions:
     raw_iono_var: float = 0.5
     raw_tropo_sigma: float = 0.1             # m
     raw_smooth_code: float = 0.0             # s
+    raw_tdcp: bool = False
+    raw_carrier_sigma: float = 0.003         # m
+    raw_slip_test: float = 5.0
+    raw_slip_doppler: float = 1.0            # m
+    raw_slip_gf: float = 0.05                # m
     clock_h0: float = 2.0e-19                # s
     clock_h_2: float = 2.0e-20               # 1/s
     clock_bias_sigma: float = 30.0           # m
@@ -357,6 +367,11 @@ def _raw_clock(src, d, kw) -> None:
     kw["raw_iono_var"] = _num(src, "raw.iono_var", rw["iono_var"], ge=0.0, le=10.0)
     kw["raw_tropo_sigma"] = _num(src, "raw.tropo_sigma", rw["tropo_sigma"], ge=0.0, le=MAX_POS)
     kw["raw_smooth_code"] = _num(src, "raw.smooth_code", rw["smooth_code"], ge=0.0, le=3600.0)
+    kw["raw_tdcp"] = _bool(src, "raw.tdcp", rw["tdcp"])
+    kw["raw_carrier_sigma"] = _num(src, "raw.carrier_sigma", rw["carrier_sigma"], gt=0.0, le=1.0)
+    kw["raw_slip_test"] = _num(src, "raw.slip_test", rw["slip_test"], gt=0.0, le=1e3)
+    kw["raw_slip_doppler"] = _num(src, "raw.slip_doppler", rw["slip_doppler"], gt=0.0, le=MAX_POS)
+    kw["raw_slip_gf"] = _num(src, "raw.slip_gf", rw["slip_gf"], gt=0.0, le=MAX_POS)
     ck = d["clock"]
     kw["clock_h0"] = _num(src, "clock.h0", ck["h0"], ge=0.0, le=1e-12)
     kw["clock_h_2"] = _num(src, "clock.h_2", ck["h_2"], ge=0.0, le=1e-12)

@@ -28,7 +28,8 @@ from ..units import DEG, UG_DECIMAL
 from . import kernel as kn
 from .model import BA, BG, PHI, SA, SG, V
 from .noise import FACTOR, apply_data_noise
-from .raw import satellite_counts
+from .raw import satellite_counts, tdcp_notes
+from .tdcp import TD_T
 from .summary import (FusionSummary, RawSummary, clock, exit_fixes, few_satellite_spans, fix_residuals,
                       ground_vehicle_hint, heading_course_check, LeverCheck, outages, standstill_intervals)
 from .options import FusionOptions
@@ -42,6 +43,7 @@ REQUIRED_TERMS = {"gyro": ("arw", "bias_sigma", "bias_instability", "bias_tau"),
                   "accel": ("vrw", "bias_sigma", "bias_instability", "bias_tau")}
 PRIO = {kn.MT_COURSE: 0, kn.MT_CLOCK: 1, kn.MT_GNSS_POS: 2, kn.MT_PR: 2, kn.MT_GNSS_VEL: 3, kn.MT_DOP: 3,
         kn.MT_ZUPT: 4, kn.MT_ZARU: 5, kn.MT_NHC: 6, kn.MT_ODOM: 7}
+PRIO[kn.MT_TDCP] = 3                # after the epoch's range rates (the sort is stable: raw.py's order)
 PRIO_OF_KIND = np.array([PRIO[k] for k in range(len(kn.MEAS_NAMES))])     # the same, indexed by kind
 AXES = np.array(["e", "n", "u", "x", "y", "z", "los"])
 INNOVATION_DTYPE = np.dtype([("time", "f8"), ("type", "U16"), ("axis", "U8"), ("innovation", "f8"),
@@ -347,6 +349,9 @@ class Fusion:
             self.clk, nx = nx, nx + 2
             for s_ in raw.isb_systems:
                 self.isb[s_], nx = nx, nx + 1
+        self.clone = -1                     # TDCP: the antenna and clock-bias clones (sinscli.fusion.tdcp)
+        if raw is not None and raw.tdcp:
+            self.clone, nx = nx, nx + 4
         self.sat = raw.sat if raw is not None else np.zeros((0, kn.SW))
         # the fixes' time-correlated error (loosely coupled): (sigma_h, sigma_v, tau_h, tau_v), given or found by a
         # calibration pass (gnss_gm_from)
@@ -372,6 +377,7 @@ class Fusion:
         self.fs[kn.F_T_QS] = init.time
         self.fs[kn.F_RS:kn.F_RS + 3 * kn.NK] = self.r_base
         self.fs[kn.F_T_FIX] = -np.inf
+        self.fs[kn.F_TDCP + TD_T] = -np.inf           # no clone yet
         self.fs[kn.F_CT] = -np.inf
         self.fs[kn.F_CL] = self.fs[kn.F_CD] = 1.0
         self.fs[kn.F_LEVER:kn.F_LEVER + 3] = self.lever
@@ -417,7 +423,7 @@ class Fusion:
         self._t_nhc = init.time
         self._t_end_gnss = t_end
         self.inn_parts, self.ev_parts = [], []
-        self.epochs = EpochStore(nx, kn.epoch_width(ncore, nx, self.clk)) if smooth else None
+        self.epochs = EpochStore(nx, kn.epoch_width(ncore, nx, self.clk, self.clone)) if smooth else None
         self.smoother_guard = None
         self.guard_times = None
         self.forward_rows = []          # kept for the smoother: (trajectory, variances, sensor estimates)
@@ -483,6 +489,7 @@ class Fusion:
         cv[kn.C_QISB] = f.clock_isb_walk ** 2
         cv[kn.C_CLK_JUMP] = f.clock_jump
         cv[kn.C_CLK_P0] = f.clock_bias_sigma
+        cv[kn.C_TDCP], cv[kn.C_TDCP + 1] = self.clone, f.raw_slip_test
         # the consistency test of the fixes (kernel._consistency): weight 1/window per fix; its mean of NIS/m
         # behaves as chi2(nu)/nu with nu = 3 (2 - a)/a (an exponentially weighted mean of chi2(3)/3): the
         # 1 - 1e-4 quantile is its threshold
@@ -534,6 +541,8 @@ class Fusion:
             P[self.clk + 1, self.clk + 1] = f.clock_drift_sigma ** 2
             for k in self.isb.values():
                 P[k, k] = f.clock_isb_sigma ** 2
+        if self.clone >= 0:                 # unused until the first raw epoch clones into them
+            P[self.clone:self.clone + 4, self.clone:self.clone + 4] = np.eye(4)
         return P
 
     # ------------------------------------------------------------------ running
@@ -731,7 +740,8 @@ class Fusion:
         self.forward_rows = []
         epochs = self.epochs.trimmed()
         self.smoother_guard = smooth_rows(traj.time, traj.lat, traj.lon, traj.height, traj.vel_n, traj.Cbn, var,
-                                          bias, epochs, self.ncore, self.nx, int(self.cv[kn.C_FWD]), self.clk)
+                                          bias, epochs, self.ncore, self.nx, int(self.cv[kn.C_FWD]), self.clk,
+                                          self.clone)
         g = self.smoother_guard
         ep_t = epochs[0]
         # the epochs (after the smoothing step's start k: its prior at k + 1) of the first and worst clipped pivot
@@ -856,7 +866,7 @@ class Fusion:
         ev = self.events()
         rs.jumps = int(np.sum(ev[:, 1] == kn.EV_CLOCK_JUMP)) if len(ev) else 0
         rs.ref = ref
-        rs.notes = list(raw.notes)
+        rs.notes = list(raw.notes) + (tdcp_notes(rec, ev, raw.tdcp_info) if raw.tdcp_info else [])
         return rs
 
     def _adaptation_lines(self, ev, s: FusionSummary) -> None:

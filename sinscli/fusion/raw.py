@@ -4,7 +4,9 @@
 
 * the filter's rows (:data:`sinscli.fusion.kernel.ROW`): per epoch one clock row (``MT_CLOCK``: the epoch's
   receiver clock from its own pseudoranges, for the clock-jump check), then one pseudorange row
-  (``MT_PR``) and one range-rate row (``MT_DOP``, where the receiver gave a Doppler) per satellite;
+  (``MT_PR``) and one range-rate row (``MT_DOP``, where the receiver gave a Doppler) per satellite, and with
+  ``fusion.raw.tdcp`` one time-differenced carrier-phase row (``MT_TDCP``, :mod:`sinscli.fusion.tdcp`) per
+  satellite tracked without a slip since the epoch before (:func:`sinscli.gnss.phase.carrier_pairs`);
 * the satellite table (:data:`sinscli.fusion.kernel.SAT`) the rows point into: each satellite's position
   and velocity at transmission (:func:`sinscli.gnss.tc.tc_records`);
 * the initial receiver clock bias, drift and inter-system biases (from the first epochs' data);
@@ -21,6 +23,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import logging
+
 import numpy as np
 
 from ..errors import SinsError
@@ -33,6 +37,10 @@ from . import kernel as kn
 
 SPREAD_FLOOR = 1.0          # m: the least 1-sigma of an epoch's clock from its pseudoranges
 INIT_EPOCHS = 10            # epochs whose clocks give the initial inter-system biases
+MAX_TDCP_GAP = 2.5          # nominal epoch intervals: epochs further apart give no carrier pair
+DOPPLER_K = 6.0             # the Doppler slip test's bound in sigmas of the Dopplers' mean (and raw.slip_doppler)
+
+log = logging.getLogger("sins")
 
 
 @dataclass
@@ -51,6 +59,8 @@ class RawMeasurements:
     spp: GnssLog = None                 # the epochs' single-point fixes (time on the IMU's clock)
     obs_source: str = ""
     notes: list = field(default_factory=list)
+    tdcp: bool = False                  # TDCP rows (the filter clones the antenna and the clock bias)
+    tdcp_info: dict = field(default_factory=dict)   # pairs, slips per test, phases without a wavelength
 
     def sat_names(self) -> np.ndarray:
         """``G05`` per satellite-table row."""
@@ -116,7 +126,7 @@ def raw_measurements(obs: ObsData, nav: NavData, fopts, offset: float, init: Nav
     sys_on[systems] = True
     ion = nav.ion_gps if nav.ion_gps is not None else nav.ion_bds
     ion = np.zeros(8) if ion is None else np.asarray(ion, dtype=np.float64)
-    (ok, sx, prc, var_pr, ratec, var_rate, el, az, clk, drift,
+    (ok, sx, prc, var_pr, ratec, var_rate, el, az, cdts, clk, drift,
      spread) = tc_records(nav.eph, ion, opts, sys_on, obs.time, obs.start, obs.sys.astype(np.int64),
                           obs.prn.astype(np.int64), sig.p1, sig.p2, sig.b1, sig.b2, sig.f1, sig.f2, sig.cn0, sig.dop,
                           np.ascontiguousarray(pos0), np.ascontiguousarray(vel0))
@@ -165,8 +175,18 @@ def raw_measurements(obs: ObsData, nav: NavData, fopts, offset: float, init: Nav
     clock_rows = np.column_stack([t_epoch[ce], np.full(ne, kn.MT_CLOCK), clk[ce, ref], np.nan_to_num(drift[ce]),
                                   np.zeros(ne), np.maximum(spread[ce], SPREAD_FLOOR), np.zeros((ne, 2)),
                                   np.full(ne, -1.0), np.full(ne, float(ref))])
-    rows = np.vstack([clock_rows, pr_rows, dop_rows])
-    order = {kn.MT_CLOCK: 0, kn.MT_PR: 1, kn.MT_DOP: 2}
+    tdcp_rows, tdcp_info = np.zeros((0, kn.MW)), {}
+    notes = []
+    if fopts.raw_tdcp:
+        tdcp_rows, tdcp_info = tdcp_rows_of(obs, sig, ok, idx, t_epoch, el, az, cdts, var_rate, pos0, ion, opts,
+                                            fopts)
+        if tdcp_info.get("carriers", 0) == 0:
+            msg = (f"{obs.source}: no carrier-phase observation of the satellites used: TDCP off, the filter runs "
+                   f"on the pseudoranges and Dopplers")
+            log.warning("%s", msg)
+            notes.append("no carrier phase: TDCP off")
+    rows = np.vstack([clock_rows, pr_rows, dop_rows, tdcp_rows])
+    order = {kn.MT_CLOCK: 0, kn.MT_PR: 1, kn.MT_DOP: 2, kn.MT_TDCP: 3}
     key = np.array([order[int(k)] for k in rows[:, 1]])
     rows = rows[np.lexsort((key, rows[:, 0]))]
     # the clock's start: the first epoch after the initial time with the reference system's satellites
@@ -178,14 +198,61 @@ def raw_measurements(obs: ObsData, nav: NavData, fopts, offset: float, init: Nav
     e0 = int(after[0])
     d0 = drift[e0] if not np.isnan(drift[e0]) else 0.0
     b_sig = max(SPREAD_FLOOR, float(spread[e0]))
-    notes = []
     if not spp.fix.any():
         notes.append("no epoch had a single-point fix: the ionosphere and troposphere are computed at the initial "
                      "position, and there is no heading from motion or GNSS standstill test")
     return RawMeasurements(rows=rows, sat=sat, ref=ref, isb_systems=isb_systems, t0=float(t_epoch[e0]),
                            clock0=(float(c_ref[e0]), float(d0)), isb0=isb0, clock0_sigma=(b_sig, 0.0),
                            epoch_time=t_epoch, epoch_nsat=nsat, spp=spp_log(spp, offset, obs.source),
-                           obs_source=obs.source, notes=notes)
+                           obs_source=obs.source, notes=notes, tdcp=bool(len(tdcp_rows)), tdcp_info=tdcp_info)
+
+
+def tdcp_rows_of(obs, sig, ok, idx, t_epoch, el, az, cdts, var_rate, pos0, ion, opts, fopts):
+    """The TDCP rows (:data:`sinscli.fusion.kernel.MT_TDCP`) of every satellite usable in two consecutive epochs
+    with the primary signal's carrier in both and no slip found by :func:`sinscli.gnss.phase.carrier_pairs`:
+    ``z = (Delta Phi_c, satellite-table row of the earlier epoch, its time)``, sigma ``carrier_sigma`` times the
+    two carriers' elevation/C/N0 shape, ``aux = (satellite-table row, system)``.  Returns ``(rows, info)``, info
+    the carriers seen, the pairs, the pairs left out per test and the phases of signals without a wavelength."""
+    from ..gnss.phase import carrier_pairs, slip_counts, unknown_wavelength  # --gnss-raw --tdcp only
+    from ..gnss.spp import IONO_OFF, O_IONO, O_TROPO  # --gnss-raw --tdcp only
+    step = float(np.median(np.diff(obs.time))) if len(obs) > 1 else 1.0
+    prev, dz, shape, status, _ = carrier_pairs(
+        opts, ion, obs.time, obs.start, obs.sys.astype(np.int64), obs.prn.astype(np.int64), ok, sig.l1, sig.lli1,
+        sig.f1, sig.l2, sig.lli2, sig.f2, sig.dop, var_rate, sig.cn0, el, az, cdts, np.ascontiguousarray(pos0),
+        opts[O_IONO] != IONO_OFF, opts[O_TROPO] > 0.0, MAX_TDCP_GAP * step, DOPPLER_K, fopts.raw_slip_doppler,
+        fopts.raw_slip_gf, False)
+    ep = obs.epoch_of_record()
+    cur = np.nonzero(prev >= 0)[0]
+    pv = prev[cur]
+    side = np.full(obs.n_records, -1.0)
+    side[idx] = np.arange(len(idx), dtype=float)
+    n = len(cur)
+    zeros = np.zeros(n)
+    rows = np.column_stack([t_epoch[ep[cur]], np.full(n, kn.MT_TDCP), dz[cur], side[pv], t_epoch[ep[pv]],
+                            fopts.raw_carrier_sigma * np.sqrt(shape[cur]), zeros, zeros, side[cur],
+                            obs.sys[cur].astype(float)])
+    info = {"carriers": int(np.count_nonzero(status >= 0)), "pairs": n, "slips": slip_counts(status),
+            "unknown": unknown_wavelength(obs)}
+    return rows, info
+
+
+def tdcp_notes(rec, events, info) -> list[str]:
+    """The summary's TDCP lines (``fusion: raw GNSS: ...``): the carrier pairs the filter used and rejected, the
+    slips its INS-aided test found (``events``: :data:`sinscli.fusion.kernel.EV_SLIP`), the pairs the tests
+    before the filter left out, and the phases skipped for want of a wavelength."""
+    m = rec["type"] == "tdcp"
+    acc = rec["accepted"][m]
+    slips = int(np.sum(events[:, 1] == kn.EV_SLIP)) if len(events) else 0
+    rms = float(np.sqrt(np.mean(rec["innovation"][m][acc] ** 2))) if acc.any() else float("nan")
+    pre = ", ".join(f"{k} {v}" for k, v in info["slips"].items())
+    out = [f"TDCP: {info['pairs']} carrier pairs; in the filter {int(acc.sum())} used, {int((~acc).sum())} rejected "
+           f"({slips} as cycle slips by the INS-aided test)" + (f", innovation RMS {rms * 1000:.3g} mm" if acc.any()
+                                                                  else "")
+           + f"; left out before the filter as slips: {pre}"]
+    if info.get("unknown"):
+        out.append("carrier phases of signals without a known wavelength skipped: "
+                   + ", ".join(f"{k} {v}" for k, v in info["unknown"].items()))
+    return out
 
 
 def satellite_counts(letters, rec_type, accepted):
@@ -202,4 +269,4 @@ def satellite_counts(letters, rec_type, accepted):
     return out
 
 
-__all__ = ["RawMeasurements", "raw_measurements", "raw_spp", "spp_log", "satellite_counts"]
+__all__ = ["RawMeasurements", "raw_measurements", "raw_spp", "spp_log", "satellite_counts", "tdcp_rows_of", "tdcp_notes"]

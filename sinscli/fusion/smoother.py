@@ -57,10 +57,11 @@ def _unpack(packed, k, nx, M):
 
 
 @njit(cache=True)
-def _phi(ftk, ncore, nx, Phi, clk=-1):
+def _phi(ftk, ncore, nx, Phi, clk=-1, clone=-1):
     """The transition matrix between two epochs from its stored form
     (:func:`sinscli.fusion.kernel._store_epoch`): the navigation rows over the core states, then the
-    diagonal of the other rows, then with a receiver clock (bias state ``clk``) its bias-drift entry."""
+    diagonal of the other rows, then with a receiver clock (bias state ``clk``) its bias-drift entry, then with
+    TDCP clones (states ``clone`` ..) their 4 full rows (:mod:`sinscli.fusion.tdcp`)."""
     for i in range(nx):
         for j in range(nx):
             Phi[i, j] = 0.0
@@ -74,10 +75,16 @@ def _phi(ftk, ncore, nx, Phi, clk=-1):
         u += 1
     if clk >= 0:
         Phi[clk, clk + 1] = ftk[u]
+        u += 1
+    if clone >= 0:
+        for i in range(clone, clone + 4):
+            for j in range(nx):
+                Phi[i, j] = ftk[u]
+                u += 1
 
 
 @njit(cache=True)
-def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk=-1):
+def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk=-1, clone=-1):
     """Smoothed errors ``d (E, nx)`` (of the corrected nominal at each epoch), the ``NPS`` smoothed
     covariance entries of each epoch ``ps (E, NPS)`` and the guard's record ``guard (6,)``: pivots
     clipped (not PSD beyond rounding), the most negative pivot relative to its diagonal, gains solved
@@ -128,7 +135,7 @@ def rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk=-1):
             continue
         guard[3] += 1.0
         _unpack(ep_pm, k + 1, nx, Pm)
-        _phi(ep_ft[k + 1], ncore, nx, Phi, clk)
+        _phi(ep_ft[k + 1], ncore, nx, Phi, clk, clone)
         _hold_out(Pp, Pm, Ps, Phi, nx)
         for i in range(nx):                   # rows of Phi that are diagonal (sensor states)
             diag_row[i] = True
@@ -280,14 +287,14 @@ def apply_corrections(t_rows, lat, lon, h, vel, cbn, var, bias, ep_t, d, ps, ep_
                       var[n, NVAR - 1] >= 0.0)
 
 
-def smooth_rows(time, lat, lon, h, vel, cbn, var, bias, epochs, ncore, nx, fwd, clk=-1):
+def smooth_rows(time, lat, lon, h, vel, cbn, var, bias, epochs, ncore, nx, fwd, clk=-1, clone=-1):
     """Smooth the forward output rows in place (``epochs``: the stored arrays, in time order; ``clk`` the
-    receiver clock's bias state, -1 none)."""
+    receiver clock's bias state, ``clone`` the first TDCP clone state, -1 none)."""
     if epochs is None or len(epochs[0]) == 0:
         g = np.zeros(6)
         g[4] = g[5] = -1.0
         return g
     ep_t, ep_pm, ep_pp, ep_ft, ep_x, ep_reset = epochs
-    d, ps, guard = rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk)
+    d, ps, guard = rts_backward(ep_pm, ep_pp, ep_ft, ep_x, ep_reset, ncore, nx, clk, clone)
     apply_corrections(time, lat, lon, h, vel, cbn, var, bias, ep_t, d, ps, ep_x, ncore, nx, fwd)
     return guard

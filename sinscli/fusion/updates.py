@@ -23,7 +23,8 @@ from ..nav.linalg import inv_small, rows_times
 
 @njit(cache=True)
 def innovation_covariance(P, nx, H, r, m, HP, S):
-    """``S = H P H^T + diag(r)`` of ``m`` (<= 3) components; ``HP`` (3, nx) keeps ``H P``."""
+    """``S = H P H^T + diag(r)`` of ``m`` components (an update's: <= 3; the TDCP slip test and clone, more);
+    ``HP`` (>= m, nx) keeps ``H P``."""
     rows_times(H, m, P, nx, HP)                 # HP = H P  (= (P H^T)^T, P symmetric)
     for a in range(m):
         for b in range(m):

@@ -31,6 +31,7 @@ class ObsData:
     header: dict = field(default_factory=dict)   # version, marker, approx_xyz, receiver, antenna, interval, ...
     source: str = "<memory>"
     glo_freq: dict = field(default_factory=dict)  # GLONASS slot -> frequency channel k
+    ssi: np.ndarray | None = None    # (R, K) int8 signal strength indicator (RINEX 1-9; 0 when blank)
 
     def __len__(self) -> int:
         return int(self.time.shape[0])

@@ -10,7 +10,9 @@ depend on the receiver's state (docs/raw_gnss.md, "Tightly coupled"):
   troposphere, and the noise variance with the elevation/C/N0 model, the ionosphere and troposphere residuals
   and the URA), so that the filter predicts ``P_c = rho + c dt_r + ISB``;
 * the corrected range rate ``-lambda D + c d(dt_sv)`` and its variance
-  (:func:`sinscli.gnss.spp.doppler_variance`), the filter predicting ``d rho/dt + c d(dt_r)``.
+  (:func:`sinscli.gnss.spp.doppler_variance`), the filter predicting ``d rho/dt + c d(dt_r)``;
+* the satellite clock ``c dt_sv`` at transmission, which the carrier phase needs too
+  (:mod:`sinscli.gnss.phase`).
 
 The ionosphere and troposphere need the receiver's position: an approximate one per epoch (the epoch's SPP
 fix, interpolated across epochs without one; metres of error change them by millimetres).  Per epoch also a
@@ -41,10 +43,11 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
     """Per record r: ``ok`` (usable: ephemeris, observation, above the mask), ``sx (R, 6)`` satellite ECEF
     position (m) and velocity (m/s) at transmission, ``prc`` corrected pseudorange (m), ``var_pr`` (m^2),
     ``ratec`` corrected range rate (m/s, NaN without Doppler), ``var_rate`` ((m/s)^2), ``el``, ``az`` (rad,
-    at ``pos0``).  Per epoch e: ``clk (E, N_SYS)`` the median of ``P_c - rho`` of each system's satellites at
-    the approximate ECEF position ``pos0[e]`` (m; NaN: none), ``drift (E,)`` the median of the range-rate
-    residuals at ``pos0[e]``, ``vel0[e]`` (m/s, NaN: no Doppler), ``spread (E,)`` the largest deviation from
-    the median among the satellites of the epoch's clocks (m).
+    at ``pos0``), ``cdts`` the satellite clock ``c dt_sv`` at transmission (m, relativistic term included).
+    Per epoch e: ``clk (E, N_SYS)`` the median of ``P_c - rho`` of each system's satellites at the approximate
+    ECEF position ``pos0[e]`` (m; NaN: none), ``drift (E,)`` the median of the range-rate residuals at
+    ``pos0[e]``, ``vel0[e]`` (m/s, NaN: no Doppler), ``spread (E,)`` the largest deviation from the median among
+    the satellites of the epoch's clocks (m).
 
     Arguments as :func:`sinscli.gnss.spp.solve_epochs` (per record the chosen signals, ``opts`` its options
     vector)."""
@@ -58,6 +61,7 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
     var_rate = np.full(nr, np.nan)
     rel = np.full(nr, np.nan)
     raz = np.full(nr, np.nan)
+    cdts = np.full(nr, np.nan)
     clk = np.full((ne, N_SYS), np.nan)
     drift = np.full(ne, np.nan)
     spread = np.zeros(ne)
@@ -98,6 +102,7 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
             var_pr[r] = 1.0 / w[j]
             rel[r] = el[i]
             raz[r] = az[i]
+            cdts[r] = C_LIGHT * dts[i]
             d = dop[r]
             if d == d and vel0[e, 0] == vel0[e, 0]:
                 ratec[r] = -C_LIGHT / f1[r] * d + C_LIGHT * ddts[i]
@@ -124,7 +129,7 @@ def tc_records(eph, ion, opts, sys_on, t_rx, start, rsys, rprn, p1, p2, b1, b2, 
                 for q in range(m):
                     worst = max(worst, abs(res[q] - c))
         spread[e] = worst
-    return ok, sx_out, prc, var_pr, ratec, var_rate, rel, raz, clk, drift, spread
+    return ok, sx_out, prc, var_pr, ratec, var_rate, rel, raz, cdts, clk, drift, spread
 
 
 __all__ = ["tc_records"]

@@ -5,13 +5,13 @@ One row per measured component, in the order the filter processed them:
 | column | unit | meaning |
 |---|---|---|
 | ``time`` | s | measurement time (the filter is propagated exactly to it) |
-| ``type`` | | ``gnss_pos``, ``gnss_vel``, ``zupt``, ``zaru``, ``nhc``, ``odom``, or one satellite's ``pseudorange`` or ``doppler`` (range rate, ``--gnss-raw``) |
+| ``type`` | | ``gnss_pos``, ``gnss_vel``, ``zupt``, ``zaru``, ``nhc``, ``odom``, or one satellite's ``pseudorange``, ``doppler`` (range rate, ``--gnss-raw``) or ``tdcp`` (time-differenced carrier phase, ``--tdcp``) |
 | ``axis`` | | ``e``, ``n``, ``u`` (ENU measurements), ``x``, ``y``, ``z`` (body axes) or ``los`` (a satellite's line of sight) |
-| ``innovation`` | m, m/s or rad/s | measurement minus prediction (SI: m for gnss_pos and pseudorange, rad/s for zaru, m/s otherwise) |
+| ``innovation`` | m, m/s or rad/s | measurement minus prediction (SI: m for gnss_pos, pseudorange and tdcp, rad/s for zaru, m/s otherwise) |
 | ``sigma`` | same | 1-sigma of the innovation, ``sqrt((H P H^T + R)_ii)`` |
 | ``nis`` | 1 | normalized innovation squared of the whole measurement vector (same on its rows) |
 | ``accepted`` | | ``true`` / ``false``: passed the chi-square gate and was applied |
-| ``sat`` | | the satellite (``G05``) of a pseudorange or Doppler row; the column only in files that have such rows |
+| ``sat`` | | the satellite (``G05``) of a pseudorange, Doppler or TDCP row; the column only in files that have such rows |
 
 Floats are written in shortest round-trip form.  Every value is finite and
 every sigma positive: the writer refuses anything else through the writer guard
@@ -35,7 +35,7 @@ from .limits import check_sigma
 DTYPE = np.dtype([("time", "f8"), ("type", "U16"), ("axis", "U8"), ("innovation", "f8"), ("sigma", "f8"),
                   ("nis", "f8"), ("accepted", "?")])
 COLUMNS = list(DTYPE.names)
-TYPES = ("gnss_pos", "gnss_vel", "zupt", "zaru", "nhc", "odom", "pseudorange", "doppler")
+TYPES = ("gnss_pos", "gnss_vel", "zupt", "zaru", "nhc", "odom", "pseudorange", "doppler", "tdcp")
 AXES = ("e", "n", "u", "x", "y", "z", "los")
 SAT_DTYPE = np.dtype(DTYPE.descr + [("sat", "U4")])      # with a satellite column (raw GNSS rows)
 FLOATS = ("time", "innovation", "sigma", "nis")

@@ -71,12 +71,28 @@ def raw_summary(path) -> dict:
                 continue
             s["systems"][SYS_NAMES[sy]] = {
                 "satellites": int(np.unique(obs.prn[mine]).size),
-                "per_epoch": float(mine.sum() / max(len(obs), 1)), "signals": codes}
+                "per_epoch": float(mine.sum() / max(len(obs), 1)), "signals": codes,
+                "phase": _phase_summary(obs, sy, codes, mine)}
     if nav is not None:
         s["ephemerides"] = {SYS_NAMES[int(k)]: int((nav.eph[:, 0] == k).sum()) for k in np.unique(nav.eph[:, 0])}
         s["skipped"] = {k: v[0] for k, v in nav.skipped.items()}
         s["klobuchar"] = nav.ion_gps is not None
     return s
+
+
+def _phase_summary(obs, sy, codes, mine) -> dict:
+    """Per carrier-phase signal of system ``sy``: the share of its satellite-epochs with a valid phase, the phases
+    the receiver flagged as a loss of lock (LLI bit 0: a slip) and as of unresolved half cycle (LLI bit 1)."""
+    out = {}
+    n = int(mine.sum())
+    for j, c in enumerate(codes):
+        if c[0] != "L":
+            continue
+        ok = mine & ~np.isnan(obs.values[:, j])
+        lli = obs.lli[ok, j]
+        out[c] = {"share": float(ok.sum() / max(n, 1)), "slips": int(np.count_nonzero(lli & 1)),
+                  "half_cycle": int(np.count_nonzero(lli & 2))}
+    return out
 
 
 def _counts(d: dict) -> str:
@@ -114,6 +130,11 @@ def format_raw_summary(s: dict) -> str:
         for name, d in s["systems"].items():
             lines.append(f"  {name}: {d['satellites']} satellites, {d['per_epoch']:.1f} per epoch; "
                          f"{' '.join(d['signals'])}")
+            if d.get("phase"):
+                lines.append("    carrier phase (valid share of satellite-epochs, slips flagged by the receiver, "
+                             "half cycle unresolved): " + "; ".join(
+                                 f"{c} {p['share'] * 100:.1f} %, {p['slips']} slips, {p['half_cycle']} half"
+                                 for c, p in d["phase"].items()))
     if "ephemerides" in s:
         eph = ", ".join(f"{k} {v}" for k, v in s["ephemerides"].items()) or "none decoded"
         lines.append(f"ephemerides: {eph}" + ("; Klobuchar coefficients" if s.get("klobuchar") else ""))
@@ -133,8 +154,11 @@ def convert_ubx(log_path, outdir) -> list[Path]:
     with staged_dir(outdir) as tmp:
         write_obs(tmp / "obs.rnx", obs)
         back = read_obs(tmp / "obs.rnx")
+        have = ~np.isnan(obs.values)        # the flags travel with a value (a blank field has none)
         if back.values.shape != obs.values.shape or not np.allclose(back.values, obs.values, atol=6e-4, rtol=0,
-                                                                     equal_nan=True):
+                                                                     equal_nan=True) \
+                or not np.array_equal(back.lli[have], obs.lli[have]) \
+                or (obs.ssi is not None and not np.array_equal(back.ssi[have], obs.ssi[have])):
             raise SinsError(f"{outdir / 'obs.rnx'}: internal consistency check: the RINEX file does not read back "
                             f"to the observations of {log_path}; nothing written")
         if len(nav):

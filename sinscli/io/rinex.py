@@ -238,8 +238,10 @@ def read_obs(path) -> ObsData:
     sysmap = np.full(256, -1, dtype=np.int8)
     for k, c in enumerate(SYS_CHARS):
         sysmap[ord(c)] = k
+    packed = lli[:nr]                       # LLI + 8 SSI (rinex_kernels._obs_field)
     obs = ObsData(time=t[:ne] + offset, start=start[:ne + 1].copy(), sys=sysmap[rsys[:nr]], prn=rprn[:nr],
-                  values=vals[:nr], lli=lli[:nr], types=types, flag=flag[:ne], line=rline[:nr],
+                  values=vals[:nr], lli=(packed & 7).astype(np.int8), ssi=(packed >> 3).astype(np.int8),
+                  types=types, flag=flag[:ne], line=rline[:nr],
                   epoch_line=ep_line[:ne], header=header, source=str(p), glo_freq=header.get("glo_freq", {}))
     check_obs(obs)
     return obs
@@ -564,7 +566,8 @@ def obs_text_chunks(obs: ObsData, program: str = "sins"):
                     parts.append(" " * 16)
                 else:
                     li = int(obs.lli[r, j])
-                    parts.append(f"{v:14.3f}{li if li else ' '} ")
+                    si = int(obs.ssi[r, j]) if obs.ssi is not None else 0
+                    parts.append(f"{v:14.3f}{li if li else ' '}{si if si else ' '}")
             chunk.append("".join(parts).rstrip() + "\n")
         if len(chunk) > 20000:
             yield "".join(chunk)

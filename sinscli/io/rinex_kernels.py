@@ -148,15 +148,20 @@ def _alloc(max_rows, nmax):
 
 @njit(cache=True)
 def _obs_field(buf, a, e, vals, lli, r, j):
-    """One observation field (F14.3, then the loss-of-lock digit) at byte ``a`` of a line ending at ``e`` into
-    ``vals[r, j]``/``lli[r, j]``; returns the status of :func:`parse_number`."""
+    """One observation field (F14.3, then the loss-of-lock digit, then the signal-strength digit) at byte ``a`` of a
+    line ending at ``e`` into ``vals[r, j]`` and ``lli[r, j]``, which holds ``LLI + 8 SSI`` (LLI 0-7, SSI 0-9:
+    :func:`sinscli.io.rinex.read_obs` splits them); returns the status of :func:`parse_number`."""
     v, st = parse_number(buf, a, min(a + 14, e))
     if st > 0:
         vals[r, j] = v
         if a + 14 < e:
             ch = buf[a + 14]
-            if 48 <= ch <= 57:
+            if 48 <= ch <= 55:
                 lli[r, j] = ch - 48
+        if a + 15 < e:
+            ch = buf[a + 15]
+            if 48 <= ch <= 57:
+                lli[r, j] += 8 * (ch - 48)
     return st
 
 

@@ -438,6 +438,22 @@ def _near(t: float, t_now: float) -> float:
     return t
 
 
+CPSTD_VALID = 5             # cpStdev (0.004 cycles per unit) above this: no carrier (RTKLIB's limit)
+
+
+def _carrier_lli(lock: dict, key, lock_s: float, trk: int, tt: float) -> int:
+    """The RINEX LLI of one RXM-RAWX carrier (u-blox F9 interface description, RXM-RAWX ``locktime`` and
+    ``trkStat``; the rules of RTKLIB's ``decode_rxmrawx``): bit 0 (lost lock) when the lock time is 0, shorter than
+    the time since the previous epoch ``tt`` (the loop relocked in between), or the half cycle the receiver
+    subtracts (trkStat bit 3) changed; bit 1 (half-cycle ambiguity) while the half cycle is not resolved (trkStat
+    bit 2 clear).  ``lock`` keeps each signal's state between epochs."""
+    halfc = (trk >> 3) & 1
+    prev = lock.get(key)
+    slip = lock_s == 0.0 or (prev is not None and (lock_s < tt or halfc != prev[1]))
+    lock[key] = (lock_s, halfc)
+    return (1 if slip else 0) | (0 if trk & 4 else 2)
+
+
 def _signed32(x: int) -> int:
     return x - (1 << 32) if x >> 31 else x
 
@@ -452,6 +468,7 @@ def read_ubx(path):
     skipped: dict[str, list] = {}
     epochs = []                 # (t, rows start)
     rec = {"sys": [], "prn": [], "code": [], "pr": [], "cp": [], "do": [], "cno": [], "lli": []}
+    lock = {}                   # (gnssId, svId, sigId) -> (lock time s, half cycle subtracted) at the last epoch
     last = {"t": None, "week": None}
     lnav = _LnavCollector(skipped, str(p))
     inav = _InavCollector(skipped, str(p))
@@ -476,6 +493,7 @@ def read_ubx(path):
             t = week * SECONDS_PER_WEEK + tow
             if last["t"] is not None and t <= last["t"]:
                 continue
+            tt = t - last["t"] if last["t"] is not None else 0.0
             last["t"], last["week"] = t, week
             n_raw += 1
             m = np.frombuffer(pl[16:].tobytes(), dtype=meas_dtype)
@@ -489,10 +507,11 @@ def read_ubx(path):
                 rec["prn"].append(int(r["sv"]) - (0 if gid != 1 else 100) if gid != 5 else int(r["sv"]))
                 rec["code"].append(SIG_CODE[(gid, sig)])
                 rec["pr"].append(float(r["pr"]) if trk & 1 else np.nan)
-                rec["cp"].append(float(r["cp"]) if trk & 2 else np.nan)
+                cp_ok = trk & 2 and (int(r["cps"]) & 0x0F) <= CPSTD_VALID
+                rec["cp"].append(float(r["cp"]) if cp_ok else np.nan)
                 rec["do"].append(float(r["do"]))
                 rec["cno"].append(float(r["cno"]))
-                rec["lli"].append(1 if int(r["lock"]) == 0 else 0)
+                rec["lli"].append(_carrier_lli(lock, (gid, int(r["sv"]), sig), int(r["lock"]) * 1e-3, trk, tt))
                 rec.setdefault("epoch", []).append(len(epochs) - 1)
         elif cls == 0x02 and mid == 0x13 and pl.size >= 8:           # RXM-SFRBX
             gid, sv, nwords = int(pl[0]), int(pl[1]), int(pl[4])
@@ -538,6 +557,7 @@ def _assemble(times, rec, source) -> ObsData:
     ncol = max(len(v) for v in types.values())
     values = np.full((uk.size, ncol), np.nan)
     lli = np.zeros((uk.size, ncol), np.int8)
+    ssi = np.zeros((uk.size, ncol), np.int8)
     for i in range(sys.size):
         row = inv[i]
         t = types[int(sys[i])]
@@ -547,13 +567,15 @@ def _assemble(times, rec, source) -> ObsData:
         values[row, base + 2] = rec["do"][i]
         values[row, base + 3] = rec["cno"][i]
         lli[row, base + 1] = rec["lli"][i]
+        # the RINEX signal strength of the signal's observations: C/N0 / 6, 1-9 (RINEX 3.04 5.7)
+        ssi[row, base:base + 3] = min(max(int(rec["cno"][i] // 6), 1), 9)
     r_ep = uk // 100000
     r_sys = (uk // 1000) % 100
     r_prn = uk % 1000
     counts = np.bincount(r_ep, minlength=ne)
     start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     obs = ObsData(time=times.astype(np.float64), start=start, sys=r_sys.astype(np.int8), prn=r_prn.astype(np.int16),
-                  values=values, lli=lli, types=types, flag=np.zeros(ne, np.int8),
+                  values=values, lli=lli, ssi=ssi, types=types, flag=np.zeros(ne, np.int8),
                   header={"version": 3.04, "marker": Path(source).stem, "receiver": "u-blox (UBX)"}, source=source)
     # pseudoranges outside the physical window are a receiver's invalid values: dropped (the flag said valid)
     for s, t in types.items():

@@ -10,7 +10,12 @@ tagged with the receiver's clock time (``t + dt_r``), as a free-running receiver
 Klobuchar x (1 + ``iono_error``), troposphere = Saastamoinen/DO-229 x (1 + ``tropo_error``); code noise
 follows the solver's own elevation / C/N0 model (:func:`sinscli.gnss.spp.code_variance`) with C/N0 =
 ``cn0_horizon + (cn0_zenith - cn0_horizon) sin(el)``.  Blockages: an elevation mask, an elevation mask per
-azimuth sector, and urban-canyon windows that keep only the N highest satellites.  See docs/raw_gnss.md.
+azimuth sector, and urban-canyon windows that keep only the N highest satellites (optionally with a larger code
+noise there).  Carrier phase: ``(rho + c (dt_r - dt_sv) - I + T + multipath + noise) / lambda + N``, the integer
+ambiguity ``N`` drawn per satellite and arc: a satellite that comes back after a blockage has lost lock (a new
+``N``, LLI bit 0 at its first epoch back).  Multipath: a first-order Gauss-Markov error per satellite on the code
+and on the carrier.  Cycle slips: at chosen epochs (whole or half cycles, flagged by LLI or not) and at random on
+a share of the satellite-epochs; their truth is :attr:`RawSim.slips`.  See docs/raw_gnss.md.
 """
 from __future__ import annotations
 
@@ -30,6 +35,7 @@ from ..gnss.ephemeris import NavData, finish_table, max_age, select_ephemeris
 from ..gnss.model import azel, ecef_to_geodetic, group_delay
 from ..gnss.observations import ObsData
 from ..gnss.orbits import earth_rate, sat_state
+from ..gnss.phase import carrier_shape
 from ..gnss.signals import C_LIGHT, SYS_BDS, SYS_CHARS, SYS_GAL, SYS_GPS, SYS_QZS, frequency, sys_index
 from ..io.atomic import atomic_path
 from ..io.csvcore import write_table_csv
@@ -60,8 +66,19 @@ DEFAULTS = {
     "tropo_error": 0.0,
     "elevation_mask": 5.0,       # deg: below it no satellite is tracked
     "azimuth_mask": [],          # [[az_from, az_to, el_min], ...] deg
-    "canyons": [],               # [{start: s, duration: s, keep: N}, ...] (s from the start)
+    "canyons": [],               # [{start: s, duration: s, keep: N[, code_sigma: m]}, ...] (s from the start)
+    "multipath_code": 0.0,       # m: 1-sigma of a Gauss-Markov multipath error per satellite on the code
+    "multipath_carrier": 0.0,    # m: the same on the carrier
+    "multipath_tau": 10.0,       # s: their correlation time
+    "lock_loss": True,           # a satellite back after a blockage: new ambiguity, LLI bit 0
+    "cycle_slips": [],           # [{time: s, sat: G05, cycles: n (0.5: half a cycle)[, frequency: 1|2,
+                                 #   flagged: false]}, ...] (s from the start)
+    "slip_rate": 0.0,            # share of the satellite-epochs (after an arc's first) with a random slip
+    "slip_cycles": [-3, -2, -1, -0.5, 0.5, 1, 2, 3],   # the random slips' sizes (cycles), drawn uniformly
+    "slip_flagged": 0.0,         # share of the random slips the receiver flags (LLI bit 0)
 }
+SLIP_DTYPE = np.dtype([("epoch", "i8"), ("sys", "i8"), ("prn", "i8"), ("frequency", "i8"), ("cycles", "f8"),
+                       ("flagged", "?")])
 
 
 def shipped_nav() -> Path:
@@ -81,7 +98,8 @@ def check_config(cfg: dict | None, src: str = "raw_gnss") -> dict:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
             raise SinsError(f"{src}: {k}: expected a positive number; got {v!r}")
     for k in ("clock_bias", "clock_drift", "clock_walk", "clock_bias_walk", "iono_error", "tropo_error", "elevation_mask",
-              "cn0_zenith", "cn0_horizon"):
+              "cn0_zenith", "cn0_horizon", "multipath_code", "multipath_carrier", "multipath_tau", "slip_rate",
+              "slip_flagged"):
         v = out[k]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise SinsError(f"{src}: {k}: expected a number; got {v!r}")
@@ -98,10 +116,35 @@ def check_config(cfg: dict | None, src: str = "raw_gnss") -> dict:
         if not (isinstance(m, (list, tuple)) and len(m) == 3):
             raise SinsError(f"{src}: azimuth_mask[{i}]: expected [az_from, az_to, el_min] in degrees")
     for i, c in enumerate(out["canyons"] or []):
-        if not isinstance(c, dict) or set(c) - {"start", "duration", "keep"} or len(c) != 3:
-            raise SinsError(f"{src}: canyons[{i}]: expected {{start: s, duration: s, keep: N}}")
-        if not (c["duration"] > 0 and int(c["keep"]) >= 0):
-            raise SinsError(f"{src}: canyons[{i}]: duration must be > 0 and keep >= 0")
+        if not isinstance(c, dict) or set(c) - {"start", "duration", "keep", "code_sigma"} or \
+                not {"start", "duration", "keep"} <= set(c):
+            raise SinsError(f"{src}: canyons[{i}]: expected {{start: s, duration: s, keep: N[, code_sigma: m]}}")
+        if not (c["duration"] > 0 and int(c["keep"]) >= 0 and c.get("code_sigma", 1.0) > 0):
+            raise SinsError(f"{src}: canyons[{i}]: duration and code_sigma must be > 0 and keep >= 0")
+    for k in ("multipath_code", "multipath_carrier", "slip_flagged"):
+        if out[k] < 0 or (k == "slip_flagged" and out[k] > 1):
+            raise SinsError(f"{src}: {k}: expected {'0 to 1' if k == 'slip_flagged' else '>= 0'}; got {out[k]!r}")
+    if not 0.0 <= out["slip_rate"] < 1.0:
+        raise SinsError(f"{src}: slip_rate: expected a share in [0, 1); got {out['slip_rate']!r}")
+    if out["multipath_tau"] <= 0:
+        raise SinsError(f"{src}: multipath_tau: expected a positive number of seconds; got {out['multipath_tau']!r}")
+    cyc = out["slip_cycles"]
+    if not isinstance(cyc, (list, tuple)) or not cyc or any(
+            isinstance(v, bool) or not isinstance(v, (int, float)) or v == 0 or round(2 * v) != 2 * v for v in cyc):
+        raise SinsError(f"{src}: slip_cycles: expected a list of non-zero whole or half cycles; got {cyc!r}")
+    for i, c in enumerate(out["cycle_slips"] or []):
+        if not isinstance(c, dict) or not {"time", "sat", "cycles"} <= set(c) or \
+                set(c) - {"time", "sat", "cycles", "frequency", "flagged"}:
+            raise SinsError(f"{src}: cycle_slips[{i}]: expected {{time: s, sat: G05, cycles: n[, frequency: 1|2, "
+                            f"flagged: false]}}")
+        sat = str(c["sat"])
+        if len(sat) != 3 or sat[0] not in "GECJ" or not sat[1:].isdigit():
+            raise SinsError(f"{src}: cycle_slips[{i}]: sat: expected a satellite like G05; got {sat!r}")
+        v = c["cycles"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or v == 0 or round(2 * v) != 2 * v:
+            raise SinsError(f"{src}: cycle_slips[{i}]: cycles: expected a non-zero whole or half number; got {v!r}")
+        if c.get("frequency", 1) not in (1, 2):
+            raise SinsError(f"{src}: cycle_slips[{i}]: frequency: expected 1 or 2")
     return out
 
 
@@ -182,6 +225,7 @@ class RawSim:
     visible: np.ndarray                # (E,) satellites written per epoch
     config: dict = field(default_factory=dict)
     gps_offset: float = 0.0            # GPS time - scenario time (s)
+    slips: np.ndarray = field(default_factory=lambda: np.zeros(0, SLIP_DTYPE))   # injected slips (SLIP_DTYPE)
 
 
 def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> RawSim:
@@ -232,6 +276,10 @@ def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> Ra
     for e, j in zip(*np.nonzero(visible)):
         var_code[e, j] = S.code_variance(opts, el[e, j], cn0[e, j])
         var_dop[e, j] = S.doppler_variance(opts, el[e, j], cn0[e, j])
+    for c in cfg["canyons"] or []:               # a canyon's own code noise (the variance scales with sigma^2)
+        if "code_sigma" in c:
+            win = (t_rel >= c["start"]) & (t_rel < c["start"] + c["duration"])
+            var_code[win] *= (float(c["code_sigma"]) / cfg["code_sigma"]) ** 2
     # observations: per system the codes C, L, D, S of each frequency
     types = {}
     for s in sorted(set(sys_list.tolist())):
@@ -244,6 +292,11 @@ def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> Ra
     nr = rows_e.size
     values = np.full((nr, ncol), np.nan)
     amb = rng.integers(-1000000, 1000000, size=(len(sats), nfreq)).astype(np.float64)
+    lli = np.zeros(values.shape, np.int8)
+    # arcs, multipath and slips: drawn from their own stream (the draws above stay those of a seed)
+    extra = np.random.default_rng(np.random.SeedSequence([int(seed), 0x52415747, 1]))
+    arc_amb, mp_code, mp_carr, slip_cyc, slips = _arcs_multipath_slips(cfg, extra, rows_e, rows_j, t_true, sys_list,
+                                                                      prn_list, nfreq, lli)
     for f in range(nfreq):
         g = geo[f]
         gd = g[6][rows_e, rows_j]
@@ -256,9 +309,11 @@ def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> Ra
         isb = np.array([float(cfg["system_bias"].get(SYS_CHARS[s], 0.0)) for s in sys_list])[rows_j]
         clock = C_LIGHT * (bias[rows_e] + isb - dts[rows_e, rows_j])
         code_noise = rng.standard_normal(nr) * np.sqrt(var_code[rows_e, rows_j])
-        pr = rr + clock + C_LIGHT * gd + i_f + tr + code_noise
-        carrier = (rr + clock - i_f + tr + rng.standard_normal(nr) * cfg["carrier_sigma"]) / lam \
-            + amb[rows_j, f]
+        pr = rr + clock + C_LIGHT * gd + i_f + tr + code_noise + mp_code[:, f]
+        # carrier noise: carrier_sigma times the filter's C/N0 law (gnss/phase.carrier_shape)
+        carr_sd = cfg["carrier_sigma"] * np.sqrt([carrier_shape(opts, c) for c in cn0[rows_e, rows_j]])
+        carrier = (rr + clock - i_f + tr + rng.standard_normal(nr) * carr_sd + mp_carr[:, f]) / lam \
+            + amb[rows_j, f] + arc_amb[:, f] + slip_cyc[:, f]
         rate = rdot[rows_e, rows_j] + C_LIGHT * (drift[rows_e] - ddts[rows_e, rows_j]) \
             + rng.standard_normal(nr) * np.sqrt(var_dop[rows_e, rows_j])
         dop = -rate / lam
@@ -270,12 +325,69 @@ def simulate_raw(t_true, pos, vel, nav: NavData, cfg: dict, seed: int = 0) -> Ra
     start = np.concatenate([[0], np.cumsum(counts)])
     t_tag = t_true + bias
     obs = ObsData(time=t_tag, start=start.astype(np.int64), sys=sys_list[rows_j].astype(np.int8),
-                  prn=prn_list[rows_j].astype(np.int16), values=values, lli=np.zeros(values.shape, np.int8),
+                  prn=prn_list[rows_j].astype(np.int16), values=values, lli=lli,
                   types=types, flag=np.zeros(ne, np.int8),
                   header={"version": 3.04, "marker": "SIMULATED", "receiver": "sins simulate",
                           "approx_xyz": [float(v) for v in pos[0]], "interval": 1.0 / float(cfg["rate"])},
                   source="<simulated>")
-    return RawSim(obs, nav, t_true, pos, vel, bias, drift, counts, cfg)
+    return RawSim(obs, nav, t_true, pos, vel, bias, drift, counts, cfg, slips=slips)
+
+
+def _arcs_multipath_slips(cfg, rng, rows_e, rows_j, t_true, sys_list, prn_list, nfreq, lli):
+    """Per observation row (epoch ``rows_e``, satellite ``rows_j``, in epoch order) and frequency: the ambiguity
+    added at each new arc (an integer; 0 on the first), the code and carrier multipath (m; a first-order
+    Gauss-Markov process per satellite, ``exp(-dt/tau)`` across its gaps too) and the cycles slipped so far; LLI
+    bit 0 set in ``lli`` (the carrier columns, C L D S per frequency) at a new arc (``lock_loss``) and at a
+    flagged slip.  Returns those arrays and the slips (:data:`SLIP_DTYPE`)."""
+    nr = rows_e.size
+    arc = np.zeros((nr, nfreq))
+    mpc = np.zeros((nr, nfreq))
+    mpl = np.zeros((nr, nfreq))
+    cyc = np.zeros((nr, nfreq))
+    t_rel = t_true - t_true[0]
+    chosen = {}
+    for c in cfg["cycle_slips"] or []:
+        e = int(np.argmin(np.abs(t_rel - float(c["time"]))))
+        chosen.setdefault((str(c["sat"]), e), []).append(c)
+    out = []
+    sizes = np.asarray(cfg["slip_cycles"], dtype=float)
+    for j in np.unique(rows_j):
+        idx = np.nonzero(rows_j == j)[0]
+        ep = rows_e[idx]
+        name = f"{SYS_CHARS[int(sys_list[j])]}{int(prn_list[j]):02d}"
+        start = np.ones(idx.size, bool)
+        start[1:] = ep[1:] != ep[:-1] + 1
+        for f in range(nfreq):
+            for sig, dst in ((cfg["multipath_code"], mpc), (cfg["multipath_carrier"], mpl)):
+                if sig > 0:
+                    a = np.exp(-np.diff(t_true[ep], prepend=t_true[ep[0]]) / cfg["multipath_tau"])
+                    w = rng.standard_normal(idx.size) * sig * np.sqrt(1.0 - a * a)
+                    w[0] = rng.standard_normal() * sig
+                    m = np.empty(idx.size)
+                    m[0] = w[0]
+                    for i in range(1, idx.size):
+                        m[i] = a[i] * m[i - 1] + w[i]
+                    dst[idx, f] = m
+        if cfg["lock_loss"]:
+            for i in np.nonzero(start)[0][1:]:
+                arc[idx[i:], :] += rng.integers(-1000, 1000, size=nfreq)
+                lli[idx[i], [4 * f + 1 for f in range(nfreq)]] |= 1
+        rand = rng.random(idx.size) < cfg["slip_rate"]
+        draw = sizes[rng.integers(0, sizes.size, size=idx.size)]
+        flag = rng.random(idx.size) < cfg["slip_flagged"]
+        for i in range(idx.size):
+            here = [(1, float(c["cycles"]), int(c.get("frequency", 1)), bool(c.get("flagged", False)))
+                    for c in chosen.get((name, int(ep[i])), [])]
+            if rand[i] and not start[i]:
+                here.append((0, float(draw[i]), 1, bool(flag[i])))
+            for _, n, f, flagged in here:
+                if f > nfreq or start[i]:
+                    continue
+                cyc[idx[i:], f - 1] += n
+                if flagged:
+                    lli[idx[i], 4 * (f - 1) + 1] |= 1
+                out.append((int(ep[i]), int(sys_list[j]), int(prn_list[j]), f, n, flagged))
+    return arc, mpc, mpl, cyc, np.array(out, dtype=SLIP_DTYPE)
 
 
 def with_second_constellation(nav: NavData, sys_letter: str = "E") -> NavData:
@@ -361,7 +473,9 @@ def simulate_from_result(result, cfg: dict, seed: int = 0) -> RawSim:
 
 def write_raw(sim: RawSim, outdir) -> list[Path]:
     """``obs.rnx``, ``nav.rnx`` (RINEX 3.04) and ``gnss_truth.csv`` (true GPS time, antenna lat/lon/height,
-    ENU velocity, receiver clock bias m and drift m/s) into ``outdir`` (each written atomically)."""
+    ENU velocity, receiver clock bias m and drift m/s) into ``outdir`` (each written atomically); with injected
+    cycle slips also ``gnss_slips.csv`` (true GPS time of the epoch, system number, PRN, frequency 1/2, cycles,
+    flagged 0/1)."""
     outdir = Path(outdir)
     write_obs(outdir / "obs.rnx", sim.obs)
     write_nav(outdir / "nav.rnx", sim.nav)
@@ -372,7 +486,15 @@ def write_raw(sim: RawSim, outdir) -> list[Path]:
             "clock_drift": sim.clock_drift * C_LIGHT, "satellites": sim.visible.astype(np.float64)}
     with atomic_path(outdir / "gnss_truth.csv") as tmp:
         write_table_csv(tmp, data)
-    return [outdir / "obs.rnx", outdir / "nav.rnx", outdir / "gnss_truth.csv"]
+    out = [outdir / "obs.rnx", outdir / "nav.rnx", outdir / "gnss_truth.csv"]
+    if len(sim.slips):             # the injected cycle slips: epoch time (true GPS s), satellite, frequency, cycles
+        sl = sim.slips
+        with atomic_path(outdir / "gnss_slips.csv") as tmp:
+            write_table_csv(tmp, {"time": sim.t_true[sl["epoch"]], "system": sl["sys"].astype(np.float64),
+                                  "prn": sl["prn"].astype(np.float64), "frequency": sl["frequency"].astype(np.float64),
+                                  "cycles": sl["cycles"], "flagged": sl["flagged"].astype(np.float64)})
+        out.append(outdir / "gnss_slips.csv")
+    return out
 
 
 __all__ = ["simulate_raw", "static_receiver", "from_trajectory", "write_raw", "check_config", "SYS_CHARS",
