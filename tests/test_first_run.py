@@ -1,5 +1,7 @@
-"""The first `sins navigate` after installation (issue 14): a fresh copy of the package with an empty numba
-cache says it compiles, finishes within the target, and the second run is silent about compiling.
+"""The first `sins navigate` of a package without numba's cache (a source copy; `pip install .` ships the
+cache, `_build/precompile.py`): it says it compiles, once, and the second run is silent about compiling and
+costs less than half the first.  How long the compile takes is a property of the machine and is measured by
+`benchmarks/bench_first_run.py`, not asserted here.
 
 The figure is CPU time (user + system) of the `sins navigate` process: numba compiles on one thread, so on
 an idle machine its wall time is the same, while on the shared 2-core machine (other jobs running) the wall
@@ -18,7 +20,6 @@ import pytest
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-TARGET_S = 10.0          # issue 14: first navigate <= 10 s after a fresh install
 
 
 def _run(args, cwd, env):
@@ -33,7 +34,7 @@ def _run(args, cwd, env):
 
 
 @pytest.mark.slow
-def test_first_navigate_compiles_within_target_and_says_so(tmp_path):
+def test_first_navigate_compiles_once_and_says_so(tmp_path):
     pkg = tmp_path / "install"
     shutil.copytree(ROOT / "sinscli", pkg / "sinscli", ignore=shutil.ignore_patterns("__pycache__", "*.nb[ic]"))
     # byte-compiled as pip does on install (no numba cache files: those come only from a run)
@@ -58,7 +59,7 @@ def test_first_navigate_compiles_within_target_and_says_so(tmp_path):
     assert lines[-1].startswith("sins: navigated ") and "wrote 18,001 rows" in lines[-1], r.stderr
     assert any(cache.rglob("*.nbi"))                                   # compiled into the empty cache
     figure = (f"first sins navigate (fresh copy, empty cache): {cpu:.1f} s CPU, {wall:.1f} s wall, "
-              f"load average {load:.1f} on {os.cpu_count()} CPUs (target <= {TARGET_S:.0f} s)")
+              f"load average {load:.1f} on {os.cpu_count()} CPUs")
     print("\n" + figure)
 
     r2, wall2, cpu2 = _run(args, tmp_path, env)
@@ -67,4 +68,3 @@ def test_first_navigate_compiles_within_target_and_says_so(tmp_path):
     assert r2.stderr.strip().splitlines()[-1] == lines[-1]
     print(f"second run (warm cache): {cpu2:.1f} s CPU, {wall2:.1f} s wall")
     assert cpu2 < cpu / 2
-    assert cpu <= TARGET_S, f"issue 14 target missed: {figure}"     # measured 8.6 s CPU at load 3.4 (issue 23)
