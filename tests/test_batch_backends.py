@@ -33,6 +33,7 @@ def cluster(tmp_path_factory):
         yield address, workers
 
 
+@pytest.mark.slow
 def test_same_report_on_every_back_end(tmp_path, cluster):
     address, _ = cluster
     batch = write_batch(tmp_path / "b", seeds=3, files=True)
@@ -105,6 +106,7 @@ def _hosts(out) -> dict:
     return got
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_batch_costs_no_job(tmp_path):
     """Two ``dask worker`` processes; once both have finished jobs, one is killed (SIGKILL) while the
     batch runs: the scheduler reschedules its tasks and the batch completes with every job, the same

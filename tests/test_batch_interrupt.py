@@ -55,9 +55,18 @@ def _running(proc: psutil.Process) -> bool:
         return False
 
 
-@pytest.mark.parametrize("backend", [["--jobs", "2"], ["--scheduler", "local:2"]], ids=["pool", "local2"])
-@pytest.mark.parametrize("sig, group", [(signal.SIGINT, True), (signal.SIGTERM, False), (signal.SIGHUP, True)],
-                         ids=["SIGINT-group", "SIGTERM", "SIGHUP-group"])
+def _signal_cases():
+    """Every signal on every back end; the quick run keeps SIGINT to the group on the pool and SIGTERM to the
+    process on a local Dask cluster, the rest are marked slow."""
+    quick = {("SIGINT-group", "pool"), ("SIGTERM", "local2")}
+    for sig, group, sid in ((signal.SIGINT, True, "SIGINT-group"), (signal.SIGTERM, False, "SIGTERM"),
+                            (signal.SIGHUP, True, "SIGHUP-group")):
+        for backend, bid in ((["--jobs", "2"], "pool"), (["--scheduler", "local:2"], "local2")):
+            marks = () if (sid, bid) in quick else (pytest.mark.slow,)
+            yield pytest.param(backend, sig, group, id=f"{sid}-{bid}", marks=marks)
+
+
+@pytest.mark.parametrize("backend, sig, group", list(_signal_cases()))
 def test_signal_stops_the_batch_and_leaves_only_finished_jobs(tmp_path, backend, sig, group):
     batch = write_batch(tmp_path / "b", seeds=60, duration=20.0)      # 120 jobs of ~0.1 s
     out = tmp_path / "out"

@@ -143,6 +143,7 @@ def test_per_run_batch_parquet_errors_csv_and_reproduction(tmp_path):
     np.testing.assert_allclose(single["x"].to_numpy(), errors["dcm000#s4"].to_numpy(), rtol=1e-12, atol=1e-15)
 
 
+@pytest.mark.slow
 def test_monte_carlo_of_200_runs_in_bounded_memory(tmp_path):
     """The small version of the 10,000-run benchmark (benchmarks/bench_batch.py memory)."""
     scen = {"name": "mc_rest", "start": {"lat": 30.0, "lon": 114.0, "height": 50.0, "heading": 0.0},

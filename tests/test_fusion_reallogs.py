@@ -87,20 +87,33 @@ def _rejected_outside(d, name, st, t0):
     return [t for t in rej if t not in exits]
 
 
+CAR_RUNS = {"true": ("consumer", {}), "none": (None, {}), "mems": ("mems", {}), "tactical": ("tactical", {}),
+            "opt10": ("opt10.yaml", {}), "pes10": ("pes10.yaml", {}),
+            "noadapt": ("consumer", {"adapt": {"enabled": False}}),
+            "noadapt_none": (None, {"adapt": {"enabled": False}}),
+            "noadapt_opt10": ("opt10.yaml", {"adapt": {"enabled": False}}),
+            "noadapt_pes10": ("pes10.yaml", {"adapt": {"enabled": False}})}
+
+
+class _CarRuns(dict):
+    """The car fused with each description of :data:`CAR_RUNS`, run when a test first asks for it (the runs
+    without adaptation only for the slow comparison)."""
+
+    def __init__(self, car):
+        super().__init__()
+        self.car = car
+
+    def __missing__(self, name):
+        d, st, truth = self.car
+        sensor, fusion = CAR_RUNS[name]
+        err, traj = _fuse(d, name, _config(st, sensor, **fusion), "--vehicle", "car", "-q")
+        self[name] = (err, traj, _outage_metrics(traj, truth, st))
+        return self[name]
+
+
 @pytest.fixture(scope="module")
 def car_runs(car):
-    d, st, truth = car
-    out = {}
-    for name, sensor, fusion in (("true", "consumer", {}), ("none", None, {}), ("mems", "mems", {}),
-                                 ("tactical", "tactical", {}),
-                                 ("opt10", "opt10.yaml", {}), ("pes10", "pes10.yaml", {}),
-                                 ("noadapt", "consumer", {"adapt": {"enabled": False}}),
-                                 ("noadapt_none", None, {"adapt": {"enabled": False}}),
-                                 ("noadapt_opt10", "opt10.yaml", {"adapt": {"enabled": False}}),
-                                 ("noadapt_pes10", "pes10.yaml", {"adapt": {"enabled": False}})):
-        err, traj = _fuse(d, name, _config(st, sensor, **fusion), "--vehicle", "car", "-q")
-        out[name] = (err, traj, _outage_metrics(traj, truth, st))
-    return out
+    return _CarRuns(car)
 
 
 DESCRIPTIONS = ("true", "none", "mems", "tactical", "opt10", "pes10")
@@ -149,6 +162,7 @@ def test_consumer_car_with_any_description(car_runs):
     assert rms[worst] <= 1.3 * best, rms
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["true", "none", "opt10", "pes10"])
 def test_adaptation_never_hurts(car_runs, name):
     """The adaptation never worse than none by more than 10 % inside the outages."""

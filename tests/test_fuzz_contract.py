@@ -798,9 +798,11 @@ def test_fuzz_contract(seeds, tmp_path):
 #   (-20 km, 1e8 m, and past them).  Besides the contract, every output of a successful run holds
 #   longitudes in [-180, 180) and latitudes within +-90.
 #
-# ``SINS_FUZZ_FAULT_CASES`` sets the number of cases (default 240).
+# ``SINS_FUZZ_FAULT_CASES`` sets the number of cases of the full run (default 240, marker ``slow``); the suite's
+# quick step runs the first N_FAULT_QUICK of the same seeded sequence.
 
 N_FAULT_CASES = int(os.environ.get("SINS_FUZZ_FAULT_CASES", "240"))
+N_FAULT_QUICK = 60
 ODD_NAMES = ["\udcff\udcfe", "sp ace", "q?u#e%ry", "-lead", "\u00e9t\u00e9", "nl\nname", "n" * 230]
 FAULTS = [(28, "No space left on device"), (122, "Disk quota exceeded"), (27, "File too large"),
           (5, "Input/output error")]
@@ -1079,7 +1081,16 @@ def small_disk(tmp_path_factory):
         subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
 
 
+def test_fuzz_faults_and_edges_quick(seeds, tmp_path, small_disk):
+    _fuzz_faults_and_edges(min(N_FAULT_QUICK, N_FAULT_CASES), seeds, tmp_path, small_disk)
+
+
+@pytest.mark.slow
 def test_fuzz_faults_and_edges(seeds, tmp_path, small_disk):
+    _fuzz_faults_and_edges(N_FAULT_CASES, seeds, tmp_path, small_disk)
+
+
+def _fuzz_faults_and_edges(N_FAULT_CASES, seeds, tmp_path, small_disk):
     rng = np.random.default_rng(SEED + 22)
     import faulthandler
     stacks = open(os.environ["SINS_FUZZ_TRACE"] + ".stacks", "w") if os.environ.get("SINS_FUZZ_TRACE") else None

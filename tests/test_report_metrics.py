@@ -128,7 +128,8 @@ def evo_stats(ref_file, est_file, align, kind, **rpe):
     return main_rpe.rpe(copy.deepcopy(tr), copy.deepcopy(te), rel, **flags, **rpe).stats
 
 
-@pytest.mark.parametrize("align", ["none", "se3", "sim3"])
+@pytest.mark.parametrize("align", ["se3", pytest.param("none", marks=pytest.mark.slow),
+                                   pytest.param("sim3", marks=pytest.mark.slow)])
 def test_cli_statistics_equal_evo_within_1e9(tmp_path, align):
     pytest.importorskip("evo", reason="evo is in the test extra: pip install '.[test]'")
     from evo.core.units import Unit
