@@ -437,6 +437,7 @@ def simdir(tmp_path_factory):
     return d, offset
 
 
+@pytest.mark.slow        # compiles the tightly coupled kernels a second time, in a child process: 100 s in CI
 def test_cli_gnss_raw(simdir):
     """`sins navigate IMU --gnss-raw OBS --nav NAV --time-offset ... --vehicle car --smooth --innovations F`: the
     summary's satellite, canyon and clock lines, one innovation row per satellite and measurement with the
