@@ -1,7 +1,8 @@
 """The first `sins navigate` of a package without numba's cache (a source copy; `pip install .` ships the
 cache, `_build/precompile.py`): it says it compiles, once, and the second run is silent about compiling and
-costs less than half the first.  How long the compile takes is a property of the machine and is measured by
-`benchmarks/bench_first_run.py`, not asserted here.
+costs less than half the first.  How long the compile takes is a property of the machine: the test prints it
+and does not assert it (the first command of an installed package, which ships the cache, is
+`tests/test_first_run_install.py`'s).
 
 The figure is CPU time (user + system) of the `sins navigate` process: numba compiles on one thread, so on
 an idle machine its wall time is the same, while on the shared 2-core machine (other jobs running) the wall

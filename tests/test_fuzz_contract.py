@@ -1090,7 +1090,7 @@ def test_fuzz_faults_and_edges(seeds, tmp_path, small_disk):
     _fuzz_faults_and_edges(N_FAULT_CASES, seeds, tmp_path, small_disk)
 
 
-def _fuzz_faults_and_edges(N_FAULT_CASES, seeds, tmp_path, small_disk):
+def _fuzz_faults_and_edges(n_cases, seeds, tmp_path, small_disk):
     rng = np.random.default_rng(SEED + 22)
     import faulthandler
     stacks = open(os.environ["SINS_FUZZ_TRACE"] + ".stacks", "w") if os.environ.get("SINS_FUZZ_TRACE") else None
@@ -1098,7 +1098,7 @@ def _fuzz_faults_and_edges(N_FAULT_CASES, seeds, tmp_path, small_disk):
     by_kind = collections.defaultdict(collections.Counter)
     failures = collections.defaultdict(list)
     t_start = time.perf_counter()
-    for k in range(N_FAULT_CASES):
+    for k in range(n_cases):
         case_dir = tmp_path / f"f{k:04d}"
         case_dir.mkdir()
         desc, args, outputs, out_dir, names, kind, setup = make_fault_case(rng, seeds, case_dir, small_disk)
@@ -1124,13 +1124,13 @@ def _fuzz_faults_and_edges(N_FAULT_CASES, seeds, tmp_path, small_disk):
         faulthandler.cancel_dump_traceback_later()
         stacks.close()
     elapsed = time.perf_counter() - t_start
-    summary = {"cases": N_FAULT_CASES, "seconds": round(elapsed, 1), "disk_full_cases": small_disk is not None,
+    summary = {"cases": n_cases, "seconds": round(elapsed, 1), "disk_full_cases": small_disk is not None,
                "classes": dict(counts), "by_kind": {k: dict(v) for k, v in sorted(by_kind.items())}}
     print(f"\nfuzz faults and edges: {json.dumps(summary)}")
     if os.environ.get("SINS_FUZZ_REPORT"):
         report = Path(os.environ["SINS_FUZZ_REPORT"]).with_suffix(".faults.json")
         report.write_text(json.dumps({**summary, "failures": {c: v[:50] for c, v in failures.items()}}, indent=1))
     text = "\n".join(f"[{c}] {m}" for c, v in failures.items() for m in v[:12])
-    assert not failures, f"{sum(map(len, failures.values()))} of {N_FAULT_CASES} cases broke the contract " \
+    assert not failures, f"{sum(map(len, failures.values()))} of {n_cases} cases broke the contract " \
                          f"({dict(counts)}):\n{text}"
-    assert counts["ok"] > N_FAULT_CASES // 10 and counts["refused"] > N_FAULT_CASES // 10
+    assert counts["ok"] > n_cases // 10 and counts["refused"] > n_cases // 10
